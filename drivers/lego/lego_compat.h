@@ -1,0 +1,28 @@
+/* SPDX-License-Identifier: GPL-2.0 */
+/*
+ * Differences between the kernels these drivers build against (6.1 LTS up to
+ * current mainline), kept in one place. The LEGO_HAVE_* flags are set by the
+ * top-level Kbuild, which probes the target kernel's headers.
+ */
+#ifndef _LEGO_COMPAT_H
+#define _LEGO_COMPAT_H
+
+#include <linux/module.h>
+#include <kunit/visibility.h>
+
+#ifdef LEGO_HAVE_STRING_NS
+#define LEGO_IMPORT_KUNIT_NS() MODULE_IMPORT_NS("EXPORTED_FOR_KUNIT_TESTING")
+#else
+#define LEGO_IMPORT_KUNIT_NS() MODULE_IMPORT_NS(EXPORTED_FOR_KUNIT_TESTING)
+#endif
+
+/* Types of the flag buffer and of the count in tty_ldisc_ops::receive_buf. */
+#ifdef LEGO_HAVE_TTY_RX_SIZE_T
+#define LEGO_TTY_FLAG	u8
+#define LEGO_TTY_COUNT	size_t
+#else
+#define LEGO_TTY_FLAG	char
+#define LEGO_TTY_COUNT	int
+#endif
+
+#endif /* _LEGO_COMPAT_H */

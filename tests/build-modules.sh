@@ -1,0 +1,32 @@
+#!/usr/bin/env bash
+# Build the modules against one kernel tree in a build directory of their own,
+# with W=1 (and sparse with --sparse), and fail on any compiler or sparse
+# warning.
+#   tests/build-modules.sh [--sparse] KDIR OUTDIR
+set -euo pipefail
+sparse=
+if [ "${1:-}" = --sparse ]; then
+	sparse="C=2"
+	shift
+fi
+kdir=$1
+out=$2
+top=$(cd "$(dirname "$0")/.." && pwd)
+
+mkdir -p "$out"
+rsync -a --delete --exclude '*.o' --exclude '*.ko' --exclude '.*.cmd' --exclude '*.mod*' \
+	--exclude 'modules.order' --exclude 'Module.symvers' \
+	"$top/Kbuild" "$top/Makefile" "$top/drivers" "$top/include" "$out/"
+log=$out/build.log
+if ! make -C "$out" KDIR="$kdir" $sparse modules >"$log" 2>&1; then
+	cat "$log" >&2
+	echo "build-modules: build against $kdir failed" >&2
+	exit 1
+fi
+# Compiler warnings say "warning:"; sparse says "warning:" or "error:".
+if grep -E '(warning|error):' "$log" >&2; then
+	echo "build-modules: warnings building against $kdir (log: $log)" >&2
+	exit 1
+fi
+n=$(find "$out" -name '*.ko' | wc -l)
+echo "build-modules: $n modules built against $kdir${sparse:+ (sparse clean)}" >&2

@@ -1,0 +1,80 @@
+#!/usr/bin/env bash
+# `make check`: the project's one test command.
+#
+#  1. installs what it needs (Debian and PyPI packages),
+#  2. builds (or takes from the cache) the 6.12 test kernel,
+#  3. builds the modules against it with W=1 and sparse, and against 6.1,
+#  4. runs checkpatch --strict,
+#  5. boots the test VM: every KUnit suite, then the guest tests,
+#  6. scans the guest console for splats,
+#  7. prints the time of each phase and one line "N passed, N failed".
+#
+# KVER=6.12 is the test kernel series; LEGO_CACHE moves the kernel cache.
+set -uo pipefail
+top=$(cd "$(dirname "$0")/.." && pwd)
+cd "$top"
+
+kver=${KVER:-6.12}
+build=${LEGO_BUILD_DIR:-$top/.build}
+results=$build/results
+console=$build/console.log
+phase_names=()
+phase_times=()
+phase_fail=0
+
+phase() {
+	local name=$1
+	shift
+	local t0=$SECONDS
+	echo "==> $name"
+	"$@"
+	local rc=$?
+	phase_names+=("$name")
+	phase_times+=("$((SECONDS - t0))")
+	if [ $rc -ne 0 ]; then
+		echo "==> $name FAILED (exit $rc)"
+		[ -n "${PHASE_NOCOUNT:-}" ] || phase_fail=$((phase_fail + 1))
+	fi
+	return $rc
+}
+
+summary() {
+	local passed=${1:-0} failed=${2:-0}
+	echo
+	echo "Phase times:"
+	for i in "${!phase_names[@]}"; do
+		printf '  %-34s %5s s\n' "${phase_names[$i]}" "${phase_times[$i]}"
+	done
+	printf '  %-34s %5s s\n' "total" "$SECONDS"
+	failed=$((failed + phase_fail))
+	echo "$passed passed, $failed failed"
+	[ "$failed" -eq 0 ]
+	exit $?
+}
+
+newest_61_headers() {
+	ls -d /usr/src/linux-headers-6.1.*-amd64 2>/dev/null | sort -V | tail -n 1
+}
+
+phase "install dependencies" tests/install-deps.sh || summary
+phase "test kernel $kver" tests/kernel/build-kernel.sh "$kver" >/dev/null || summary
+tree=$(tests/kernel/build-kernel.sh --tree-only "$kver")
+phase "modules for $kver (W=1, sparse)" tests/build-modules.sh --sparse "$tree" "$build/modules-$kver" || summary
+h61=$(newest_61_headers)
+phase "modules for 6.1 (W=1, sparse)" tests/build-modules.sh --sparse "$h61" "$build/modules-6.1-headers"
+phase "checkpatch --strict" tests/checkpatch.sh
+
+rm -rf "$results"
+mkdir -p "$results"
+# Test failures in the VM are counted from its results; only a VM that
+# failed with no failed test (a crash, a timeout) counts as one more failure.
+PHASE_NOCOUNT=1 LEGO_VM_NO_BUILD=1 phase "VM: KUnit and guest tests" \
+	tests/vm-run --kver "$kver" --log "$console" --share "$results" -- \
+	tests/guest/run-suite.sh "$results" tests/guest
+vm_rc=$?
+phase "console splat scan" tests/scan-console.py "$console"
+
+python3 tests/summarize.py "$results" "$tree" || phase_fail=$((phase_fail + 1))
+read -r passed failed _ < "$results/totals" 2>/dev/null || { passed=0; failed=1; }
+[ "$vm_rc" -ne 0 ] && [ "$failed" -eq 0 ] && phase_fail=$((phase_fail + 1))
+summary "$passed" "$failed"

@@ -1,0 +1,31 @@
+#!/usr/bin/env bash
+# checkpatch.pl --strict over every kernel source file of the project.
+# Uses the checkpatch.pl of the cached test kernel tree, else of any kernel
+# source found on the machine.
+set -euo pipefail
+top=$(cd "$(dirname "$0")/.." && pwd)
+cd "$top"
+
+cp=${CHECKPATCH:-}
+if [ -z "$cp" ]; then
+	tree=$(tests/kernel/build-kernel.sh --tree-only 6.12 2>/dev/null || true)
+	[ -n "$tree" ] && [ -x "$tree/scripts/checkpatch.pl" ] && cp=$tree/scripts/checkpatch.pl
+fi
+if [ -z "$cp" ]; then
+	d=${LEGO_CACHE:-${XDG_CACHE_HOME:-$HOME/.cache}/lego-mindstorms-linux}/checkpatch
+	if [ ! -x "$d/scripts/checkpatch.pl" ]; then
+		mkdir -p "$d"
+		tar -xf /usr/src/linux-source-6.12.tar.xz -C "$d" --strip-components=1 \
+			linux-source-6.12/scripts/checkpatch.pl linux-source-6.12/scripts/spelling.txt \
+			linux-source-6.12/scripts/const_structs.checkpatch
+	fi
+	cp=$d/scripts/checkpatch.pl
+fi
+
+mapfile -t files < <(git ls-files -co --exclude-standard -- 'drivers/*.[ch]' 'include/*.h' 'tools/*.[ch]' | sort)
+[ ${#files[@]} -gt 0 ] || { echo "checkpatch: no files"; exit 1; }
+"$cp" --strict --no-tree --quiet --show-types -f "${files[@]}" || {
+	echo "checkpatch: not clean" >&2
+	exit 1
+}
+echo "checkpatch: ${#files[@]} files clean"

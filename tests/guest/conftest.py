@@ -1,0 +1,33 @@
+"""Shared fixtures for the guest tests (run inside the test VM)."""
+import os
+import subprocess
+
+import pytest
+
+
+def module_path(name):
+    """Path of a module built for the running test kernel."""
+    for mod in os.environ.get('LEGO_MODULES', '').split():
+        if os.path.basename(mod) == name + '.ko':
+            return mod
+    raise LookupError(f'{name}.ko not in LEGO_MODULES')
+
+
+def loaded(name):
+    return os.path.isdir(f'/sys/module/{name}')
+
+
+@pytest.fixture(autouse=True)
+def in_vm():
+    if os.environ.get('LEGO_IN_VM') != '1':
+        pytest.skip('guest tests run inside the test VM (tests/vm-run)')
+
+
+@pytest.fixture
+def ev3_module():
+    """The EV3 module loaded (and left loaded) for a test."""
+    if not loaded('lego_ev3_uart'):
+        subprocess.run(['insmod', module_path('lego_ev3_uart')], check=True)
+    yield 'lego_ev3_uart'
+    if not loaded('lego_ev3_uart'):
+        subprocess.run(['insmod', module_path('lego_ev3_uart')], check=True)

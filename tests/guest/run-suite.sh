@@ -1,0 +1,55 @@
+#!/bin/sh
+# Runs inside the test VM (through tests/vm-run) for `make check`:
+#   1. loads every KUnit module and saves each suite's KTAP results,
+#   2. runs the guest integration tests with pytest,
+#   3. asks kmemleak for a scan.
+# Usage: tests/guest/run-suite.sh OUTDIR [PYTEST ARGS...]
+out=$1
+shift
+mkdir -p "$out/kunit"
+rc=0
+
+suites() {
+	ls /sys/kernel/debug/kunit 2>/dev/null | sort
+}
+
+echo "=== KUnit"
+kos=$(find "$LEGO_BUILD" -name '*_test.ko' | sort)
+if [ -z "$kos" ]; then
+	echo "run-suite: no KUnit module was built"
+	echo "no KUnit module in $LEGO_BUILD" >> "$out/kunit/failed-modules"
+	rc=1
+fi
+for ko in $kos; do
+	before=$(suites)
+	if ! insmod "$ko"; then
+		echo "run-suite: insmod $ko failed"
+		echo "$ko" >> "$out/kunit/failed-modules"
+		rc=1
+		continue
+	fi
+	added=$(suites | grep -vxF "$before")
+	if [ -z "$added" ]; then
+		echo "run-suite: $ko registered no KUnit suite"
+		echo "$ko" >> "$out/kunit/failed-modules"
+		rc=1
+	fi
+	for s in $added; do
+		cat "/sys/kernel/debug/kunit/$s/results" > "$out/kunit/$s.ktap"
+	done
+	rmmod "$ko" || rc=1
+done
+
+echo "=== guest tests"
+python3 -m pytest -p no:cacheprovider --color=no -v --junitxml="$out/guest.xml" "$@" || rc=1
+
+echo "=== kmemleak"
+if [ -w /sys/kernel/debug/kmemleak ]; then
+	# Two scans: kmemleak reports an object only once it has been seen
+	# unreferenced in more than one scan.
+	echo scan > /sys/kernel/debug/kmemleak
+	sleep 6
+	echo scan > /sys/kernel/debug/kmemleak
+	cat /sys/kernel/debug/kmemleak
+fi
+exit $rc

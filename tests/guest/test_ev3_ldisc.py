@@ -1,0 +1,107 @@
+"""The EV3 UART line discipline registers and attaches to ttys."""
+import errno
+import fcntl
+import os
+import struct
+import subprocess
+import termios
+
+import pytest
+
+from conftest import module_path, loaded
+
+N_TTY = 0
+N_LEGOEV3 = 29
+
+
+def set_ldisc(fd, num):
+    fcntl.ioctl(fd, termios.TIOCSETD, struct.pack('i', num))
+
+
+def get_ldisc(fd):
+    return struct.unpack('i', fcntl.ioctl(fd, termios.TIOCGETD, b'\0' * 4))[0]
+
+
+def registered_ldiscs():
+    with open('/proc/tty/ldiscs') as f:
+        return dict((name, int(num)) for name, num in (line.split() for line in f))
+
+
+def test_ldisc_registered_as_29(ev3_module):
+    assert registered_ldiscs().get('n_legoev3') == N_LEGOEV3
+
+
+def test_attach_to_pty_and_detach(ev3_module):
+    master, slave = os.openpty()
+    try:
+        set_ldisc(slave, N_LEGOEV3)
+        assert get_ldisc(slave) == N_LEGOEV3
+        # Bytes from the "sensor" side reach the discipline without harm.
+        os.write(master, bytes(range(256)) * 4)
+        set_ldisc(slave, N_TTY)
+        assert get_ldisc(slave) == N_TTY
+    finally:
+        os.close(slave)
+        os.close(master)
+
+
+def test_attach_needs_privilege(ev3_module):
+    pid = os.fork()
+    if pid == 0:
+        code = 3
+        try:
+            os.setgid(65534)
+            os.setuid(65534)
+            master, slave = os.openpty()
+            try:
+                set_ldisc(slave, N_LEGOEV3)
+                code = 1
+            except OSError as e:
+                code = 0 if e.errno == errno.EPERM else 2
+        finally:
+            os._exit(code)
+    _, status = os.waitpid(pid, 0)
+    assert os.waitstatus_to_exitcode(status) == 0, \
+        'an unprivileged user attached the discipline (or got the wrong errno)'
+
+
+def test_module_pinned_while_attached(ev3_module):
+    master, slave = os.openpty()
+    try:
+        set_ldisc(slave, N_LEGOEV3)
+        r = subprocess.run(['rmmod', 'lego_ev3_uart'], capture_output=True)
+        assert r.returncode != 0
+        assert loaded('lego_ev3_uart')
+    finally:
+        os.close(slave)
+        os.close(master)
+
+
+def test_module_unload_and_reload(ev3_module):
+    subprocess.run(['rmmod', 'lego_ev3_uart'], check=True)
+    assert 'n_legoev3' not in registered_ldiscs()
+    master, slave = os.openpty()
+    try:
+        with pytest.raises(OSError) as e:
+            set_ldisc(slave, N_LEGOEV3)
+        assert e.value.errno == errno.EINVAL
+    finally:
+        os.close(slave)
+        os.close(master)
+    subprocess.run(['insmod', module_path('lego_ev3_uart')], check=True)
+    assert registered_ldiscs().get('n_legoev3') == N_LEGOEV3
+
+
+def test_ldisc_number_parameter(ev3_module):
+    subprocess.run(['rmmod', 'lego_ev3_uart'], check=True)
+    try:
+        subprocess.run(['insmod', module_path('lego_ev3_uart'), 'ldisc_num=30'], check=True)
+        assert registered_ldiscs().get('n_legoev3') == 30
+        with open('/sys/module/lego_ev3_uart/parameters/ldisc_num') as f:
+            assert f.read().strip() == '30'
+    finally:
+        subprocess.run(['rmmod', 'lego_ev3_uart'], check=True)
+    r = subprocess.run(['insmod', module_path('lego_ev3_uart'), 'ldisc_num=99'],
+                       capture_output=True)
+    assert r.returncode != 0
+    assert not loaded('lego_ev3_uart')

@@ -1,0 +1,46 @@
+#!/usr/bin/env bash
+# Install everything `make check` needs on a fresh Debian machine: the kernel
+# sources, QEMU, sparse, the kernel build dependencies and the Python packages
+# the guest tests use. Does nothing (and needs no network) when all is there.
+set -euo pipefail
+here=$(cd "$(dirname "$0")" && pwd)
+
+debs=(
+	linux-source-6.12 linux-source-6.1 linux-headers-amd64
+	qemu-system-x86 sparse build-essential bc bison flex libelf-dev libssl-dev
+	cpio busybox-static kmod util-linux rsync python3 perl
+)
+
+missing=()
+for p in "${debs[@]}"; do
+	dpkg-query -W -f '${Status}\n' "$p" 2>/dev/null | grep -q '^install ok installed' || missing+=("$p")
+done
+
+if [ ${#missing[@]} -gt 0 ]; then
+	echo "install-deps: apt-get install ${missing[*]}"
+	sudo=; [ "$(id -u)" = 0 ] || sudo=sudo
+	export DEBIAN_FRONTEND=noninteractive
+	$sudo apt-get update -qq
+	$sudo apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+fi
+
+py=$(command -v python3)
+if ! "$py" - "$here/requirements.txt" <<'PYEOF'
+import sys, importlib.metadata as md
+import re
+ok = True
+for line in open(sys.argv[1]):
+    line = line.split('#')[0].strip()
+    if not line:
+        continue
+    name = re.split(r'[<>=!~ ]', line)[0]
+    try:
+        md.version(name)
+    except md.PackageNotFoundError:
+        ok = False
+sys.exit(0 if ok else 1)
+PYEOF
+then
+	echo "install-deps: pip install -r tests/requirements.txt"
+	"$py" -m pip install -q -r "$here/requirements.txt"
+fi

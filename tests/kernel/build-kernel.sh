@@ -1,0 +1,84 @@
+#!/usr/bin/env bash
+# Build (or find in the cache) the QEMU test kernel for one kernel series.
+#
+#   tests/kernel/build-kernel.sh [--tree-only] [SERIES]   SERIES: 6.12 (default) or 6.1
+#
+# --tree-only prints the cached tree if it is complete and builds nothing.
+#
+# The source comes from Debian's linux-source-SERIES package. The build lives in
+#   $LEGO_CACHE/kernel-SERIES-<key>/linux
+# where <key> hashes the package version, the config fragment and the recipe number, so
+# the kernel is rebuilt only when one of them changes. Prints the build directory
+# on stdout (progress goes to stderr and to build.log in the cache entry).
+set -euo pipefail
+
+tree_only=0
+if [ "${1:-}" = --tree-only ]; then
+	tree_only=1
+	shift
+fi
+series=${1:-6.12}
+here=$(cd "$(dirname "$0")" && pwd)
+fragment=$here/test.config
+tarball=/usr/src/linux-source-$series.tar.xz
+cache=${LEGO_CACHE:-${XDG_CACHE_HOME:-$HOME/.cache}/lego-mindstorms-linux}
+
+[ -r "$tarball" ] || { echo "build-kernel: $tarball missing (apt-get install linux-source-$series)" >&2; exit 1; }
+pkgver=$(dpkg-query -W -f '${Version}' "linux-source-$series")
+# Bump when the steps below change in a way that changes the result.
+recipe=1
+key=$( { echo "$series $pkgver recipe $recipe"; cat "$fragment"; } | sha256sum | cut -c1-16)
+entry=$cache/kernel-$series-$key
+tree=$entry/linux
+
+if [ -f "$entry/.done" ]; then
+	echo "$tree"
+	exit 0
+fi
+[ "$tree_only" = 0 ] || exit 1
+
+mkdir -p "$entry"
+exec 3>&2
+log=$entry/build.log
+echo "build-kernel: building linux-source-$series $pkgver into $entry (log: $log)" >&3
+rm -rf "$tree"
+mkdir -p "$tree"
+tar -xf "$tarball" -C "$tree" --strip-components=1
+
+jobs=$(nproc)
+{
+	make -C "$tree" tinyconfig
+	"$tree/scripts/kconfig/merge_config.sh" -m -O "$tree" "$tree/.config" "$fragment"
+	make -C "$tree" olddefconfig
+} >"$log" 2>&1
+
+# merge_config only warns; a requested option that did not survive is an error here.
+missing=0
+while IFS= read -r line; do
+	case "$line" in
+	CONFIG_*=*)
+		grep -qxF "$line" "$tree/.config" || { echo "build-kernel: not set as requested: $line" >&3; missing=1; }
+		;;
+	"# CONFIG_"*" is not set")
+		opt=${line#\# }; opt=${opt%% *}
+		grep -q "^$opt=" "$tree/.config" && { echo "build-kernel: should be off: $opt" >&3; missing=1; }
+		;;
+	esac
+done <"$fragment"
+[ "$missing" = 0 ] || exit 1
+
+start=$(date +%s)
+# Print a dot a minute so a long cold build shows progress.
+( while sleep 60; do printf '.' >&3; done ) &
+ticker=$!
+trap 'kill $ticker 2>/dev/null || true' EXIT
+if ! make -C "$tree" -j"$jobs" bzImage modules >>"$log" 2>&1; then
+	echo >&3
+	tail -n 40 "$log" >&3
+	exit 1
+fi
+kill $ticker 2>/dev/null || true
+echo >&3
+echo "build-kernel: built in $(( $(date +%s) - start )) s" >&3
+touch "$entry/.done"
+echo "$tree"
