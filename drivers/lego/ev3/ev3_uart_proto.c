@@ -1,17 +1,51 @@
 // SPDX-License-Identifier: GPL-2.0
 /*
- * LEGO MINDSTORMS EV3 UART sensor protocol: message framing.
+ * LEGO MINDSTORMS EV3 UART sensor protocol core.
  *
- * Every message but the one-byte system messages ends in a checksum, the
- * XOR of 0xff with every byte before it. The payload length is a power of
- * two given by the header; INFO messages carry one more byte (the info type)
- * between the header and the payload.
+ * Framing: every message but the one-byte system messages ends in a
+ * checksum, the XOR of 0xff with every byte before it. The payload length is
+ * a power of two given by the header; INFO messages carry one more byte (the
+ * info type) between the header and the payload. Multi-byte values are
+ * little endian and are assembled byte by byte here, so neither the host's
+ * byte order nor its alignment rules matter.
+ *
+ * A connection goes SYNC -> INFO -> ACKED -> DATA (see enum ev3_uart_state).
+ * Nothing a sensor sends is trusted: every length, mode number, count and
+ * range is checked before use, and any error in the handshake sends the
+ * parser back to SYNC, where only a valid TYPE message gets it out again.
+ *
+ * Real sensors do not follow the protocol to the letter; each deviation we
+ * tolerate is marked "Quirk:" below.
  */
+#include <linux/errno.h>
 #include <linux/export.h>
+#include <linux/kernel.h>
+#include <linux/limits.h>
+#include <linux/math64.h>
 #include <linux/module.h>
+#include <linux/overflow.h>
+#include <linux/string.h>
 
 #include "lego_compat.h"
 #include "ev3_uart_proto.h"
+
+/* Defaults for the ranges a sensor does not send (LEGO's firmware uses these). */
+#define EV3_UART_F32_0		0x00000000	/* 0.0 */
+#define EV3_UART_F32_1		0x3f800000	/* 1.0 */
+#define EV3_UART_F32_100	0x42c80000	/* 100.0 */
+#define EV3_UART_F32_1023	0x447fc000	/* 1023.0 */
+
+enum { EV3_UART_STASH_RAW, EV3_UART_STASH_PCT, EV3_UART_STASH_SI };
+
+static u16 ev3_get_le16(const u8 *p)
+{
+	return p[0] | p[1] << 8;
+}
+
+static u32 ev3_get_le32(const u8 *p)
+{
+	return p[0] | p[1] << 8 | p[2] << 16 | (u32)p[3] << 24;
+}
 
 /**
  * ev3_uart_checksum() - compute the checksum of a message
@@ -64,3 +98,841 @@ unsigned int ev3_uart_msg_len(u8 hdr)
 	}
 }
 EXPORT_SYMBOL_IF_KUNIT(ev3_uart_msg_len);
+
+/**
+ * ev3_uart_data_size() - size in bytes of one value of a data type
+ * @type: an &enum ev3_uart_data_type
+ *
+ * Return: 1, 2 or 4; 0 for an unknown type.
+ */
+unsigned int ev3_uart_data_size(enum ev3_uart_data_type type)
+{
+	switch (type) {
+	case EV3_UART_DATA_S8:
+		return 1;
+	case EV3_UART_DATA_S16:
+		return 2;
+	case EV3_UART_DATA_S32:
+	case EV3_UART_DATA_FLOAT:
+		return 4;
+	}
+	return 0;
+}
+EXPORT_SYMBOL_IF_KUNIT(ev3_uart_data_size);
+
+static const u32 ev3_pow10[EV3_UART_MAX_DECIMALS + 1] = {
+	1, 10, 100, 1000, 10000, 100000, 1000000, 10000000, 100000000,
+	1000000000,
+};
+
+/**
+ * ev3_uart_f32_to_fixed() - convert an IEEE 754 single to fixed point
+ * @bits: the float's bit pattern, as it came off the wire
+ * @decimals: decimal places to keep, 0 to %EV3_UART_MAX_DECIMALS
+ * @out: the value times 10^@decimals, rounded half away from zero
+ *
+ * The kernel does no floating point, so this works on the bits alone.
+ *
+ * Return: 0, -%ERANGE for NaN, infinities and values that do not fit an s32,
+ * -%EINVAL for too many decimals.
+ */
+int ev3_uart_f32_to_fixed(u32 bits, unsigned int decimals, s32 *out)
+{
+	bool neg = bits >> 31;
+	int exp = (bits >> 23) & 0xff;
+	u64 v = bits & 0x7fffff;
+	int shift;
+
+	if (decimals > EV3_UART_MAX_DECIMALS)
+		return -EINVAL;
+	if (exp == 0xff)
+		return -ERANGE;
+	if (exp == 0) {
+		/* Zero and subnormals (below 1.2e-38) round to zero. */
+		*out = 0;
+		return 0;
+	}
+
+	/* value = (2^23 + fraction) * 2^(exp - 150); the product is < 2^54. */
+	v = (v | 0x800000) * ev3_pow10[decimals];
+	shift = exp - 150;
+	if (shift >= 0) {
+		/* v >= 2^23, so anything shifted by 9 or more exceeds 2^32. */
+		if (shift > 8)
+			return -ERANGE;
+		v <<= shift;
+	} else if (shift < -62) {
+		v = 0;
+	} else {
+		v = (v + (1ULL << (-shift - 1))) >> -shift;
+	}
+
+	if (v > (u64)S32_MAX + neg)
+		return -ERANGE;
+	*out = neg ? (s32)-(s64)v : (s32)v;
+	return 0;
+}
+EXPORT_SYMBOL_IF_KUNIT(ev3_uart_f32_to_fixed);
+
+/**
+ * ev3_uart_read_value() - decode one value of a DATA payload
+ * @mode: the mode the payload belongs to
+ * @data: the payload
+ * @len: its length
+ * @index: which value, from 0
+ * @out: the value; floats are scaled by 10^decimals of the mode
+ *
+ * Return: 0, -%ENXIO if the mode has no value @index, -%EINVAL if the payload
+ * is too short, -%ERANGE for a float that is not a number or does not fit.
+ */
+int ev3_uart_read_value(const struct ev3_uart_mode *mode, const u8 *data,
+			size_t len, unsigned int index, s32 *out)
+{
+	unsigned int size = ev3_uart_data_size(mode->data_type);
+	const u8 *p;
+
+	if (index >= mode->num_values || !size)
+		return -ENXIO;
+	if ((index + 1) * size > len)
+		return -EINVAL;
+
+	p = data + index * size;
+	switch (mode->data_type) {
+	case EV3_UART_DATA_S8:
+		*out = (s8)p[0];
+		return 0;
+	case EV3_UART_DATA_S16:
+		*out = (s16)ev3_get_le16(p);
+		return 0;
+	case EV3_UART_DATA_S32:
+		*out = (s32)ev3_get_le32(p);
+		return 0;
+	default:
+		return ev3_uart_f32_to_fixed(ev3_get_le32(p), mode->decimals, out);
+	}
+}
+EXPORT_SYMBOL_IF_KUNIT(ev3_uart_read_value);
+
+/**
+ * ev3_uart_scale_value() - the value ev3dev's lego-sensor class shows
+ * @mode: the mode the value belongs to
+ * @raw: a value from ev3_uart_read_value()
+ *
+ * When the RAW and SI ranges differ, the value is mapped linearly from the
+ * RAW range onto the SI range (SI times 10^decimals), with C's truncating
+ * integer division, exactly as ev3dev does, so that programs written for
+ * ev3dev read the same numbers. For the LEGO sensors both ranges agree and
+ * the raw value is shown unchanged.
+ *
+ * Return: the scaled value, saturated to the s32 range.
+ */
+s32 ev3_uart_scale_value(const struct ev3_uart_mode *mode, s32 raw)
+{
+	s64 raw_span = (s64)mode->raw_max - mode->raw_min;
+	s64 si_span = (s64)mode->si_max - mode->si_min;
+	s64 num, v;
+
+	if ((mode->raw_min == mode->si_min && mode->raw_max == mode->si_max) ||
+	    !raw_span)
+		return raw;
+
+	/* Both spans are below 2^33, so the product can overflow 64 bits. */
+	if (check_mul_overflow((s64)raw - mode->raw_min, si_span, &num))
+		v = div64_s64((s64)raw - mode->raw_min, raw_span) * si_span;
+	else
+		v = div64_s64(num, raw_span);
+	v += mode->si_min;
+
+	return clamp_t(s64, v, S32_MIN, S32_MAX);
+}
+EXPORT_SYMBOL_IF_KUNIT(ev3_uart_scale_value);
+
+static const struct {
+	u8 type;
+	const char *name;
+} ev3_uart_names[] = {
+	{ EV3_UART_TYPE_COLOR,	"lego-ev3-color" },
+	{ EV3_UART_TYPE_US,	"lego-ev3-us" },
+	{ EV3_UART_TYPE_GYRO,	"lego-ev3-gyro" },
+	{ EV3_UART_TYPE_IR,	"lego-ev3-ir" },
+	{ 71,			"fcl-adc" },
+	{ 72,			"fcl-gesture" },
+	{ 73,			"fcl-light" },
+	{ 74,			"fcl-altitude" },
+	{ 75,			"fcl-ir" },
+	{ 76,			"fcl-9dof" },
+	{ 77,			"fcl-humidity" },
+};
+
+/**
+ * ev3_uart_driver_name() - the well-known driver name of a sensor type
+ * @type: the sensor type id
+ *
+ * Return: the name ev3dev uses (e.g. "lego-ev3-color"), or NULL if the type
+ * has none; callers then use "ev3-uart-<type>".
+ */
+const char *ev3_uart_driver_name(u8 type)
+{
+	unsigned int i;
+
+	for (i = 0; i < ARRAY_SIZE(ev3_uart_names); i++)
+		if (ev3_uart_names[i].type == type)
+			return ev3_uart_names[i].name;
+	return NULL;
+}
+EXPORT_SYMBOL_IF_KUNIT(ev3_uart_driver_name);
+
+/* ---- message builders (host to sensor) ---- */
+
+/**
+ * ev3_uart_build_ack() - the host's ACK
+ * @buf: at least one byte
+ *
+ * Return: the message length, 1.
+ */
+size_t ev3_uart_build_ack(u8 *buf)
+{
+	buf[0] = EV3_UART_SYS_ACK;
+	return 1;
+}
+EXPORT_SYMBOL_IF_KUNIT(ev3_uart_build_ack);
+
+/**
+ * ev3_uart_build_nack() - the host's keep-alive
+ * @buf: at least one byte
+ *
+ * Return: the message length, 1.
+ */
+size_t ev3_uart_build_nack(u8 *buf)
+{
+	buf[0] = EV3_UART_SYS_NACK;
+	return 1;
+}
+EXPORT_SYMBOL_IF_KUNIT(ev3_uart_build_nack);
+
+/**
+ * ev3_uart_build_select() - a SELECT message
+ * @buf: at least 3 bytes
+ * @mode: the mode to select, 0 to 7
+ *
+ * Return: the message length, 3.
+ */
+size_t ev3_uart_build_select(u8 *buf, u8 mode)
+{
+	buf[0] = EV3_UART_MSG_CMD | EV3_UART_CMD_SELECT;
+	buf[1] = mode;
+	buf[2] = ev3_uart_checksum(buf, 2);
+	return 3;
+}
+EXPORT_SYMBOL_IF_KUNIT(ev3_uart_build_select);
+
+/**
+ * ev3_uart_build_write() - a WRITE message, padded to a power of two
+ * @buf: at least %EV3_UART_MAX_PAYLOAD + 2 bytes
+ * @data: the bytes to send
+ * @len: their number, 1 to %EV3_UART_MAX_PAYLOAD
+ *
+ * Return: the message length, or -%EINVAL if @len is out of range.
+ */
+int ev3_uart_build_write(u8 *buf, const u8 *data, size_t len)
+{
+	unsigned int size = 1, code = 0;
+
+	if (!len || len > EV3_UART_MAX_PAYLOAD)
+		return -EINVAL;
+	while (size < len) {
+		size <<= 1;
+		code++;
+	}
+	buf[0] = EV3_UART_MSG_CMD | code << EV3_UART_MSG_SIZE_SHIFT |
+		 EV3_UART_CMD_WRITE;
+	memcpy(buf + 1, data, len);
+	memset(buf + 1 + len, 0, size - len);
+	buf[size + 1] = ev3_uart_checksum(buf, size + 1);
+	return size + 2;
+}
+EXPORT_SYMBOL_IF_KUNIT(ev3_uart_build_write);
+
+/* ---- the parser ---- */
+
+static void ev3_uart_set_mode_defaults(struct ev3_uart_parser *p)
+{
+	p->stash[EV3_UART_STASH_RAW][0] = EV3_UART_F32_0;
+	p->stash[EV3_UART_STASH_RAW][1] = EV3_UART_F32_1023;
+	p->stash[EV3_UART_STASH_PCT][0] = EV3_UART_F32_0;
+	p->stash[EV3_UART_STASH_PCT][1] = EV3_UART_F32_100;
+	p->stash[EV3_UART_STASH_SI][0] = EV3_UART_F32_0;
+	p->stash[EV3_UART_STASH_SI][1] = EV3_UART_F32_1;
+}
+
+static void ev3_uart_reset(struct ev3_uart_parser *p)
+{
+	p->state = EV3_UART_STATE_SYNC;
+	p->msg_len = 0;
+	p->replay_len = 0;
+	p->replay_pos = 0;
+}
+
+/**
+ * ev3_uart_parser_init() - start a parser hunting for a sensor
+ * @p: the parser
+ */
+void ev3_uart_parser_init(struct ev3_uart_parser *p)
+{
+	memset(p, 0, sizeof(*p));
+	p->info_mode = EV3_UART_NO_MODE;
+	p->pending_mode = EV3_UART_NO_MODE;
+	ev3_uart_reset(p);
+}
+EXPORT_SYMBOL_IF_KUNIT(ev3_uart_parser_init);
+
+static void ev3_uart_error(struct ev3_uart_parser *p, struct ev3_uart_event *ev,
+			   const char *reason)
+{
+	ev3_uart_reset(p);
+	ev->type = EV3_UART_EV_ERROR;
+	ev->reason = reason;
+}
+
+/* A TYPE message in the sliding window starts a new handshake. */
+static void ev3_uart_start_handshake(struct ev3_uart_parser *p, u8 type,
+				     struct ev3_uart_event *ev)
+{
+	struct ev3_uart_sensor *s = &p->sensor;
+
+	memset(s, 0, sizeof(*s));
+	s->type = type;
+	s->num_modes = 1;
+	s->num_view_modes = 1;
+	s->speed = EV3_UART_SPEED_MIN;
+	p->cmd_seen = BIT(EV3_UART_CMD_TYPE);
+	p->info_mode = EV3_UART_NO_MODE;
+	p->info_seen = 0;
+	p->modes_done = 0;
+	p->msg_len = 0;
+	p->state = EV3_UART_STATE_INFO;
+	ev->type = EV3_UART_EV_SYNC;
+}
+
+static void ev3_uart_sync_byte(struct ev3_uart_parser *p, u8 b,
+			       struct ev3_uart_event *ev)
+{
+	/*
+	 * The only way in is a TYPE message: 0x40, a type id, a checksum.
+	 * Keep the last three bytes and test them after every byte, so a
+	 * TYPE is found wherever it starts and however the bytes arrive.
+	 */
+	if (p->msg_len == 3) {
+		p->msg[0] = p->msg[1];
+		p->msg[1] = p->msg[2];
+		p->msg_len = 2;
+		p->garbage++;
+	}
+	p->msg[p->msg_len++] = b;
+	if (p->msg_len < 3)
+		return;
+	if (p->msg[0] == (EV3_UART_MSG_CMD | EV3_UART_CMD_TYPE) &&
+	    p->msg[1] >= EV3_UART_TYPE_MIN && p->msg[1] <= EV3_UART_TYPE_MAX &&
+	    p->msg[2] == ev3_uart_checksum(p->msg, 2))
+		ev3_uart_start_handshake(p, p->msg[1], ev);
+}
+
+static const char *ev3_uart_check_string(const u8 *s, size_t size,
+					 size_t max)
+{
+	size_t n = strnlen((const char *)s, size), i;
+
+	if (n > max)
+		return "string too long";
+	for (i = 0; i < n; i++)
+		if (s[i] < 0x20 || s[i] > 0x7e)
+			return "string not printable";
+	return NULL;
+}
+
+static void ev3_uart_cmd(struct ev3_uart_parser *p, const u8 *payload,
+			 unsigned int plen, struct ev3_uart_event *ev)
+{
+	struct ev3_uart_sensor *s = &p->sensor;
+	u8 cmd = p->msg[0] & EV3_UART_MSG_CMD_MASK;
+	u32 speed;
+
+	switch (cmd) {
+	case EV3_UART_CMD_MODES:
+		if (p->cmd_seen & BIT(cmd))
+			return ev3_uart_error(p, ev, "duplicate MODES");
+		if (p->info_mode != EV3_UART_NO_MODE)
+			return ev3_uart_error(p, ev, "MODES after INFO");
+		if (payload[0] >= EV3_UART_MAX_MODES)
+			return ev3_uart_error(p, ev, "number of modes out of range");
+		s->num_modes = payload[0] + 1;
+		/*
+		 * The second byte (views) is optional. Powered Up devices send
+		 * a 4-byte form whose extra counts describe modes 8 and up,
+		 * which EV3 hosts do not use.
+		 */
+		s->num_view_modes = plen >= 2 ? min_t(u8, payload[1] + 1, s->num_modes)
+					      : s->num_modes;
+		break;
+	case EV3_UART_CMD_SPEED:
+		if (p->cmd_seen & BIT(cmd))
+			return ev3_uart_error(p, ev, "duplicate SPEED");
+		if (p->info_mode != EV3_UART_NO_MODE)
+			return ev3_uart_error(p, ev, "SPEED after INFO");
+		if (plen < 4)
+			return ev3_uart_error(p, ev, "short SPEED");
+		speed = ev3_get_le32(payload);
+		if (speed < EV3_UART_SPEED_MIN || speed > EV3_UART_SPEED_MAX)
+			return ev3_uart_error(p, ev, "speed out of range");
+		s->speed = speed;
+		break;
+	case EV3_UART_CMD_EXT_MODE:
+	case EV3_UART_CMD_VERSION:
+		/* Quirk: Powered Up devices send these; nothing to do on EV3. */
+		break;
+	case EV3_UART_CMD_TYPE:
+		return ev3_uart_error(p, ev, "duplicate TYPE");
+	default:
+		return ev3_uart_error(p, ev, "unexpected command");
+	}
+	p->cmd_seen |= BIT(cmd);
+}
+
+/* Convert the stashed ranges of a mode once its decimals are known. */
+static const char *ev3_uart_convert_ranges(struct ev3_uart_parser *p,
+					   struct ev3_uart_mode *m)
+{
+	u32 (*st)[2] = p->stash;
+
+	if (ev3_uart_f32_to_fixed(st[EV3_UART_STASH_RAW][0], 0, &m->raw_min) ||
+	    ev3_uart_f32_to_fixed(st[EV3_UART_STASH_RAW][1], 0, &m->raw_max) ||
+	    ev3_uart_f32_to_fixed(st[EV3_UART_STASH_PCT][0], 0, &m->pct_min) ||
+	    ev3_uart_f32_to_fixed(st[EV3_UART_STASH_PCT][1], 0, &m->pct_max) ||
+	    ev3_uart_f32_to_fixed(st[EV3_UART_STASH_SI][0], m->decimals, &m->si_min) ||
+	    ev3_uart_f32_to_fixed(st[EV3_UART_STASH_SI][1], m->decimals, &m->si_max))
+		return "range not representable";
+	return NULL;
+}
+
+static void ev3_uart_format(struct ev3_uart_parser *p, u8 mode,
+			    const u8 *payload, unsigned int plen,
+			    struct ev3_uart_event *ev)
+{
+	struct ev3_uart_mode *m = &p->sensor.modes[mode];
+	unsigned int size;
+	const char *err;
+
+	if (plen < 4)
+		return ev3_uart_error(p, ev, "short FORMAT");
+	size = ev3_uart_data_size(payload[1]);
+	if (payload[1] > EV3_UART_DATA_FLOAT || !size)
+		return ev3_uart_error(p, ev, "unknown data type");
+	if (!payload[0] || payload[0] * size > EV3_UART_MAX_PAYLOAD)
+		return ev3_uart_error(p, ev, "FORMAT value count out of range");
+	if (payload[2] > EV3_UART_MAX_FIGURES ||
+	    payload[3] > EV3_UART_MAX_DECIMALS)
+		return ev3_uart_error(p, ev, "FORMAT figures or decimals out of range");
+
+	m->num_values = payload[0];
+	m->data_type = payload[1];
+	m->figures = payload[2];
+	m->decimals = payload[3];
+
+	/*
+	 * Quirk: the colour sensor's RGB-RAW announces three values but sends
+	 * four; the fourth is the reading with the LED off. Show it, as
+	 * ev3dev does.
+	 */
+	if (p->sensor.type == EV3_UART_TYPE_COLOR && mode == 4 &&
+	    m->data_type == EV3_UART_DATA_S16 && m->num_values == 3)
+		m->num_values = 4;
+
+	err = ev3_uart_convert_ranges(p, m);
+	if (err)
+		return ev3_uart_error(p, ev, err);
+	p->modes_done |= BIT(mode);
+}
+
+static void ev3_uart_info(struct ev3_uart_parser *p, const u8 *payload,
+			  unsigned int plen, struct ev3_uart_event *ev)
+{
+	struct ev3_uart_sensor *s = &p->sensor;
+	u8 mode = p->msg[0] & EV3_UART_MSG_CMD_MASK;
+	u8 itype = p->msg[1];
+	struct ev3_uart_mode *m = &s->modes[mode];
+	const char *err;
+	unsigned int bit;
+
+	/*
+	 * Quirk: Powered Up devices describe modes 8 and up with the
+	 * MODE_PLUS_8 flag and send extra INFO types (mapping, mode
+	 * combinations...). EV3 hosts have no use for them: skip them.
+	 */
+	if (itype & EV3_UART_INFO_MODE_PLUS_8 ||
+	    (itype >= EV3_UART_INFO_PUP_FIRST && itype <= EV3_UART_INFO_PUP_LAST))
+		return;
+
+	if (mode >= s->num_modes)
+		return ev3_uart_error(p, ev, "INFO for a mode out of range");
+
+	if (itype == EV3_UART_INFO_NAME) {
+		if (p->info_mode != EV3_UART_NO_MODE &&
+		    !(p->modes_done & BIT(p->info_mode)))
+			return ev3_uart_error(p, ev, "NAME before the previous mode's FORMAT");
+		if (p->modes_done & BIT(mode))
+			return ev3_uart_error(p, ev, "duplicate mode");
+		err = ev3_uart_check_string(payload, plen, EV3_UART_NAME_LEN);
+		if (err)
+			return ev3_uart_error(p, ev, err);
+		if (payload[0] < 'A' || payload[0] > 'z')
+			return ev3_uart_error(p, ev, "bad mode name");
+		memset(m, 0, sizeof(*m));
+		/* 8-character names fill their payload with no NUL after them. */
+		memcpy(m->name, payload, strnlen((const char *)payload, plen));
+		ev3_uart_set_mode_defaults(p);
+		p->info_mode = mode;
+		p->info_seen = BIT(EV3_UART_INFO_NAME);
+		return;
+	}
+
+	if (mode != p->info_mode)
+		return ev3_uart_error(p, ev, "INFO for a mode not being described");
+	if (p->modes_done & BIT(mode))
+		return ev3_uart_error(p, ev, "INFO after FORMAT");
+
+	switch (itype) {
+	case EV3_UART_INFO_RAW:
+	case EV3_UART_INFO_PCT:
+	case EV3_UART_INFO_SI:
+		bit = BIT(itype);
+		if (p->info_seen & bit)
+			return ev3_uart_error(p, ev, "duplicate range INFO");
+		if (plen < 8)
+			return ev3_uart_error(p, ev, "short range INFO");
+		p->stash[itype - EV3_UART_INFO_RAW][0] = ev3_get_le32(payload);
+		p->stash[itype - EV3_UART_INFO_RAW][1] = ev3_get_le32(payload + 4);
+		p->info_seen |= bit;
+		return;
+	case EV3_UART_INFO_UNITS:
+		if (p->info_seen & BIT(itype))
+			return ev3_uart_error(p, ev, "duplicate UNITS");
+		err = ev3_uart_check_string(payload, plen, EV3_UART_UNITS_LEN);
+		if (err)
+			return ev3_uart_error(p, ev, err);
+		memcpy(m->units, payload, strnlen((const char *)payload, plen));
+		p->info_seen |= BIT(itype);
+		return;
+	case EV3_UART_INFO_FORMAT:
+		return ev3_uart_format(p, mode, payload, plen, ev);
+	default:
+		return ev3_uart_error(p, ev, "unknown INFO type");
+	}
+}
+
+static void ev3_uart_sys_info(struct ev3_uart_parser *p, u8 b,
+			      struct ev3_uart_event *ev)
+{
+	u8 all = GENMASK(p->sensor.num_modes - 1, 0);
+
+	if (b != EV3_UART_SYS_ACK)
+		return;	/* SYNC, NACK and the reserved ESC bytes carry nothing */
+	if ((p->modes_done & all) != all)
+		return ev3_uart_error(p, ev, "ACK before every mode was described");
+	p->state = EV3_UART_STATE_ACKED;
+	ev->type = EV3_UART_EV_HANDSHAKE;
+}
+
+static void ev3_uart_info_msg(struct ev3_uart_parser *p,
+			      struct ev3_uart_event *ev)
+{
+	unsigned int len = p->msg_len;
+
+	if (p->msg[len - 1] != ev3_uart_checksum(p->msg, len - 1))
+		return ev3_uart_error(p, ev, "bad checksum in handshake");
+
+	switch (p->msg[0] & EV3_UART_MSG_TYPE_MASK) {
+	case EV3_UART_MSG_CMD:
+		ev3_uart_cmd(p, p->msg + 1, len - 2, ev);
+		break;
+	case EV3_UART_MSG_INFO:
+		ev3_uart_info(p, p->msg + 2, len - 3, ev);
+		break;
+	default:
+		ev3_uart_error(p, ev, "DATA before ACK");
+		break;
+	}
+}
+
+static bool ev3_uart_data_hdr_ok(u8 b)
+{
+	return (b & EV3_UART_MSG_TYPE_MASK) == EV3_UART_MSG_DATA &&
+	       ev3_uart_payload_len(b) <= EV3_UART_MAX_PAYLOAD;
+}
+
+/*
+ * Drop the first byte of a bad DATA message and parse the rest again: the
+ * real next message may start inside it.
+ */
+static void ev3_uart_data_resync(struct ev3_uart_parser *p)
+{
+	unsigned int rest = p->replay_len - p->replay_pos;
+
+	/* Unparsed replay bytes follow the message they were part of. */
+	memmove(p->replay + p->msg_len - 1, p->replay + p->replay_pos, rest);
+	memcpy(p->replay, p->msg + 1, p->msg_len - 1);
+	p->replay_len = p->msg_len - 1 + rest;
+	p->replay_pos = 0;
+	p->msg_len = 0;
+}
+
+static void ev3_uart_bad_frame(struct ev3_uart_parser *p,
+			       struct ev3_uart_event *ev)
+{
+	p->bad_frames++;
+	if (++p->data_err > EV3_UART_MAX_DATA_ERR)
+		return ev3_uart_error(p, ev, "too many bad DATA messages");
+	ev3_uart_data_resync(p);
+}
+
+static void ev3_uart_data_msg(struct ev3_uart_parser *p,
+			      struct ev3_uart_event *ev)
+{
+	struct ev3_uart_sensor *s = &p->sensor;
+	unsigned int len = p->msg_len, plen = len - 2;
+	u8 hdr = p->msg[0];
+	u8 mode = hdr & EV3_UART_MSG_CMD_MASK;
+	bool changed = false;
+	struct ev3_uart_mode *m;
+
+	/*
+	 * Quirk: the colour sensor's RGB-RAW messages (header 0xdc) mostly
+	 * carry a wrong checksum; LEGO's firmware does not check them either.
+	 */
+	if (p->msg[len - 1] != ev3_uart_checksum(p->msg, len - 1) &&
+	    !(s->type == EV3_UART_TYPE_COLOR && hdr == 0xdc))
+		return ev3_uart_bad_frame(p, ev);
+
+	/*
+	 * Quirk: in US-DC-IN (mode 6) the ultrasonic sensor tags its own
+	 * DATA messages with mode 5 (US-DC-CM) and only its NACK replies with
+	 * mode 6; both carry the mode 6 value. (A SELECT of mode 5 itself is
+	 * confirmed by mode 5 messages as usual.)
+	 */
+	if (s->type == EV3_UART_TYPE_US && mode == 5 && p->pending_mode != 5 &&
+	    (p->mode == 6 || p->pending_mode == 6))
+		mode = 6;
+
+	if (mode >= s->num_modes)
+		return ev3_uart_bad_frame(p, ev);
+	if (mode == p->pending_mode) {
+		changed = mode != p->mode;
+		p->mode = mode;
+		p->pending_mode = EV3_UART_NO_MODE;
+	} else if (mode != p->mode) {
+		/*
+		 * A message of the old mode can still arrive just after a
+		 * SELECT. Not an error, but not news either.
+		 */
+		p->msg_len = 0;
+		return;
+	}
+
+	m = &s->modes[mode];
+	if (plen < m->num_values * ev3_uart_data_size(m->data_type))
+		return ev3_uart_bad_frame(p, ev);
+
+	memcpy(p->data, p->msg + 1, plen);
+	p->msg_len = 0;
+	p->frames++;
+	if (p->data_err)
+		p->data_err--;
+	p->data_since_tick = true;
+	ev->type = EV3_UART_EV_DATA;
+	ev->mode = mode;
+	ev->mode_changed = changed;
+	ev->len = plen;
+}
+
+static void ev3_uart_msg_byte(struct ev3_uart_parser *p, u8 b,
+			      struct ev3_uart_event *ev)
+{
+	bool data = p->state == EV3_UART_STATE_DATA;
+
+	if (!p->msg_len) {
+		/*
+		 * Quirk: a lone 0xff shows up at message boundaries: the
+		 * infrared sensor sends "00 ff" in its handshake, and a line
+		 * glitch reads as 0xff when the speed changes. 0xff would
+		 * start a 128-byte DATA message: skip it.
+		 */
+		if (b == 0xff) {
+			p->garbage++;
+			return;
+		}
+		if (data) {
+			/* Re-align on the next plausible DATA header. */
+			if (!ev3_uart_data_hdr_ok(b)) {
+				p->garbage++;
+				return;
+			}
+		} else if ((b & EV3_UART_MSG_TYPE_MASK) == EV3_UART_MSG_SYS) {
+			return ev3_uart_sys_info(p, b, ev);
+		} else if (ev3_uart_payload_len(b) > EV3_UART_MAX_PAYLOAD) {
+			return ev3_uart_error(p, ev, "message too long");
+		}
+	}
+
+	p->msg[p->msg_len++] = b;
+	if (p->msg_len < ev3_uart_msg_len(p->msg[0]))
+		return;
+
+	if (data)
+		ev3_uart_data_msg(p, ev);
+	else
+		ev3_uart_info_msg(p, ev);
+	if (ev->type != EV3_UART_EV_DATA)
+		p->msg_len = 0;
+}
+
+/**
+ * ev3_uart_parser_feed() - parse received bytes up to the next event
+ * @p: the parser
+ * @buf: received bytes
+ * @len: their number
+ * @ev: filled with the event that stopped parsing, or %EV3_UART_EV_NONE
+ *
+ * Call again with the rest of @buf until everything is consumed; act on
+ * each event in between. Never sleeps.
+ *
+ * Return: the number of bytes of @buf consumed.
+ */
+size_t ev3_uart_parser_feed(struct ev3_uart_parser *p, const u8 *buf,
+			    size_t len, struct ev3_uart_event *ev)
+{
+	size_t used = 0;
+	u8 b;
+
+	memset(ev, 0, sizeof(*ev));
+	while (ev->type == EV3_UART_EV_NONE) {
+		if (p->replay_pos < p->replay_len)
+			b = p->replay[p->replay_pos++];
+		else if (used < len)
+			b = buf[used++];
+		else
+			break;
+
+		switch (p->state) {
+		case EV3_UART_STATE_SYNC:
+			ev3_uart_sync_byte(p, b, ev);
+			break;
+		case EV3_UART_STATE_ACKED:
+			p->garbage++;
+			break;
+		default:
+			ev3_uart_msg_byte(p, b, ev);
+			break;
+		}
+	}
+	return used;
+}
+EXPORT_SYMBOL_IF_KUNIT(ev3_uart_parser_feed);
+
+/**
+ * ev3_uart_parser_line_error() - the UART reported a break, framing,
+ * parity or overrun error
+ * @p: the parser
+ * @ev: set to %EV3_UART_EV_ERROR if the error ends the connection
+ *
+ * In the handshake every byte matters, so the handshake starts over. In the
+ * data phase the message being received is dropped and counted as bad.
+ */
+void ev3_uart_parser_line_error(struct ev3_uart_parser *p,
+				struct ev3_uart_event *ev)
+{
+	memset(ev, 0, sizeof(*ev));
+	switch (p->state) {
+	case EV3_UART_STATE_SYNC:
+		p->msg_len = 0;
+		break;
+	case EV3_UART_STATE_INFO:
+		ev3_uart_error(p, ev, "line error in handshake");
+		break;
+	case EV3_UART_STATE_ACKED:
+		break;
+	case EV3_UART_STATE_DATA:
+		p->msg_len = 0;
+		p->bad_frames++;
+		if (++p->data_err > EV3_UART_MAX_DATA_ERR)
+			ev3_uart_error(p, ev, "too many line errors");
+		break;
+	}
+}
+EXPORT_SYMBOL_IF_KUNIT(ev3_uart_parser_line_error);
+
+/**
+ * ev3_uart_parser_start_data() - the host answered ACK and switched speed
+ * @p: the parser, in %EV3_UART_STATE_ACKED
+ *
+ * Every sensor starts the data phase in mode 0.
+ */
+void ev3_uart_parser_start_data(struct ev3_uart_parser *p)
+{
+	if (p->state != EV3_UART_STATE_ACKED)
+		return;
+	p->state = EV3_UART_STATE_DATA;
+	p->msg_len = 0;
+	p->mode = 0;
+	p->pending_mode = EV3_UART_NO_MODE;
+	p->data_err = 0;
+	p->silent_ticks = 0;
+	p->data_since_tick = false;
+	p->frames = 0;
+}
+EXPORT_SYMBOL_IF_KUNIT(ev3_uart_parser_start_data);
+
+/**
+ * ev3_uart_parser_select() - note that a SELECT is being sent
+ * @p: the parser
+ * @mode: the mode asked for
+ *
+ * The first DATA message of @mode confirms it (%EV3_UART_EV_DATA with
+ * mode_changed set, or without it if @mode was already current).
+ *
+ * Return: 0, -%ENODEV outside the data phase, -%EINVAL for a mode the sensor
+ * does not have.
+ */
+int ev3_uart_parser_select(struct ev3_uart_parser *p, u8 mode)
+{
+	if (p->state != EV3_UART_STATE_DATA)
+		return -ENODEV;
+	if (mode >= p->sensor.num_modes)
+		return -EINVAL;
+	p->pending_mode = mode;
+	return 0;
+}
+EXPORT_SYMBOL_IF_KUNIT(ev3_uart_parser_select);
+
+/**
+ * ev3_uart_parser_tick() - account for one keep-alive period (100 ms)
+ * @p: the parser
+ * @ev: set to %EV3_UART_EV_ERROR if the sensor is considered lost
+ *
+ * Sensors answer every NACK with a DATA message, so a period without any
+ * good DATA means trouble; more than %EV3_UART_MAX_DATA_ERR in a row (about
+ * 700 ms) means the sensor is gone.
+ *
+ * Return: true if the sensor is lost (the parser is back in SYNC state).
+ */
+bool ev3_uart_parser_tick(struct ev3_uart_parser *p, struct ev3_uart_event *ev)
+{
+	memset(ev, 0, sizeof(*ev));
+	if (p->state != EV3_UART_STATE_DATA)
+		return false;
+	if (p->data_since_tick)
+		p->silent_ticks = 0;
+	else if (++p->silent_ticks > EV3_UART_MAX_DATA_ERR)
+		ev3_uart_error(p, ev, "no data from the sensor");
+	p->data_since_tick = false;
+	return ev->type == EV3_UART_EV_ERROR;
+}
+EXPORT_SYMBOL_IF_KUNIT(ev3_uart_parser_tick);

@@ -1,9 +1,11 @@
 /* SPDX-License-Identifier: GPL-2.0 */
 /*
- * LEGO MINDSTORMS EV3 UART sensor protocol: message framing.
+ * LEGO MINDSTORMS EV3 UART sensor protocol core.
  *
- * Pure functions with no tty, timer or device calls, so that they can be
- * tested with KUnit and fuzzed in userspace.
+ * Pure functions and a byte-driven state machine with no tty, timer or
+ * device calls, so that the protocol is tested with KUnit and fuzzed in
+ * userspace. The line discipline (ev3_uart_ldisc.c) feeds it bytes and acts
+ * on the events it returns.
  */
 #ifndef _EV3_UART_PROTO_H
 #define _EV3_UART_PROTO_H
@@ -30,13 +32,239 @@ enum ev3_uart_msg_type {
 	EV3_UART_MSG_DATA	= 0xc0,
 };
 
+/* System messages. */
+#define EV3_UART_SYS_SYNC		0x00
+#define EV3_UART_SYS_NACK		0x02
+#define EV3_UART_SYS_ACK		0x04
+
+/* Commands (the low three bits of a CMD header). */
+#define EV3_UART_CMD_TYPE		0
+#define EV3_UART_CMD_MODES		1
+#define EV3_UART_CMD_SPEED		2
+#define EV3_UART_CMD_SELECT		3
+#define EV3_UART_CMD_WRITE		4
+#define EV3_UART_CMD_EXT_MODE		6	/* Powered Up only */
+#define EV3_UART_CMD_VERSION		7	/* Powered Up only */
+
+/* INFO types (the byte after an INFO header). */
+#define EV3_UART_INFO_NAME		0x00
+#define EV3_UART_INFO_RAW		0x01
+#define EV3_UART_INFO_PCT		0x02
+#define EV3_UART_INFO_SI		0x03
+#define EV3_UART_INFO_UNITS		0x04
+#define EV3_UART_INFO_PUP_FIRST		0x05	/* 0x05..0x0c: Powered Up only */
+#define EV3_UART_INFO_PUP_LAST		0x0c
+#define EV3_UART_INFO_MODE_PLUS_8	0x20	/* flag: describes mode + 8 */
+#define EV3_UART_INFO_FORMAT		0x80
+
 /* The largest payload any sensor or host uses; the header allows 128. */
 #define EV3_UART_MAX_PAYLOAD		32
 /* Header + INFO byte + payload + checksum. */
 #define EV3_UART_MAX_MSG_LEN		(EV3_UART_MAX_PAYLOAD + 3)
 
+#define EV3_UART_MAX_MODES		8
+#define EV3_UART_NAME_LEN		11
+#define EV3_UART_UNITS_LEN		4
+#define EV3_UART_TYPE_MIN		1
+#define EV3_UART_TYPE_MAX		101
+#define EV3_UART_SPEED_MIN		2400
+#define EV3_UART_SPEED_MAX		460800
+/* Decimals beyond this make 10^decimals overflow the fixed-point values. */
+#define EV3_UART_MAX_DECIMALS		9
+#define EV3_UART_MAX_FIGURES		15
+/* Bad frames (net of good ones) or silent keep-alive periods before a resync. */
+#define EV3_UART_MAX_DATA_ERR		6
+
+/* Sensor types with quirks or well-known names. */
+#define EV3_UART_TYPE_COLOR		29
+#define EV3_UART_TYPE_US		30
+#define EV3_UART_TYPE_GYRO		32
+#define EV3_UART_TYPE_IR		33
+
+#define EV3_UART_NO_MODE		0xff
+
+/**
+ * enum ev3_uart_data_type - the wire type of the values of a mode
+ * @EV3_UART_DATA_S8: signed 8-bit
+ * @EV3_UART_DATA_S16: signed 16-bit little endian
+ * @EV3_UART_DATA_S32: signed 32-bit little endian
+ * @EV3_UART_DATA_FLOAT: IEEE 754 single precision, little endian
+ */
+enum ev3_uart_data_type {
+	EV3_UART_DATA_S8,
+	EV3_UART_DATA_S16,
+	EV3_UART_DATA_S32,
+	EV3_UART_DATA_FLOAT,
+};
+
+/**
+ * struct ev3_uart_mode - one mode as the sensor described it
+ * @name: NUL-terminated mode name, e.g. "COL-REFLECT"
+ * @units: NUL-terminated unit symbol, e.g. "pct"; empty if none was sent
+ * @raw_min: lowest raw value, rounded to an integer
+ * @raw_max: highest raw value, rounded to an integer
+ * @pct_min: percent value at @raw_min
+ * @pct_max: percent value at @raw_max
+ * @si_min: SI value at @raw_min, times 10^@decimals
+ * @si_max: SI value at @raw_max, times 10^@decimals
+ * @num_values: number of values in a DATA message of this mode
+ * @data_type: an &enum ev3_uart_data_type
+ * @figures: digits to show, including the decimals
+ * @decimals: decimals of the SI value (and of float values)
+ */
+struct ev3_uart_mode {
+	char name[EV3_UART_NAME_LEN + 1];
+	char units[EV3_UART_UNITS_LEN + 1];
+	s32 raw_min;
+	s32 raw_max;
+	s32 pct_min;
+	s32 pct_max;
+	s32 si_min;
+	s32 si_max;
+	u8 num_values;
+	u8 data_type;
+	u8 figures;
+	u8 decimals;
+};
+
+/**
+ * struct ev3_uart_sensor - what a sensor said about itself in its handshake
+ * @type: the sensor type id (29 colour, 30 ultrasonic, 32 gyro, 33 infrared)
+ * @num_modes: number of modes, 1 to 8
+ * @num_view_modes: number of modes meant to be shown to users
+ * @speed: the baud rate to use after the handshake
+ * @modes: the modes, indexed by mode number
+ */
+struct ev3_uart_sensor {
+	u8 type;
+	u8 num_modes;
+	u8 num_view_modes;
+	u32 speed;
+	struct ev3_uart_mode modes[EV3_UART_MAX_MODES];
+};
+
+/**
+ * enum ev3_uart_state - where the parser is in the life of a connection
+ * @EV3_UART_STATE_SYNC: at 2400 baud, hunting for a TYPE message
+ * @EV3_UART_STATE_INFO: receiving the handshake (mode descriptions)
+ * @EV3_UART_STATE_ACKED: the sensor sent ACK; the host must answer ACK and
+ *	switch speed, then call ev3_uart_parser_start_data(). Bytes received
+ *	meanwhile are dropped: they come at a speed the tty is not set to.
+ * @EV3_UART_STATE_DATA: data phase, at the sensor's speed
+ */
+enum ev3_uart_state {
+	EV3_UART_STATE_SYNC,
+	EV3_UART_STATE_INFO,
+	EV3_UART_STATE_ACKED,
+	EV3_UART_STATE_DATA,
+};
+
+/**
+ * enum ev3_uart_event_type - what the caller must act on after a feed
+ * @EV3_UART_EV_NONE: nothing (all bytes consumed)
+ * @EV3_UART_EV_SYNC: a TYPE message started a handshake
+ * @EV3_UART_EV_HANDSHAKE: the sensor sent ACK after a valid handshake: the
+ *	description is in &ev3_uart_parser.sensor; answer ACK, switch speed
+ * @EV3_UART_EV_DATA: a DATA message for the current mode; its payload is in
+ *	&ev3_uart_parser.data
+ * @EV3_UART_EV_ERROR: a protocol error; the parser is back in SYNC state and
+ *	the caller must go back to 2400 baud
+ */
+enum ev3_uart_event_type {
+	EV3_UART_EV_NONE,
+	EV3_UART_EV_SYNC,
+	EV3_UART_EV_HANDSHAKE,
+	EV3_UART_EV_DATA,
+	EV3_UART_EV_ERROR,
+};
+
+/**
+ * struct ev3_uart_event - one event returned by ev3_uart_parser_feed()
+ * @type: what happened
+ * @mode: for %EV3_UART_EV_DATA, the mode the values belong to
+ * @mode_changed: for %EV3_UART_EV_DATA, this DATA confirmed a SELECT
+ * @len: for %EV3_UART_EV_DATA, the payload length in bytes
+ * @reason: for %EV3_UART_EV_ERROR, a static string saying what was wrong
+ */
+struct ev3_uart_event {
+	enum ev3_uart_event_type type;
+	u8 mode;
+	bool mode_changed;
+	u8 len;
+	const char *reason;
+};
+
+/**
+ * struct ev3_uart_parser - state of the protocol on one line
+ * @state: see &enum ev3_uart_state
+ * @sensor: the sensor description, complete from %EV3_UART_EV_HANDSHAKE on
+ * @msg: the message being received (in SYNC state: the sliding window)
+ * @msg_len: bytes held in @msg
+ * @replay: bytes to parse again before new input (after a data-phase resync)
+ * @replay_len: bytes held in @replay
+ * @replay_pos: next byte of @replay to parse
+ * @cmd_seen: bitmap of the commands seen in this handshake
+ * @info_mode: the mode being described (after its NAME), or %EV3_UART_NO_MODE
+ * @info_seen: bitmap of the INFO types seen for @info_mode
+ * @modes_done: bitmap of the modes whose FORMAT was received
+ * @stash: the RAW, PCT and SI ranges of @info_mode as sent (f32 bit patterns)
+ * @mode: the sensor's current mode in the data phase
+ * @pending_mode: the mode a SELECT asked for, or %EV3_UART_NO_MODE
+ * @data_err: bad frames, less good ones (never below 0)
+ * @silent_ticks: keep-alive periods in a row without a good DATA message
+ * @data_since_tick: a good DATA message arrived since the last tick
+ * @data: payload of the last DATA message delivered
+ * @frames: good DATA messages since the last handshake
+ * @bad_frames: DATA messages dropped (checksum, size or mode)
+ * @garbage: bytes dropped while hunting for a message
+ */
+struct ev3_uart_parser {
+	enum ev3_uart_state state;
+	struct ev3_uart_sensor sensor;
+	u8 msg[EV3_UART_MAX_MSG_LEN];
+	u8 msg_len;
+	u8 replay[EV3_UART_MAX_MSG_LEN];
+	u8 replay_len;
+	u8 replay_pos;
+	u8 cmd_seen;
+	u8 info_mode;
+	u8 info_seen;
+	u8 modes_done;
+	u32 stash[3][2];
+	u8 mode;
+	u8 pending_mode;
+	u8 data_err;
+	u8 silent_ticks;
+	bool data_since_tick;
+	u8 data[EV3_UART_MAX_PAYLOAD];
+	unsigned long frames;
+	unsigned long bad_frames;
+	unsigned long garbage;
+};
+
 u8 ev3_uart_checksum(const u8 *msg, size_t len);
 unsigned int ev3_uart_payload_len(u8 hdr);
 unsigned int ev3_uart_msg_len(u8 hdr);
+unsigned int ev3_uart_data_size(enum ev3_uart_data_type type);
+
+void ev3_uart_parser_init(struct ev3_uart_parser *p);
+size_t ev3_uart_parser_feed(struct ev3_uart_parser *p, const u8 *buf,
+			    size_t len, struct ev3_uart_event *ev);
+void ev3_uart_parser_line_error(struct ev3_uart_parser *p,
+				struct ev3_uart_event *ev);
+void ev3_uart_parser_start_data(struct ev3_uart_parser *p);
+int ev3_uart_parser_select(struct ev3_uart_parser *p, u8 mode);
+bool ev3_uart_parser_tick(struct ev3_uart_parser *p, struct ev3_uart_event *ev);
+
+size_t ev3_uart_build_ack(u8 *buf);
+size_t ev3_uart_build_nack(u8 *buf);
+size_t ev3_uart_build_select(u8 *buf, u8 mode);
+int ev3_uart_build_write(u8 *buf, const u8 *data, size_t len);
+
+int ev3_uart_f32_to_fixed(u32 bits, unsigned int decimals, s32 *out);
+int ev3_uart_read_value(const struct ev3_uart_mode *mode, const u8 *data,
+			size_t len, unsigned int index, s32 *out);
+s32 ev3_uart_scale_value(const struct ev3_uart_mode *mode, s32 raw);
+const char *ev3_uart_driver_name(u8 type);
 
 #endif /* _EV3_UART_PROTO_H */

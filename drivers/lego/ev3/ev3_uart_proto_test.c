@@ -2,61 +2,1041 @@
 /*
  * KUnit tests for the EV3 UART sensor protocol core.
  *
- * The byte sequences are taken from captures of real LEGO sensors.
+ * The handshakes of the real LEGO sensors are rebuilt from their mode tables
+ * with the encoding rules the sensors follow (names padded to 8 or 16 bytes,
+ * 8-byte ranges and units, 4-byte FORMAT, modes from highest to lowest); the
+ * bytes that captures of real sensors give literally are checked against the
+ * encoder first.
  */
 #include <kunit/test.h>
 #include <linux/module.h>
+#include <linux/string.h>
 
 #include "lego_compat.h"
 #include "ev3_uart_proto.h"
 
-static void ev3_uart_test_checksum_real_messages(struct kunit *test)
+/* IEEE 754 single-precision bit patterns. */
+#define F0		0x00000000
+#define F1		0x3f800000
+#define F8		0x41000000
+#define F10		0x41200000
+#define F100		0x42c80000
+#define F255		0x437f0000
+#define F1000		0x447a0000
+#define F1020_1875	0x447f0c00
+#define F2550		0x451f6000
+#define F65535		0x477fff00
+#define FM100		0xc2c80000
+#define FM180		0xc3340000
+#define F180		0x43340000
+#define FM440		0xc3dc0000
+#define F440		0x43dc0000
+#define FM500		0xc3fa0000
+#define F500		0x43fa0000
+#define FM2000		0xc4fa0000
+#define F2000		0x44fa0000
+#define FM32768		0xc7000000
+#define F32767		0x46fffe00
+#define FNAN		0x7fc00000
+
+#define BUF_SIZE	1024
+
+struct tmode {
+	const char *name;
+	u32 raw[2];
+	u32 si[2];
+	const char *units;	/* NULL: no UNITS message */
+	u8 n, t, fig, dec;
+};
+
+struct tsensor {
+	u8 type;
+	u8 modes;		/* number of modes */
+	u8 views;
+	const struct tmode *mode;
+};
+
+static const struct tmode color_modes[] = {
+	{ "COL-REFLECT", { F0, F100 }, { F0, F100 }, "pct", 1, 0, 3, 0 },
+	{ "COL-AMBIENT", { F0, F100 }, { F0, F100 }, "pct", 1, 0, 3, 0 },
+	{ "COL-COLOR", { F0, F8 }, { F0, F8 }, "col", 1, 0, 2, 0 },
+	{ "REF-RAW", { F0, F1020_1875 }, { F0, F1020_1875 }, NULL, 2, 1, 4, 0 },
+	{ "RGB-RAW", { F0, F1020_1875 }, { F0, F1020_1875 }, NULL, 3, 1, 4, 0 },
+	{ "COL-CAL", { F0, F65535 }, { F0, F65535 }, NULL, 4, 1, 5, 0 },
+};
+
+static const struct tmode us_modes[] = {
+	{ "US-DIST-CM", { F0, F2550 }, { F0, F255 }, "cm", 1, 1, 5, 1 },
+	{ "US-DIST-IN", { F0, F1000 }, { F0, F100 }, "inch", 1, 1, 5, 1 },
+	{ "US-LISTEN", { F0, F1 }, { F0, F1 }, NULL, 1, 0, 1, 0 },
+	{ "US-SI-CM", { F0, F2550 }, { F0, F255 }, "cm", 1, 1, 5, 1 },
+	{ "US-SI-IN", { F0, F1000 }, { F0, F100 }, "inch", 1, 1, 5, 1 },
+	{ "US-DC-CM", { F0, F2550 }, { F0, F255 }, "cm", 1, 1, 5, 1 },
+	{ "US-DC-IN", { F0, F1000 }, { F0, F100 }, "inch", 1, 1, 5, 1 },
+};
+
+static const struct tmode gyro_old_modes[] = {
+	{ "GYRO-ANG", { FM180, F180 }, { FM180, F180 }, "deg", 1, 1, 4, 0 },
+	{ "GYRO-RATE", { FM440, F440 }, { FM440, F440 }, "d/s", 1, 1, 3, 0 },
+	{ "GYRO-FAS", { FM2000, F2000 }, { FM2000, F2000 }, NULL, 1, 1, 4, 0 },
+	{ "GYRO-G&A", { FM180, F180 }, { FM180, F180 }, NULL, 2, 1, 5, 0 },
+	{ "GYRO-CAL", { F0, F65535 }, { F0, F65535 }, NULL, 4, 1, 5, 0 },
+};
+
+static const struct tmode gyro_new_modes[] = {
+	{ "GYRO-ANG", { FM180, F180 }, { FM180, F180 }, "deg", 1, 1, 4, 0 },
+	{ "GYRO-RATE", { FM500, F500 }, { FM500, F500 }, "d/s", 1, 1, 3, 0 },
+	{ "GYRO-FAS", { FM2000, F2000 }, { FM2000, F2000 }, NULL, 1, 1, 4, 0 },
+	{ "GYRO-G&A", { FM180, F180 }, { FM180, F180 }, NULL, 2, 1, 5, 0 },
+	{ "GYRO-CAL", { FM32768, F32767 }, { FM32768, F32767 }, NULL, 4, 1, 5, 0 },
+	{ "TILT-RATE", { FM500, F500 }, { FM500, F500 }, "d/s", 1, 1, 3, 0 },
+	{ "TILT-ANG", { FM180, F180 }, { FM180, F180 }, "deg", 1, 1, 3, 0 },
+};
+
+static const struct tmode ir_modes[] = {
+	{ "IR-PROX", { F0, F100 }, { F0, F100 }, "pct", 1, 0, 3, 0 },
+	{ "IR-SEEK", { FM100, F100 }, { FM100, F100 }, "pct", 8, 0, 3, 0 },
+	{ "IR-REMOTE", { F0, F10 }, { F0, F10 }, "btn", 4, 0, 3, 0 },
+	{ "IR-REM-A", { F0, F65535 }, { F0, F65535 }, NULL, 1, 1, 6, 0 },
+	{ "IR-S-ALT", { F0, F100 }, { F0, F100 }, "pct", 4, 0, 3, 0 },
+	{ "IR-CAL", { F0, F65535 }, { F0, F65535 }, NULL, 2, 1, 5, 0 },
+};
+
+static const struct tsensor sensors[] = {
+	{ EV3_UART_TYPE_COLOR, 6, 3, color_modes },
+	{ EV3_UART_TYPE_US, 7, 3, us_modes },
+	{ EV3_UART_TYPE_GYRO, 5, 2, gyro_old_modes },
+	{ EV3_UART_TYPE_GYRO, 7, 2, gyro_new_modes },
+	{ EV3_UART_TYPE_IR, 6, 3, ir_modes },
+};
+
+/* ---- an encoder following the sensors' rules ---- */
+
+static unsigned int size_code(unsigned int plen)
 {
-	/* TYPE 33 (infrared sensor): 40 21 9E */
+	unsigned int code = 0;
+
+	while ((1U << code) < plen)
+		code++;
+	return code;
+}
+
+static size_t enc_cmd(u8 *buf, u8 cmd, const u8 *payload, unsigned int plen)
+{
+	buf[0] = EV3_UART_MSG_CMD | size_code(plen) << 3 | cmd;
+	memcpy(buf + 1, payload, plen);
+	buf[plen + 1] = ev3_uart_checksum(buf, plen + 1);
+	return plen + 2;
+}
+
+static size_t enc_info(u8 *buf, u8 mode, u8 itype, const u8 *payload,
+		       unsigned int plen)
+{
+	buf[0] = EV3_UART_MSG_INFO | size_code(plen) << 3 | mode;
+	buf[1] = itype;
+	memcpy(buf + 2, payload, plen);
+	buf[plen + 2] = ev3_uart_checksum(buf, plen + 2);
+	return plen + 3;
+}
+
+static size_t enc_data(u8 *buf, u8 mode, const u8 *payload, unsigned int plen)
+{
+	buf[0] = EV3_UART_MSG_DATA | size_code(plen) << 3 | mode;
+	memcpy(buf + 1, payload, plen);
+	buf[plen + 1] = ev3_uart_checksum(buf, plen + 1);
+	return plen + 2;
+}
+
+static void put_le32(u8 *p, u32 v)
+{
+	p[0] = v;
+	p[1] = v >> 8;
+	p[2] = v >> 16;
+	p[3] = v >> 24;
+}
+
+static size_t enc_range(u8 *buf, u8 mode, u8 itype, const u32 *range)
+{
+	u8 payload[8];
+
+	put_le32(payload, range[0]);
+	put_le32(payload + 4, range[1]);
+	return enc_info(buf, mode, itype, payload, 8);
+}
+
+static size_t enc_string(u8 *buf, u8 mode, u8 itype, const char *s)
+{
+	u8 payload[16] = { };
+	size_t n = strlen(s);
+
+	memcpy(payload, s, n);
+	/* <= 7 chars + NUL: 8 bytes; exactly 8 chars: 8 bytes, no NUL. */
+	return enc_info(buf, mode, itype, payload, n <= 8 ? 8 : 16);
+}
+
+static size_t enc_mode(u8 *buf, u8 type, u8 mode, const struct tmode *m)
+{
+	u8 format[4] = { m->n, m->t, m->fig, m->dec };
+	size_t len = 0;
+
+	len += enc_string(buf + len, mode, EV3_UART_INFO_NAME, m->name);
+	len += enc_range(buf + len, mode, EV3_UART_INFO_RAW, m->raw);
+	len += enc_range(buf + len, mode, EV3_UART_INFO_SI, m->si);
+	if (m->units) {
+		len += enc_string(buf + len, mode, EV3_UART_INFO_UNITS, m->units);
+	} else if (type == EV3_UART_TYPE_IR) {
+		/* Quirk: the IR sensor sends 00 ff instead of nothing. */
+		buf[len++] = 0x00;
+		buf[len++] = 0xff;
+	}
+	len += enc_info(buf + len, mode, EV3_UART_INFO_FORMAT, format, 4);
+	return len;
+}
+
+static size_t enc_handshake(u8 *buf, const struct tsensor *s)
+{
+	u8 modes[2] = { s->modes - 1, s->views - 1 };
+	u8 speed[4];
+	size_t len = 0;
+	int m;
+
+	len += enc_cmd(buf + len, EV3_UART_CMD_TYPE, &s->type, 1);
+	len += enc_cmd(buf + len, EV3_UART_CMD_MODES, modes, 2);
+	put_le32(speed, 57600);
+	len += enc_cmd(buf + len, EV3_UART_CMD_SPEED, speed, 4);
+	for (m = s->modes - 1; m >= 0; m--)
+		len += enc_mode(buf + len, s->type, m, &s->mode[m]);
+	buf[len++] = EV3_UART_SYS_ACK;
+	return len;
+}
+
+/* ---- helpers to run the parser ---- */
+
+#define MAX_EVENTS	64
+
+struct run {
+	struct ev3_uart_event ev[MAX_EVENTS];
+	u8 data[MAX_EVENTS][EV3_UART_MAX_PAYLOAD];
+	unsigned int n;
+};
+
+/* Feed @len bytes in chunks of @chunk, recording every event. */
+static void feed(struct ev3_uart_parser *p, const u8 *buf, size_t len,
+		 size_t chunk, struct run *r)
+{
+	struct ev3_uart_event ev;
+	size_t off = 0, n, used;
+
+	while (off < len) {
+		n = min(chunk, len - off);
+		do {
+			used = ev3_uart_parser_feed(p, buf + off, n, &ev);
+			off += used;
+			n -= used;
+			if (ev.type != EV3_UART_EV_NONE && r->n < MAX_EVENTS) {
+				if (ev.type == EV3_UART_EV_DATA)
+					memcpy(r->data[r->n], p->data, ev.len);
+				r->ev[r->n++] = ev;
+			}
+		} while (ev.type != EV3_UART_EV_NONE);
+	}
+}
+
+static unsigned int count(const struct run *r, enum ev3_uart_event_type t)
+{
+	unsigned int i, c = 0;
+
+	for (i = 0; i < r->n; i++)
+		c += r->ev[i].type == t;
+	return c;
+}
+
+static const struct ev3_uart_event *last(const struct run *r)
+{
+	static const struct ev3_uart_event none;
+
+	return r->n ? &r->ev[r->n - 1] : &none;
+}
+
+struct ctx {
+	struct ev3_uart_parser p;
+	struct run r;
+	u8 buf[BUF_SIZE];
+};
+
+static struct ctx *new_ctx(struct kunit *test)
+{
+	struct ctx *c = kunit_kzalloc(test, sizeof(*c), GFP_KERNEL);
+
+	KUNIT_ASSERT_NOT_NULL(test, c);
+	ev3_uart_parser_init(&c->p);
+	return c;
+}
+
+/* Bring a parser into the data phase with a real sensor's handshake. */
+static void connect(struct kunit *test, struct ctx *c, const struct tsensor *s)
+{
+	size_t len = enc_handshake(c->buf, s);
+
+	feed(&c->p, c->buf, len, len, &c->r);
+	KUNIT_ASSERT_EQ(test, last(&c->r)->type, EV3_UART_EV_HANDSHAKE);
+	ev3_uart_parser_start_data(&c->p);
+	c->r.n = 0;
+}
+
+/* ---- framing ---- */
+
+static void test_checksum_real_messages(struct kunit *test)
+{
 	static const u8 type_ir[] = { 0x40, 0x21, 0x9e };
-	/* MODES of the infrared sensor: 6 modes, 3 shown: 49 05 02 B1 */
 	static const u8 modes_ir[] = { 0x49, 0x05, 0x02, 0xb1 };
-	/* SPEED 57600 baud: 52 00 E1 00 00 4C */
 	static const u8 speed[] = { 0x52, 0x00, 0xe1, 0x00, 0x00, 0x4c };
 
 	KUNIT_EXPECT_EQ(test, ev3_uart_checksum(type_ir, 2), type_ir[2]);
 	KUNIT_EXPECT_EQ(test, ev3_uart_checksum(modes_ir, 3), modes_ir[3]);
 	KUNIT_EXPECT_EQ(test, ev3_uart_checksum(speed, 5), speed[5]);
-}
-
-static void ev3_uart_test_checksum_empty(struct kunit *test)
-{
 	KUNIT_EXPECT_EQ(test, ev3_uart_checksum(NULL, 0), 0xff);
 }
 
-static void ev3_uart_test_msg_len(struct kunit *test)
+static void test_msg_len(struct kunit *test)
 {
-	/* System messages are a single byte, whatever the size bits say. */
 	KUNIT_EXPECT_EQ(test, ev3_uart_msg_len(0x00), 1U);	/* SYNC */
 	KUNIT_EXPECT_EQ(test, ev3_uart_msg_len(0x02), 1U);	/* NACK */
 	KUNIT_EXPECT_EQ(test, ev3_uart_msg_len(0x04), 1U);	/* ACK */
 	KUNIT_EXPECT_EQ(test, ev3_uart_msg_len(0x3a), 1U);	/* ESC-like */
-	/* Commands: header + payload + checksum. */
 	KUNIT_EXPECT_EQ(test, ev3_uart_msg_len(0x40), 3U);	/* TYPE */
 	KUNIT_EXPECT_EQ(test, ev3_uart_msg_len(0x49), 4U);	/* MODES */
 	KUNIT_EXPECT_EQ(test, ev3_uart_msg_len(0x52), 6U);	/* SPEED */
-	/* INFO carries the info type byte too. */
 	KUNIT_EXPECT_EQ(test, ev3_uart_msg_len(0x98), 11U);	/* NAME, 8 bytes */
 	KUNIT_EXPECT_EQ(test, ev3_uart_msg_len(0xa5), 19U);	/* NAME, 16 bytes */
 	KUNIT_EXPECT_EQ(test, ev3_uart_msg_len(0xa8), 35U);	/* 32-byte payload */
-	/* DATA */
 	KUNIT_EXPECT_EQ(test, ev3_uart_msg_len(0xc0), 3U);
 	KUNIT_EXPECT_EQ(test, ev3_uart_msg_len(0xdc), 10U);	/* RGB-RAW */
-	KUNIT_EXPECT_EQ(test, ev3_uart_msg_len(0xe8), 34U);
-	/* The largest header-encodable message exceeds what we accept. */
 	KUNIT_EXPECT_GT(test, ev3_uart_msg_len(0xf8), (unsigned int)EV3_UART_MAX_MSG_LEN);
 	KUNIT_EXPECT_EQ(test, ev3_uart_payload_len(0xf8), 128U);
 }
 
+static void test_encoder_matches_captures(struct kunit *test)
+{
+	/* Literal first bytes of the colour and gyro captures. */
+	static const u8 color[] = { 0x40, 0x1d, 0xa2, 0x49, 0x05, 0x02, 0xb1,
+				    0x52, 0x00, 0xe1, 0x00, 0x00, 0x4c };
+	static const u8 gyro_old[] = { 0x40, 0x20, 0x9f, 0x49, 0x04, 0x01, 0xb3 };
+	static const u8 gyro_new_modes[] = { 0x49, 0x06, 0x01, 0xb1 };
+	struct ctx *c = new_ctx(test);
+	size_t len;
+
+	len = enc_handshake(c->buf, &sensors[0]);
+	KUNIT_EXPECT_MEMEQ(test, c->buf, color, sizeof(color));
+	/* The last mode sent is mode 0 and the last byte the sensor's ACK. */
+	KUNIT_EXPECT_EQ(test, c->buf[len - 1], EV3_UART_SYS_ACK);
+	enc_handshake(c->buf, &sensors[2]);
+	KUNIT_EXPECT_MEMEQ(test, c->buf, gyro_old, sizeof(gyro_old));
+	enc_handshake(c->buf, &sensors[3]);
+	KUNIT_EXPECT_MEMEQ(test, c->buf + 3, gyro_new_modes, sizeof(gyro_new_modes));
+	/* The 9-character TILT-RATE name travels in a 16-byte payload: A5. */
+	KUNIT_EXPECT_EQ(test, enc_string(c->buf, 5, 0, "TILT-RATE"), (size_t)19);
+	KUNIT_EXPECT_EQ(test, c->buf[0], 0xa5);
+}
+
+/* ---- each real sensor's handshake ---- */
+
+static void check_sensor(struct kunit *test, const struct tsensor *s, size_t chunk)
+{
+	struct ctx *c = new_ctx(test);
+	size_t len = enc_handshake(c->buf, s);
+	const struct ev3_uart_sensor *got = &c->p.sensor;
+	int i;
+
+	feed(&c->p, c->buf, len, chunk, &c->r);
+	KUNIT_ASSERT_EQ(test, count(&c->r, EV3_UART_EV_ERROR), 0U);
+	KUNIT_ASSERT_EQ(test, count(&c->r, EV3_UART_EV_SYNC), 1U);
+	KUNIT_ASSERT_EQ(test, last(&c->r)->type, EV3_UART_EV_HANDSHAKE);
+	KUNIT_EXPECT_EQ(test, c->p.state, EV3_UART_STATE_ACKED);
+	KUNIT_EXPECT_EQ(test, got->type, s->type);
+	KUNIT_EXPECT_EQ(test, got->num_modes, s->modes);
+	KUNIT_EXPECT_EQ(test, got->num_view_modes, s->views);
+	KUNIT_EXPECT_EQ(test, got->speed, 57600U);
+
+	for (i = 0; i < s->modes; i++) {
+		const struct tmode *want = &s->mode[i];
+		const struct ev3_uart_mode *m = &got->modes[i];
+		s32 si_max;
+
+		KUNIT_EXPECT_STREQ(test, m->name, want->name);
+		KUNIT_EXPECT_STREQ(test, m->units, want->units ?: "");
+		KUNIT_EXPECT_EQ(test, m->data_type, want->t);
+		KUNIT_EXPECT_EQ(test, m->figures, want->fig);
+		KUNIT_EXPECT_EQ(test, m->decimals, want->dec);
+		KUNIT_EXPECT_EQ(test, ev3_uart_f32_to_fixed(want->si[1], want->dec, &si_max), 0);
+		KUNIT_EXPECT_EQ(test, m->si_max, si_max);
+		/* RGB-RAW shows its hidden fourth value. */
+		if (s->type == EV3_UART_TYPE_COLOR && i == 4)
+			KUNIT_EXPECT_EQ(test, m->num_values, 4);
+		else
+			KUNIT_EXPECT_EQ(test, m->num_values, want->n);
+	}
+}
+
+static void test_handshake_color(struct kunit *test)
+{
+	check_sensor(test, &sensors[0], BUF_SIZE);
+	KUNIT_EXPECT_STREQ(test, ev3_uart_driver_name(29), "lego-ev3-color");
+}
+
+static void test_handshake_us(struct kunit *test)
+{
+	check_sensor(test, &sensors[1], BUF_SIZE);
+	KUNIT_EXPECT_STREQ(test, ev3_uart_driver_name(30), "lego-ev3-us");
+}
+
+static void test_handshake_gyro_old(struct kunit *test)
+{
+	check_sensor(test, &sensors[2], BUF_SIZE);
+	KUNIT_EXPECT_STREQ(test, ev3_uart_driver_name(32), "lego-ev3-gyro");
+}
+
+static void test_handshake_gyro_new(struct kunit *test)
+{
+	check_sensor(test, &sensors[3], BUF_SIZE);
+}
+
+static void test_handshake_ir_with_00ff(struct kunit *test)
+{
+	check_sensor(test, &sensors[4], BUF_SIZE);
+	KUNIT_EXPECT_STREQ(test, ev3_uart_driver_name(33), "lego-ev3-ir");
+	KUNIT_EXPECT_NULL(test, ev3_uart_driver_name(99));
+}
+
+static void test_handshake_byte_by_byte(struct kunit *test)
+{
+	int i;
+
+	for (i = 0; i < ARRAY_SIZE(sensors); i++)
+		check_sensor(test, &sensors[i], 1);
+	check_sensor(test, &sensors[0], 7);
+}
+
+static void test_sync_after_garbage(struct kunit *test)
+{
+	struct ctx *c = new_ctx(test);
+	/* A false 0x40 right before the real TYPE, and a bad TYPE checksum. */
+	static const u8 junk[] = { 0x12, 0x40, 0x40, 0x1d, 0x00, 0x55, 0x40 };
+	size_t len = sizeof(junk);
+
+	memcpy(c->buf, junk, len);
+	len += enc_handshake(c->buf + len, &sensors[0]);
+	feed(&c->p, c->buf, len, 1, &c->r);
+	KUNIT_EXPECT_EQ(test, count(&c->r, EV3_UART_EV_ERROR), 0U);
+	KUNIT_EXPECT_EQ(test, last(&c->r)->type, EV3_UART_EV_HANDSHAKE);
+	KUNIT_EXPECT_EQ(test, c->p.sensor.type, 29);
+}
+
+static void test_sync_rejects_bad_types(struct kunit *test)
+{
+	struct ctx *c = new_ctx(test);
+	/* Type 0 and 102 are out of range, even with a good checksum. */
+	static const u8 bad[] = { 0x40, 0x00, 0xbf, 0x40, 0x66, 0xd9 };
+
+	feed(&c->p, bad, sizeof(bad), sizeof(bad), &c->r);
+	KUNIT_EXPECT_EQ(test, c->r.n, 0U);
+	KUNIT_EXPECT_EQ(test, c->p.state, EV3_UART_STATE_SYNC);
+}
+
+/* Optional MODES and SPEED: one mode at 2400 baud. */
+static void test_minimal_sensor(struct kunit *test)
+{
+	struct ctx *c = new_ctx(test);
+	static const struct tmode m = { "TEST", { F0, F100 }, { F0, F100 }, NULL, 1, 0, 2, 0 };
+	u8 type = 99;
+	size_t len = 0;
+
+	len += enc_cmd(c->buf, EV3_UART_CMD_TYPE, &type, 1);
+	len += enc_mode(c->buf + len, type, 0, &m);
+	c->buf[len++] = EV3_UART_SYS_ACK;
+	feed(&c->p, c->buf, len, len, &c->r);
+	KUNIT_ASSERT_EQ(test, last(&c->r)->type, EV3_UART_EV_HANDSHAKE);
+	KUNIT_EXPECT_EQ(test, c->p.sensor.num_modes, 1);
+	KUNIT_EXPECT_EQ(test, c->p.sensor.num_view_modes, 1);
+	KUNIT_EXPECT_EQ(test, c->p.sensor.speed, 2400U);
+}
+
+/* The Arduino emulator's handshake: NAME and FORMAT only, defaults elsewhere. */
+static void test_defaults_without_ranges(struct kunit *test)
+{
+	static const u8 law[] = {
+		0x40, 0x63, 0xdc, 0x49, 0x00, 0x00, 0xb6,
+		0x52, 0x00, 0x96, 0x00, 0x00, 0x3b,
+		0x90, 0x00, 0x54, 0x45, 0x53, 0x54, 0x79,
+		0x90, 0x80, 0x01, 0x00, 0x02, 0x00, 0xec, 0x04,
+	};
+	struct ctx *c = new_ctx(test);
+	const struct ev3_uart_mode *m = &c->p.sensor.modes[0];
+
+	feed(&c->p, law, sizeof(law), sizeof(law), &c->r);
+	KUNIT_ASSERT_EQ(test, last(&c->r)->type, EV3_UART_EV_HANDSHAKE);
+	KUNIT_EXPECT_EQ(test, c->p.sensor.speed, 38400U);
+	KUNIT_EXPECT_STREQ(test, m->name, "TEST");
+	KUNIT_EXPECT_EQ(test, m->raw_min, 0);
+	KUNIT_EXPECT_EQ(test, m->raw_max, 1023);
+	KUNIT_EXPECT_EQ(test, m->pct_max, 100);
+	KUNIT_EXPECT_EQ(test, m->si_max, 1);
+	/* ev3dev's rule: value scaled from 0..1023 onto 0..1. */
+	KUNIT_EXPECT_EQ(test, ev3_uart_scale_value(m, 1023), 1);
+	KUNIT_EXPECT_EQ(test, ev3_uart_scale_value(m, 1022), 0);
+}
+
+/* ---- malformed handshakes ---- */
+
+struct bad_case {
+	const char *what;
+	u8 bytes[40];
+	u8 len;
+};
+
+/*
+ * Each case follows a valid TYPE 99 message; each must end in an error
+ * and leave the parser hunting for TYPE again. Checksums are right unless
+ * the case is about the checksum.
+ */
+static const struct bad_case bad_cases[] = {
+	{ "oversized payload (64 bytes)", { 0xb0, 0x00 }, 2 },
+	{ "bad checksum", { 0x49, 0x00, 0x00, 0x00 }, 4 },
+	{ "modes out of range", { 0x49, 0x08, 0x00, 0xbe }, 4 },
+	{ "duplicate MODES", { 0x41, 0x00, 0xbe, 0x41, 0x00, 0xbe }, 6 },
+	{ "duplicate SPEED", { 0x52, 0x80, 0x25, 0x00, 0x00, 0x08,
+			       0x52, 0x80, 0x25, 0x00, 0x00, 0x08 }, 12 },
+	{ "speed out of range", { 0x52, 0x00, 0x00, 0x00, 0x01, 0xac }, 6 },
+	{ "DATA before ACK", { 0xc0, 0x05, 0x3a }, 3 },
+	{ "duplicate TYPE", { 0x40, 0x63, 0xdc }, 3 },
+	{ "SELECT from a sensor", { 0x43, 0x00, 0xbc }, 3 },
+	{ "INFO for a mode out of range", { 0x91, 0x00, 'A', 'B', 0, 0, 0x6d }, 7 },
+	{ "unknown INFO type", { 0x90, 0x0d, 0, 0, 0, 0, 0x62 }, 7 },
+	{ "FORMAT before NAME", { 0x90, 0x80, 1, 0, 2, 0, 0xec }, 7 },
+	{ "ACK with no mode described", { 0x04 }, 1 },
+	{ "NAME not starting with a letter", { 0x90, 0x00, '1', 'A', 0, 0, 0x1f }, 7 },
+	{ "NAME with a control character", { 0x90, 0x00, 'A', 0x07, 0, 0, 0x29 }, 7 },
+	{ "NAME without NUL", { 0xa0, 0x00, 'A', 'B', 'C', 'D', 'E', 'F', 'G', 'H',
+				'I', 'J', 'K', 'L', 'M', 'N', 'O', 'P', 0x4f }, 19 },
+};
+
+static void test_malformed_handshakes(struct kunit *test)
+{
+	static const u8 type99[] = { 0x40, 0x63, 0xdc };
+	int i;
+
+	for (i = 0; i < ARRAY_SIZE(bad_cases); i++) {
+		const struct bad_case *bc = &bad_cases[i];
+		struct ctx *c = new_ctx(test);
+		u8 *b = c->buf;
+		size_t len;
+
+		memcpy(b, type99, 3);
+		memcpy(b + 3, bc->bytes, bc->len);
+		len = 3 + bc->len;
+		feed(&c->p, b, len, 1, &c->r);
+		KUNIT_EXPECT_EQ_MSG(test, last(&c->r)->type, EV3_UART_EV_ERROR,
+				    "case: %s", bc->what);
+		KUNIT_EXPECT_EQ_MSG(test, c->p.state, EV3_UART_STATE_SYNC,
+				    "case: %s", bc->what);
+	}
+}
+
+/* Build a one-mode handshake whose only mode has FORMAT @fmt and ranges @si. */
+static size_t enc_one_mode(u8 *buf, const u8 *fmt, const u32 *si)
+{
+	static const u32 raw[2] = { F0, F100 };
+	u8 type = 99;
+	size_t len = 0;
+
+	len += enc_cmd(buf, EV3_UART_CMD_TYPE, &type, 1);
+	len += enc_string(buf + len, 0, EV3_UART_INFO_NAME, "M");
+	len += enc_range(buf + len, 0, EV3_UART_INFO_RAW, raw);
+	len += enc_range(buf + len, 0, EV3_UART_INFO_SI, si);
+	len += enc_info(buf + len, 0, EV3_UART_INFO_FORMAT, fmt, 4);
+	buf[len++] = EV3_UART_SYS_ACK;
+	return len;
+}
+
+static void test_format_limits(struct kunit *test)
+{
+	static const u32 si[2] = { F0, F100 };
+	static const u32 nan_si[2] = { F0, FNAN };
+	static const struct {
+		u8 fmt[4];
+		bool ok;
+	} cases[] = {
+		{ { 32, EV3_UART_DATA_S8, 4, 0 }, true },
+		{ { 33, EV3_UART_DATA_S8, 4, 0 }, false },	/* count overflow */
+		{ { 16, EV3_UART_DATA_S16, 4, 0 }, true },
+		{ { 17, EV3_UART_DATA_S16, 4, 0 }, false },
+		{ { 8, EV3_UART_DATA_S32, 4, 0 }, true },
+		{ { 9, EV3_UART_DATA_S32, 4, 0 }, false },
+		{ { 8, EV3_UART_DATA_FLOAT, 4, 0 }, true },
+		{ { 9, EV3_UART_DATA_FLOAT, 4, 0 }, false },
+		{ { 0, EV3_UART_DATA_S8, 4, 0 }, false },	/* no values */
+		{ { 1, 4, 4, 0 }, false },			/* data type */
+		{ { 1, EV3_UART_DATA_S8, 16, 0 }, false },	/* figures */
+		{ { 1, EV3_UART_DATA_S8, 4, 10 }, false },	/* decimals */
+		{ { 1, EV3_UART_DATA_S8, 4, 9 }, false },	/* 100 * 10^9 overflows */
+		{ { 1, EV3_UART_DATA_S8, 4, 7 }, true },
+	};
+	int i;
+
+	for (i = 0; i < ARRAY_SIZE(cases); i++) {
+		struct ctx *c = new_ctx(test);
+		size_t len = enc_one_mode(c->buf, cases[i].fmt, si);
+		enum ev3_uart_event_type want = EV3_UART_EV_ERROR;
+
+		if (cases[i].ok)
+			want = EV3_UART_EV_HANDSHAKE;
+		feed(&c->p, c->buf, len, len, &c->r);
+		KUNIT_EXPECT_EQ_MSG(test, last(&c->r)->type, want, "FORMAT case %d", i);
+	}
+
+	/* A NaN range is refused too. */
+	{
+		static const u8 fmt[4] = { 1, EV3_UART_DATA_S8, 4, 0 };
+		struct ctx *c = new_ctx(test);
+		size_t len = enc_one_mode(c->buf, fmt, nan_si);
+
+		feed(&c->p, c->buf, len, len, &c->r);
+		KUNIT_EXPECT_EQ(test, last(&c->r)->type, EV3_UART_EV_ERROR);
+	}
+}
+
+static void test_incomplete_and_duplicate_modes(struct kunit *test)
+{
+	static const struct tmode m = { "A", { F0, F100 }, { F0, F100 }, NULL, 1, 0, 2, 0 };
+	u8 modes[2] = { 1, 1 };
+	u8 type = 99;
+	struct ctx *c;
+	size_t len;
+
+	/* Two modes announced, one described, then ACK. */
+	c = new_ctx(test);
+	len = enc_cmd(c->buf, EV3_UART_CMD_TYPE, &type, 1);
+	len += enc_cmd(c->buf + len, EV3_UART_CMD_MODES, modes, 2);
+	len += enc_mode(c->buf + len, type, 1, &m);
+	c->buf[len++] = EV3_UART_SYS_ACK;
+	feed(&c->p, c->buf, len, len, &c->r);
+	KUNIT_EXPECT_EQ(test, last(&c->r)->type, EV3_UART_EV_ERROR);
+
+	/* The same mode described twice. */
+	c = new_ctx(test);
+	len = enc_cmd(c->buf, EV3_UART_CMD_TYPE, &type, 1);
+	len += enc_cmd(c->buf + len, EV3_UART_CMD_MODES, modes, 2);
+	len += enc_mode(c->buf + len, type, 1, &m);
+	len += enc_mode(c->buf + len, type, 1, &m);
+	feed(&c->p, c->buf, len, len, &c->r);
+	KUNIT_EXPECT_EQ(test, last(&c->r)->type, EV3_UART_EV_ERROR);
+
+	/* A range INFO after FORMAT, and a duplicate range. */
+	c = new_ctx(test);
+	len = enc_cmd(c->buf, EV3_UART_CMD_TYPE, &type, 1);
+	len += enc_mode(c->buf + len, type, 0, &m);
+	len += enc_range(c->buf + len, 0, EV3_UART_INFO_RAW, m.raw);
+	feed(&c->p, c->buf, len, len, &c->r);
+	KUNIT_EXPECT_EQ(test, last(&c->r)->type, EV3_UART_EV_ERROR);
+
+	c = new_ctx(test);
+	len = enc_cmd(c->buf, EV3_UART_CMD_TYPE, &type, 1);
+	len += enc_string(c->buf + len, 0, EV3_UART_INFO_NAME, "A");
+	len += enc_range(c->buf + len, 0, EV3_UART_INFO_SI, m.si);
+	len += enc_range(c->buf + len, 0, EV3_UART_INFO_SI, m.si);
+	feed(&c->p, c->buf, len, len, &c->r);
+	KUNIT_EXPECT_EQ(test, last(&c->r)->type, EV3_UART_EV_ERROR);
+
+	/* MODES after the first INFO. */
+	c = new_ctx(test);
+	len = enc_cmd(c->buf, EV3_UART_CMD_TYPE, &type, 1);
+	len += enc_string(c->buf + len, 0, EV3_UART_INFO_NAME, "A");
+	len += enc_cmd(c->buf + len, EV3_UART_CMD_MODES, modes, 2);
+	feed(&c->p, c->buf, len, len, &c->r);
+	KUNIT_EXPECT_EQ(test, last(&c->r)->type, EV3_UART_EV_ERROR);
+}
+
+/* Powered Up extras are skipped, not fatal. */
+static void test_powered_up_extras_ignored(struct kunit *test)
+{
+	static const struct tmode m = { "A", { F0, F100 }, { F0, F100 }, NULL, 1, 0, 2, 0 };
+	static const u8 name_plus8[8] = { 'C', 'A', 'L', 'I', 'B' };
+	static const u8 mapping[2] = { 0x10, 0x00 };
+	static const u8 version[8] = { 0, 0, 0, 0x10, 0, 0, 0, 0x10 };
+	static const u8 format[4] = { 1, 0, 2, 0 };
+	u8 type = 99;
+	struct ctx *c = new_ctx(test);
+	size_t len;
+
+	len = enc_cmd(c->buf, EV3_UART_CMD_TYPE, &type, 1);
+	len += enc_cmd(c->buf + len, EV3_UART_CMD_VERSION, version, 8);
+	/* NAME of mode 2 + 8, with the MODE_PLUS_8 flag. */
+	len += enc_info(c->buf + len, 2, EV3_UART_INFO_MODE_PLUS_8, name_plus8, 8);
+	len += enc_info(c->buf + len, 2, EV3_UART_INFO_FORMAT | EV3_UART_INFO_MODE_PLUS_8,
+			mapping, 2);
+	len += enc_string(c->buf + len, 0, EV3_UART_INFO_NAME, m.name);
+	len += enc_info(c->buf + len, 0, 0x05, mapping, 2);	/* MAPPING */
+	len += enc_range(c->buf + len, 0, EV3_UART_INFO_RAW, m.raw);
+	len += enc_range(c->buf + len, 0, EV3_UART_INFO_SI, m.si);
+	len += enc_info(c->buf + len, 0, EV3_UART_INFO_FORMAT, format, 4);
+	c->buf[len++] = EV3_UART_SYS_ACK;
+	feed(&c->p, c->buf, len, len, &c->r);
+	KUNIT_EXPECT_EQ(test, count(&c->r, EV3_UART_EV_ERROR), 0U);
+	KUNIT_EXPECT_EQ(test, last(&c->r)->type, EV3_UART_EV_HANDSHAKE);
+}
+
+/* ---- data phase ---- */
+
+static void test_data_decode_real_frames(struct kunit *test)
+{
+	/* Ultrasonic: C8 07 01 31 is 26.3 cm. */
+	static const u8 us[] = { 0xc8, 0x07, 0x01, 0x31 };
+	/* Gyro G&A: -41 deg, -86 deg/s. */
+	static const u8 gyro_ga[] = { 0xd3, 0xd7, 0xff, 0xaa, 0xff, 0x51 };
+	struct ctx *c = new_ctx(test);
+	s32 v;
+
+	connect(test, c, &sensors[1]);
+	feed(&c->p, us, sizeof(us), sizeof(us), &c->r);
+	KUNIT_ASSERT_EQ(test, last(&c->r)->type, EV3_UART_EV_DATA);
+	KUNIT_EXPECT_EQ(test, last(&c->r)->mode, 0);
+	KUNIT_EXPECT_EQ(test, ev3_uart_read_value(&c->p.sensor.modes[0], c->p.data, 2, 0, &v), 0);
+	KUNIT_EXPECT_EQ(test, v, 263);
+	KUNIT_EXPECT_EQ(test, ev3_uart_scale_value(&c->p.sensor.modes[0], v), 263);
+	KUNIT_EXPECT_EQ(test, ev3_uart_read_value(&c->p.sensor.modes[0], c->p.data, 2, 1, &v),
+			-ENXIO);
+
+	c = new_ctx(test);
+	connect(test, c, &sensors[2]);
+	KUNIT_ASSERT_EQ(test, ev3_uart_parser_select(&c->p, 3), 0);
+	feed(&c->p, gyro_ga, sizeof(gyro_ga), 1, &c->r);
+	KUNIT_ASSERT_EQ(test, last(&c->r)->type, EV3_UART_EV_DATA);
+	KUNIT_EXPECT_TRUE(test, last(&c->r)->mode_changed);
+	KUNIT_EXPECT_EQ(test, ev3_uart_read_value(&c->p.sensor.modes[3], c->p.data, 4, 0, &v), 0);
+	KUNIT_EXPECT_EQ(test, v, -41);
+	KUNIT_EXPECT_EQ(test, ev3_uart_read_value(&c->p.sensor.modes[3], c->p.data, 4, 1, &v), 0);
+	KUNIT_EXPECT_EQ(test, v, -86);
+}
+
+static void test_rgb_raw_checksum_quirk(struct kunit *test)
+{
+	/* Four values (R, G, B, LED off) and a checksum that is wrong. */
+	u8 frame[10] = { 0xdc, 0x10, 0x00, 0x20, 0x00, 0x30, 0x00, 0x05, 0x00, 0x00 };
+	struct ctx *c = new_ctx(test);
+	s32 v;
+
+	connect(test, c, &sensors[0]);
+	ev3_uart_parser_select(&c->p, 4);
+	frame[9] = ev3_uart_checksum(frame, 9) ^ 0x5a;
+	feed(&c->p, frame, sizeof(frame), sizeof(frame), &c->r);
+	KUNIT_ASSERT_EQ(test, last(&c->r)->type, EV3_UART_EV_DATA);
+	KUNIT_EXPECT_EQ(test, last(&c->r)->mode, 4);
+	KUNIT_EXPECT_EQ(test, ev3_uart_read_value(&c->p.sensor.modes[4], c->p.data, 8, 3, &v), 0);
+	KUNIT_EXPECT_EQ(test, v, 5);
+
+	/* The same frame from any other sensor is a bad frame. */
+	c = new_ctx(test);
+	connect(test, c, &sensors[3]);	/* new gyro: mode 4 is 4 x S16 */
+	ev3_uart_parser_select(&c->p, 4);
+	feed(&c->p, frame, sizeof(frame), sizeof(frame), &c->r);
+	KUNIT_EXPECT_EQ(test, count(&c->r, EV3_UART_EV_DATA), 0U);
+	KUNIT_EXPECT_EQ(test, c->p.bad_frames, 1UL);
+}
+
+static void test_us_dc_in_mode5_tags(struct kunit *test)
+{
+	struct ctx *c = new_ctx(test);
+	u8 v5[2] = { 0x4c, 0x00 }, frames[8];
+	size_t len;
+	s32 v;
+
+	connect(test, c, &sensors[1]);
+	KUNIT_ASSERT_EQ(test, ev3_uart_parser_select(&c->p, 6), 0);
+	/* Spontaneous frames come tagged mode 5, NACK replies mode 6. */
+	len = enc_data(frames, 5, v5, 2);
+	len += enc_data(frames + len, 6, v5, 2);
+	feed(&c->p, frames, len, len, &c->r);
+	KUNIT_ASSERT_EQ(test, count(&c->r, EV3_UART_EV_DATA), 2U);
+	KUNIT_EXPECT_EQ(test, c->r.ev[0].mode, 6);
+	KUNIT_EXPECT_TRUE(test, c->r.ev[0].mode_changed);
+	KUNIT_EXPECT_EQ(test, c->r.ev[1].mode, 6);
+	KUNIT_EXPECT_EQ(test, ev3_uart_read_value(&c->p.sensor.modes[6], c->p.data, 2, 0, &v), 0);
+	KUNIT_EXPECT_EQ(test, v, 76);
+
+	/* Selecting mode 5 from mode 6 still works. */
+	c->r.n = 0;
+	KUNIT_ASSERT_EQ(test, ev3_uart_parser_select(&c->p, 5), 0);
+	len = enc_data(frames, 5, v5, 2);
+	feed(&c->p, frames, len, len, &c->r);
+	KUNIT_ASSERT_EQ(test, count(&c->r, EV3_UART_EV_DATA), 1U);
+	KUNIT_EXPECT_EQ(test, c->r.ev[0].mode, 5);
+	KUNIT_EXPECT_TRUE(test, c->r.ev[0].mode_changed);
+}
+
+static void test_select_and_stale_frames(struct kunit *test)
+{
+	struct ctx *c = new_ctx(test);
+	u8 v[1] = { 42 }, frames[16];
+	size_t len;
+
+	connect(test, c, &sensors[0]);
+	KUNIT_EXPECT_EQ(test, ev3_uart_parser_select(&c->p, 6), -EINVAL);
+	KUNIT_ASSERT_EQ(test, ev3_uart_parser_select(&c->p, 2), 0);
+	/* Until the switch is confirmed, mode 0 is still current... */
+	len = enc_data(frames, 0, v, 1);
+	/* ...the first new-mode frame confirms it... */
+	len += enc_data(frames + len, 2, v, 1);
+	len += enc_data(frames + len, 2, v, 1);
+	/* ...and a late old-mode frame after that is dropped quietly. */
+	len += enc_data(frames + len, 0, v, 1);
+	feed(&c->p, frames, len, len, &c->r);
+	KUNIT_ASSERT_EQ(test, count(&c->r, EV3_UART_EV_DATA), 3U);
+	KUNIT_EXPECT_EQ(test, c->r.ev[0].mode, 0);
+	KUNIT_EXPECT_FALSE(test, c->r.ev[0].mode_changed);
+	KUNIT_EXPECT_EQ(test, c->r.ev[1].mode, 2);
+	KUNIT_EXPECT_TRUE(test, c->r.ev[1].mode_changed);
+	KUNIT_EXPECT_FALSE(test, c->r.ev[2].mode_changed);
+	KUNIT_EXPECT_EQ(test, c->p.mode, 2);
+	KUNIT_EXPECT_EQ(test, c->p.bad_frames, 0UL);
+
+	/* Selecting the current mode is confirmed without a change. */
+	c->r.n = 0;
+	KUNIT_ASSERT_EQ(test, ev3_uart_parser_select(&c->p, 2), 0);
+	len = enc_data(frames, 2, v, 1);
+	feed(&c->p, frames, len, len, &c->r);
+	KUNIT_ASSERT_EQ(test, count(&c->r, EV3_UART_EV_DATA), 1U);
+	KUNIT_EXPECT_FALSE(test, c->r.ev[0].mode_changed);
+	KUNIT_EXPECT_EQ(test, c->p.pending_mode, EV3_UART_NO_MODE);
+
+	/* SELECT outside the data phase. */
+	c = new_ctx(test);
+	KUNIT_EXPECT_EQ(test, ev3_uart_parser_select(&c->p, 0), -ENODEV);
+}
+
+static void test_data_resync_after_garbage(struct kunit *test)
+{
+	struct ctx *c = new_ctx(test);
+	u8 v[1] = { 7 }, b[64];
+	size_t len = 0;
+
+	connect(test, c, &sensors[4]);
+	/* A glitch byte after the speed change, then two good frames. */
+	b[len++] = 0xff;
+	b[len++] = 0xfc;
+	len += enc_data(b + len, 0, v, 1);
+	/* Garbage, including a plausible header swallowing the next frame. */
+	b[len++] = 0x13;
+	b[len++] = 0xc1;
+	len += enc_data(b + len, 0, v, 1);
+	len += enc_data(b + len, 0, v, 1);
+	feed(&c->p, b, len, 3, &c->r);
+	KUNIT_EXPECT_EQ(test, count(&c->r, EV3_UART_EV_ERROR), 0U);
+	/* The frame after 0xc1 is recovered by re-parsing the bad frame. */
+	KUNIT_EXPECT_EQ(test, count(&c->r, EV3_UART_EV_DATA), 3U);
+}
+
+static void test_too_many_bad_frames(struct kunit *test)
+{
+	struct ctx *c = new_ctx(test);
+	u8 frame[3] = { 0xc0, 0x01, 0x00 };	/* wrong checksum */
+	int i;
+
+	connect(test, c, &sensors[0]);
+	for (i = 0; i < EV3_UART_MAX_DATA_ERR; i++)
+		feed(&c->p, frame, 3, 3, &c->r);
+	KUNIT_EXPECT_EQ(test, count(&c->r, EV3_UART_EV_ERROR), 0U);
+	feed(&c->p, frame, 3, 3, &c->r);
+	KUNIT_EXPECT_EQ(test, last(&c->r)->type, EV3_UART_EV_ERROR);
+	KUNIT_EXPECT_EQ(test, c->p.state, EV3_UART_STATE_SYNC);
+}
+
+static void test_keepalive_ticks(struct kunit *test)
+{
+	struct ctx *c = new_ctx(test);
+	struct ev3_uart_event ev;
+	u8 v[1] = { 1 }, frame[3];
+	int i;
+
+	connect(test, c, &sensors[0]);
+	enc_data(frame, 0, v, 1);
+	/* Data every period: never lost. */
+	for (i = 0; i < 20; i++) {
+		feed(&c->p, frame, 3, 3, &c->r);
+		KUNIT_EXPECT_FALSE(test, ev3_uart_parser_tick(&c->p, &ev));
+	}
+	/* Silence: lost on the seventh silent period (~700 ms). */
+	for (i = 0; i < EV3_UART_MAX_DATA_ERR; i++)
+		KUNIT_EXPECT_FALSE(test, ev3_uart_parser_tick(&c->p, &ev));
+	KUNIT_EXPECT_TRUE(test, ev3_uart_parser_tick(&c->p, &ev));
+	KUNIT_EXPECT_EQ(test, ev.type, EV3_UART_EV_ERROR);
+	KUNIT_EXPECT_EQ(test, c->p.state, EV3_UART_STATE_SYNC);
+	/* And the next handshake is accepted. */
+	connect(test, c, &sensors[1]);
+	KUNIT_EXPECT_EQ(test, c->p.sensor.type, 30);
+}
+
+static void test_bytes_dropped_while_acked(struct kunit *test)
+{
+	struct ctx *c = new_ctx(test);
+	size_t len = enc_handshake(c->buf, &sensors[0]);
+	u8 v[1] = { 1 };
+
+	/* 57600-baud bytes seen at 2400 before the switch are junk. */
+	len += enc_data(c->buf + len, 0, v, 1);
+	feed(&c->p, c->buf, len, len, &c->r);
+	KUNIT_EXPECT_EQ(test, count(&c->r, EV3_UART_EV_DATA), 0U);
+	KUNIT_EXPECT_EQ(test, c->p.state, EV3_UART_STATE_ACKED);
+}
+
+static void test_line_errors(struct kunit *test)
+{
+	struct ctx *c = new_ctx(test);
+	struct ev3_uart_event ev;
+	size_t len = enc_handshake(c->buf, &sensors[0]);
+
+	/* In the handshake: start over. */
+	feed(&c->p, c->buf, 20, 20, &c->r);
+	ev3_uart_parser_line_error(&c->p, &ev);
+	KUNIT_EXPECT_EQ(test, ev.type, EV3_UART_EV_ERROR);
+	KUNIT_EXPECT_EQ(test, c->p.state, EV3_UART_STATE_SYNC);
+
+	/* In the data phase: counted, fatal only when repeated. */
+	c = new_ctx(test);
+	connect(test, c, &sensors[0]);
+	ev3_uart_parser_line_error(&c->p, &ev);
+	KUNIT_EXPECT_EQ(test, ev.type, EV3_UART_EV_NONE);
+	KUNIT_EXPECT_EQ(test, c->p.state, EV3_UART_STATE_DATA);
+	KUNIT_EXPECT_GT(test, len, (size_t)0);
+}
+
+/* ---- values ---- */
+
+static void test_f32_to_fixed(struct kunit *test)
+{
+	s32 v;
+
+	KUNIT_EXPECT_EQ(test, ev3_uart_f32_to_fixed(F1020_1875, 0, &v), 0);
+	KUNIT_EXPECT_EQ(test, v, 1020);
+	KUNIT_EXPECT_EQ(test, ev3_uart_f32_to_fixed(F1020_1875, 4, &v), 0);
+	KUNIT_EXPECT_EQ(test, v, 10201875);
+	KUNIT_EXPECT_EQ(test, ev3_uart_f32_to_fixed(F255, 1, &v), 0);
+	KUNIT_EXPECT_EQ(test, v, 2550);
+	KUNIT_EXPECT_EQ(test, ev3_uart_f32_to_fixed(FM180, 0, &v), 0);
+	KUNIT_EXPECT_EQ(test, v, -180);
+	KUNIT_EXPECT_EQ(test, ev3_uart_f32_to_fixed(FM32768, 0, &v), 0);
+	KUNIT_EXPECT_EQ(test, v, -32768);
+	KUNIT_EXPECT_EQ(test, ev3_uart_f32_to_fixed(0x3f000000, 0, &v), 0);	/* 0.5 */
+	KUNIT_EXPECT_EQ(test, v, 1);
+	KUNIT_EXPECT_EQ(test, ev3_uart_f32_to_fixed(0xbf000000, 0, &v), 0);	/* -0.5 */
+	KUNIT_EXPECT_EQ(test, v, -1);
+	KUNIT_EXPECT_EQ(test, ev3_uart_f32_to_fixed(0x3dcccccd, 1, &v), 0);	/* 0.1 */
+	KUNIT_EXPECT_EQ(test, v, 1);
+	KUNIT_EXPECT_EQ(test, ev3_uart_f32_to_fixed(0x00000001, 9, &v), 0);	/* subnormal */
+	KUNIT_EXPECT_EQ(test, v, 0);
+	KUNIT_EXPECT_EQ(test, ev3_uart_f32_to_fixed(0x4f000000, 0, &v), -ERANGE); /* 2^31 */
+	KUNIT_EXPECT_EQ(test, ev3_uart_f32_to_fixed(0xcf000000, 0, &v), 0);	/* -2^31 */
+	KUNIT_EXPECT_EQ(test, v, S32_MIN);
+	KUNIT_EXPECT_EQ(test, ev3_uart_f32_to_fixed(FNAN, 0, &v), -ERANGE);
+	KUNIT_EXPECT_EQ(test, ev3_uart_f32_to_fixed(0x7f800000, 0, &v), -ERANGE); /* +inf */
+	KUNIT_EXPECT_EQ(test, ev3_uart_f32_to_fixed(0x7f7fffff, 0, &v), -ERANGE); /* FLT_MAX */
+	KUNIT_EXPECT_EQ(test, ev3_uart_f32_to_fixed(F1, 10, &v), -EINVAL);
+}
+
+static void test_scale_value(struct kunit *test)
+{
+	struct ev3_uart_mode m = {
+		.raw_min = 0, .raw_max = 1000, .si_min = -500, .si_max = 500,
+	};
+
+	KUNIT_EXPECT_EQ(test, ev3_uart_scale_value(&m, 0), -500);
+	KUNIT_EXPECT_EQ(test, ev3_uart_scale_value(&m, 1000), 500);
+	KUNIT_EXPECT_EQ(test, ev3_uart_scale_value(&m, 501), 1);
+	/* A zero raw span cannot scale: the value is shown as it is. */
+	m.raw_max = 0;
+	KUNIT_EXPECT_EQ(test, ev3_uart_scale_value(&m, 77), 77);
+	/* Extreme spans saturate rather than overflow. */
+	m.raw_min = S32_MIN;
+	m.raw_max = S32_MAX;
+	m.si_min = S32_MIN;
+	m.si_max = S32_MAX - 1;
+	KUNIT_EXPECT_LE(test, ev3_uart_scale_value(&m, S32_MAX), S32_MAX);
+}
+
+static void test_float_values(struct kunit *test)
+{
+	struct ev3_uart_mode m = {
+		.num_values = 2, .data_type = EV3_UART_DATA_FLOAT, .decimals = 2,
+	};
+	/* 12.5 and NaN, little endian. */
+	static const u8 data[8] = { 0x00, 0x00, 0x48, 0x41, 0x00, 0x00, 0xc0, 0x7f };
+	s32 v;
+
+	KUNIT_EXPECT_EQ(test, ev3_uart_read_value(&m, data, 8, 0, &v), 0);
+	KUNIT_EXPECT_EQ(test, v, 1250);
+	KUNIT_EXPECT_EQ(test, ev3_uart_read_value(&m, data, 8, 1, &v), -ERANGE);
+	KUNIT_EXPECT_EQ(test, ev3_uart_read_value(&m, data, 6, 1, &v), -EINVAL);
+}
+
+/* ---- host messages ---- */
+
+static void test_build_messages(struct kunit *test)
+{
+	static const u8 gyro_reset[] = { 0x44, 0x11, 0xaa };
+	static const u8 fac_cal[] = { 0x64, 'L', 'E', 'G', 'O', '-', 'F', 'A', 'C', '-',
+				      'C', 'A', 'L', '-', '1', 0x00, 0x00, 0x8c };
+	static const u8 select2[] = { 0x43, 0x02, 0xbe };
+	u8 buf[EV3_UART_MAX_PAYLOAD + 2], data[33] = { 1, 2, 3 };
+
+	KUNIT_EXPECT_EQ(test, ev3_uart_build_write(buf, (const u8 *)"\x11", 1), 3);
+	KUNIT_EXPECT_MEMEQ(test, buf, gyro_reset, sizeof(gyro_reset));
+	KUNIT_EXPECT_EQ(test, ev3_uart_build_write(buf, (const u8 *)"LEGO-FAC-CAL-1", 14), 18);
+	KUNIT_EXPECT_MEMEQ(test, buf, fac_cal, sizeof(fac_cal));
+	KUNIT_EXPECT_EQ(test, ev3_uart_build_write(buf, data, 3), 6);
+	KUNIT_EXPECT_EQ(test, buf[0], 0x54);
+	KUNIT_EXPECT_EQ(test, buf[4], 0);
+	KUNIT_EXPECT_EQ(test, ev3_uart_build_write(buf, data, 32), 34);
+	KUNIT_EXPECT_EQ(test, buf[0], 0x6c);
+	KUNIT_EXPECT_EQ(test, ev3_uart_build_write(buf, data, 0), -EINVAL);
+	KUNIT_EXPECT_EQ(test, ev3_uart_build_write(buf, data, 33), -EINVAL);
+	KUNIT_EXPECT_EQ(test, ev3_uart_build_select(buf, 2), (size_t)3);
+	KUNIT_EXPECT_MEMEQ(test, buf, select2, sizeof(select2));
+	KUNIT_EXPECT_EQ(test, ev3_uart_build_ack(buf), (size_t)1);
+	KUNIT_EXPECT_EQ(test, buf[0], 0x04);
+	KUNIT_EXPECT_EQ(test, ev3_uart_build_nack(buf), (size_t)1);
+	KUNIT_EXPECT_EQ(test, buf[0], 0x02);
+}
+
 static struct kunit_case ev3_uart_proto_cases[] = {
-	KUNIT_CASE(ev3_uart_test_checksum_real_messages),
-	KUNIT_CASE(ev3_uart_test_checksum_empty),
-	KUNIT_CASE(ev3_uart_test_msg_len),
+	KUNIT_CASE(test_checksum_real_messages),
+	KUNIT_CASE(test_msg_len),
+	KUNIT_CASE(test_encoder_matches_captures),
+	KUNIT_CASE(test_handshake_color),
+	KUNIT_CASE(test_handshake_us),
+	KUNIT_CASE(test_handshake_gyro_old),
+	KUNIT_CASE(test_handshake_gyro_new),
+	KUNIT_CASE(test_handshake_ir_with_00ff),
+	KUNIT_CASE(test_handshake_byte_by_byte),
+	KUNIT_CASE(test_sync_after_garbage),
+	KUNIT_CASE(test_sync_rejects_bad_types),
+	KUNIT_CASE(test_minimal_sensor),
+	KUNIT_CASE(test_defaults_without_ranges),
+	KUNIT_CASE(test_malformed_handshakes),
+	KUNIT_CASE(test_format_limits),
+	KUNIT_CASE(test_incomplete_and_duplicate_modes),
+	KUNIT_CASE(test_powered_up_extras_ignored),
+	KUNIT_CASE(test_data_decode_real_frames),
+	KUNIT_CASE(test_rgb_raw_checksum_quirk),
+	KUNIT_CASE(test_us_dc_in_mode5_tags),
+	KUNIT_CASE(test_select_and_stale_frames),
+	KUNIT_CASE(test_data_resync_after_garbage),
+	KUNIT_CASE(test_too_many_bad_frames),
+	KUNIT_CASE(test_keepalive_ticks),
+	KUNIT_CASE(test_bytes_dropped_while_acked),
+	KUNIT_CASE(test_line_errors),
+	KUNIT_CASE(test_f32_to_fixed),
+	KUNIT_CASE(test_scale_value),
+	KUNIT_CASE(test_float_values),
+	KUNIT_CASE(test_build_messages),
 	{}
 };
 
