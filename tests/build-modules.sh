@@ -17,6 +17,7 @@ mkdir -p "$out"
 rsync -a --delete --exclude '*.o' --exclude '*.ko' --exclude '.*.cmd' --exclude '*.mod*' \
 	--exclude 'modules.order' --exclude 'Module.symvers' \
 	"$top/Kbuild" "$top/Makefile" "$top/drivers" "$top/include" "$out/"
+mkdir -p "$out/tests" && rsync -a --delete "$top/tests/kmod" "$out/tests/"
 log=$out/build.log
 if ! make -C "$out" KDIR="$kdir" $sparse modules >"$log" 2>&1; then
 	cat "$log" >&2

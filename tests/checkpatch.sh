@@ -22,7 +22,7 @@ if [ -z "$cp" ]; then
 	cp=$d/scripts/checkpatch.pl
 fi
 
-mapfile -t files < <(git ls-files -co --exclude-standard -- 'drivers/*.[ch]' 'include/*.h' 'tools/*.[ch]' | sort)
+mapfile -t files < <(git ls-files -co --exclude-standard -- 'drivers/*.[ch]' 'include/*.h' 'tools/*.[ch]' 'tests/kmod/*.[ch]' | sort)
 [ ${#files[@]} -gt 0 ] || { echo "checkpatch: no files"; exit 1; }
 "$cp" --strict --no-tree --quiet --show-types -f "${files[@]}" || {
 	echo "checkpatch: not clean" >&2

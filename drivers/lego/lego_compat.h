@@ -25,4 +25,18 @@
 #define LEGO_TTY_COUNT	int
 #endif
 
+/* Return type of tty_operations::write (its count is LEGO_TTY_COUNT). */
+#ifdef LEGO_HAVE_TTY_WRITE_SSIZE_T
+#define LEGO_TTY_WRITE_RET	ssize_t
+#else
+#define LEGO_TTY_WRITE_RET	int
+#endif
+
+/* The device argument of struct class's dev_uevent. */
+#ifdef LEGO_HAVE_CONST_UEVENT
+#define LEGO_UEVENT_CONST const
+#else
+#define LEGO_UEVENT_CONST
+#endif
+
 #endif /* _LEGO_COMPAT_H */

@@ -3,37 +3,522 @@
  * LEGO MINDSTORMS EV3 UART sensors: tty line discipline.
  *
  * Attach it to any tty a sensor is wired to (`ldattach 29 /dev/ttyUSB0`).
- * This file is the transport glue: it owns the tty, the timers and the work
- * items. The protocol itself lives in ev3_uart_proto.c.
+ * This file is the transport glue: it owns the tty, the work items and the
+ * sensor's lifetime. The protocol itself lives in ev3_uart_proto.c, the
+ * lego-sensor class in ev3_uart_class.c; locking is described in ev3_uart.h.
+ *
+ * Life of a connection:
+ *  - at 2400 baud the parser hunts for a TYPE message and reads the
+ *    handshake;
+ *  - on the sensor's ACK, ack_work answers ACK 10 ms later (the sensor waits
+ *    80 ms at most), switches the tty to the sensor's speed and registers
+ *    the sensor;
+ *  - keepalive_work sends NACK every 100 ms (the sensor resets itself after
+ *    about a second without one) and declares the sensor lost after about
+ *    700 ms without data;
+ *  - reset_work unregisters a lost sensor and goes back to 2400 baud, where
+ *    a new handshake brings it back.
+ * Nothing sleeps or waits in the receive path.
  *
  * Attaching requires CAP_SYS_ADMIN: a user who could attach the discipline to
  * a pty could play a hostile "sensor" and make the kernel register devices of
  * its choosing.
  */
 #include <linux/capability.h>
+#include <linux/jiffies.h>
 #include <linux/module.h>
+#include <linux/moduleparam.h>
+#include <linux/ratelimit.h>
+#include <linux/sched.h>
 #include <linux/slab.h>
+#include <linux/string.h>
 #include <linux/tty.h>
 #include <linux/tty_ldisc.h>
 
 #include "lego_compat.h"
-#include "ev3_uart_proto.h"
+#include "ev3_uart.h"
 
 #define EV3_UART_LDISC_NAME	"n_legoev3"
+#define EV3_UART_ACK_DELAY_MS	10	/* like LEGO's firmware; the sensor allows 80 */
+#define EV3_UART_KEEPALIVE_MS	100
+#define EV3_UART_SELECT_WAIT_MS	250	/* > 62 ms, the slowest first reply */
+#define EV3_UART_SELECT_TRIES	3
+#define EV3_UART_RESTORE_GRACE	(2 * HZ)
+#define EV3_UART_RESTORE_EVERY	3	/* keep-alive periods between SELECTs */
+#define EV3_UART_RESTORE_TICKS	15	/* give up after that many periods */
 
 static int ldisc_num = N_DEVELOPMENT;
 module_param(ldisc_num, int, 0444);
 MODULE_PARM_DESC(ldisc_num, "line discipline number to register (default 29, N_DEVELOPMENT)");
 
-/**
- * struct ev3_uart_port - state of one tty with the discipline attached
- * @tty: the tty, valid from open() to close()
- * @rx_bytes: bytes received since open()
+static char *port_labels[8];
+static int num_port_labels;
+module_param_array(port_labels, charp, &num_port_labels, 0444);
+MODULE_PARM_DESC(port_labels,
+		 "port labels for the sensor address, as tty=label (e.g. ttyUSB0=in1,ttyAMA0=in2)");
+
+/*
+ * How long a new mode's first values may be stale: the infrared sensor
+ * returns leftovers for about 1.1 s after a switch (LEGO's firmware ignores
+ * its data for 1100 ms); the colour sensor for a few ms.
  */
-struct ev3_uart_port {
-	struct tty_struct *tty;
-	unsigned long rx_bytes;
-};
+static unsigned int ev3_uart_settle_ms(u8 type)
+{
+	switch (type) {
+	case EV3_UART_TYPE_IR:
+		return 1100;
+	case EV3_UART_TYPE_COLOR:
+		return 30;
+	default:
+		return 0;
+	}
+}
+
+static int ev3_uart_tx(struct ev3_uart_port *port, const u8 *buf, size_t len)
+{
+	struct tty_struct *tty = port->tty;
+	int n;
+
+	mutex_lock(&port->tx_mutex);
+	n = tty->ops->write(tty, buf, len);
+	mutex_unlock(&port->tx_mutex);
+	if (n < 0 || (size_t)n != len) {
+		dev_warn_ratelimited(tty->dev, "%s: short write (%d of %zu bytes)\n",
+				     tty->name, n, len);
+		return n < 0 ? n : -EIO;
+	}
+	return 0;
+}
+
+static void ev3_uart_set_speed(struct tty_struct *tty, unsigned int baud)
+{
+	struct ktermios old;
+
+	down_write(&tty->termios_rwsem);
+	old = tty->termios;
+	tty_encode_baud_rate(tty, baud, baud);
+	if (tty->ops->set_termios)
+		tty->ops->set_termios(tty, &old);
+	up_write(&tty->termios_rwsem);
+}
+
+/* Raw 8N1 at 2400 baud, no flow control, errors reported as flags. */
+static void ev3_uart_setup_tty(struct tty_struct *tty)
+{
+	struct ktermios old;
+
+	down_write(&tty->termios_rwsem);
+	old = tty->termios;
+	tty->termios.c_iflag &= ~(IGNBRK | BRKINT | PARMRK | ISTRIP | INLCR |
+				  IGNCR | ICRNL | IXON | IXOFF | IGNPAR);
+	tty->termios.c_oflag &= ~OPOST;
+	tty->termios.c_lflag &= ~(ECHO | ECHONL | ICANON | ISIG | IEXTEN);
+	tty->termios.c_cflag &= ~(CSIZE | PARENB | CSTOPB | CRTSCTS);
+	tty->termios.c_cflag |= CS8 | CREAD | CLOCAL | HUPCL;
+	tty_encode_baud_rate(tty, EV3_UART_SPEED_MIN, EV3_UART_SPEED_MIN);
+	if (tty->ops->set_termios)
+		tty->ops->set_termios(tty, &old);
+	up_write(&tty->termios_rwsem);
+}
+
+/* Called under port->lock. */
+static void ev3_uart_queue(struct ev3_uart_port *port, struct work_struct *work)
+{
+	if (!port->closing)
+		queue_work(port->wq, work);
+}
+
+/* Called under port->lock, in the receive path. */
+static void ev3_uart_event(struct ev3_uart_port *port,
+			   const struct ev3_uart_event *ev)
+{
+	struct ev3_uart_sensor_dev *sd = port->sensor;
+
+	switch (ev->type) {
+	case EV3_UART_EV_SYNC:
+		dev_dbg(port->tty->dev, "%s: sensor type %u syncing\n",
+			port->tty->name, port->parser.sensor.type);
+		break;
+	case EV3_UART_EV_HANDSHAKE:
+		if (!port->closing)
+			queue_delayed_work(port->wq, &port->ack_work,
+					   msecs_to_jiffies(EV3_UART_ACK_DELAY_MS));
+		break;
+	case EV3_UART_EV_DATA:
+		if (!sd)
+			break;
+		if (ev->mode_changed) {
+			sd->mode = ev->mode;
+			sd->settle_until = jiffies +
+				msecs_to_jiffies(ev3_uart_settle_ms(sd->desc.type));
+			ev3_uart_queue(port, &sd->mode_work);
+		}
+		memcpy(sd->data, port->parser.data, ev->len);
+		memset(sd->data + ev->len, 0, sizeof(sd->data) - ev->len);
+		sd->data_len = ev->len;
+		if (port->select_mode == ev->mode &&
+		    port->parser.pending_mode == EV3_UART_NO_MODE) {
+			port->select_mode = EV3_UART_NO_MODE;
+			complete(&port->select_done);
+		}
+		break;
+	case EV3_UART_EV_ERROR:
+		port->last_error = ev->reason;
+		dev_info_ratelimited(port->tty->dev, "%s: %s\n", port->tty->name,
+				     ev->reason);
+		ev3_uart_queue(port, &port->reset_work);
+		break;
+	case EV3_UART_EV_NONE:
+		break;
+	}
+}
+
+static void ev3_uart_receive_buf(struct tty_struct *tty, const u8 *cp,
+				 const LEGO_TTY_FLAG *fp,
+				 LEGO_TTY_COUNT count)
+{
+	struct ev3_uart_port *port = tty->disc_data;
+	struct ev3_uart_event ev;
+	size_t run, used;
+
+	spin_lock(&port->lock);
+	while (count > 0) {
+		if (fp && *fp != TTY_NORMAL) {
+			ev3_uart_parser_line_error(&port->parser, &ev);
+			ev3_uart_event(port, &ev);
+			cp++;
+			fp++;
+			count--;
+			continue;
+		}
+		/* Feed the run of bytes received without error. */
+		for (run = 1; run < count && (!fp || fp[run] == TTY_NORMAL); run++)
+			;
+		used = ev3_uart_parser_feed(&port->parser, cp, run, &ev);
+		ev3_uart_event(port, &ev);
+		cp += used;
+		if (fp)
+			fp += used;
+		count -= used;
+	}
+	spin_unlock(&port->lock);
+}
+
+static void ev3_uart_ack_work(struct work_struct *work)
+{
+	struct ev3_uart_port *port = container_of(to_delayed_work(work),
+						  struct ev3_uart_port, ack_work);
+	struct tty_struct *tty = port->tty;
+	struct ev3_uart_sensor_dev *sd;
+	struct ev3_uart_sensor desc;
+	u8 ack, select[3], mode = EV3_UART_NO_MODE;
+
+	spin_lock(&port->lock);
+	if (port->closing || port->parser.state != EV3_UART_STATE_ACKED) {
+		spin_unlock(&port->lock);
+		return;
+	}
+	desc = port->parser.sensor;
+	spin_unlock(&port->lock);
+
+	if (ev3_uart_tx(port, &ack, ev3_uart_build_ack(&ack)))
+		goto fail;
+	/* The sensor switches speed once it has our ACK: so do we. */
+	tty_wait_until_sent(tty, msecs_to_jiffies(50));
+	ev3_uart_set_speed(tty, desc.speed);
+
+	spin_lock(&port->lock);
+	ev3_uart_parser_start_data(&port->parser);
+	spin_unlock(&port->lock);
+
+	sd = ev3_uart_sensor_create(port, &desc);
+	if (IS_ERR(sd)) {
+		dev_err_ratelimited(tty->dev, "%s: cannot register sensor: %ld\n",
+				    tty->name, PTR_ERR(sd));
+		goto fail;
+	}
+
+	spin_lock(&port->lock);
+	port->sensor = sd;
+	if (port->requested_mode != EV3_UART_NO_MODE &&
+	    port->requested_type == desc.type &&
+	    port->requested_mode < desc.num_modes &&
+	    !ev3_uart_parser_select(&port->parser, port->requested_mode)) {
+		mode = port->requested_mode;
+		port->restored_at = jiffies;
+		port->restore_mode = mode;
+		port->restore_ticks = 0;
+	}
+	spin_unlock(&port->lock);
+
+	dev_info(tty->dev, "%s: %s connected as %s at %u baud\n", tty->name,
+		 sd->driver_name, dev_name(&sd->dev), desc.speed);
+	if (port->last_error) {
+		dev_info(tty->dev, "%s: reconnected after: %s\n", tty->name,
+			 port->last_error);
+		port->last_error = NULL;
+	}
+
+	/* Restore the mode the user chose before the sensor was lost. */
+	if (mode != EV3_UART_NO_MODE)
+		ev3_uart_tx(port, select, ev3_uart_build_select(select, mode));
+
+	queue_delayed_work(port->wq, &port->keepalive_work, 0);
+	return;
+
+fail:
+	spin_lock(&port->lock);
+	ev3_uart_parser_init(&port->parser);
+	spin_unlock(&port->lock);
+	ev3_uart_set_speed(tty, EV3_UART_SPEED_MIN);
+}
+
+static void ev3_uart_keepalive_work(struct work_struct *work)
+{
+	struct ev3_uart_port *port = container_of(to_delayed_work(work),
+						  struct ev3_uart_port,
+						  keepalive_work);
+	struct ev3_uart_event ev;
+	u8 nack, select[3], restore;
+	bool alive;
+
+	spin_lock(&port->lock);
+	if (ev3_uart_parser_tick(&port->parser, &ev))
+		ev3_uart_event(port, &ev);
+	alive = port->parser.state == EV3_UART_STATE_DATA;
+	/*
+	 * The SELECT restoring the user's mode after a reconnect can arrive
+	 * while the sensor still listens at 2400 baud: send it again now and
+	 * then until a DATA message of that mode confirms it.
+	 */
+	restore = port->restore_mode;
+	if (restore != EV3_UART_NO_MODE &&
+	    port->parser.pending_mode != restore) {
+		restore = EV3_UART_NO_MODE;
+		port->restore_mode = EV3_UART_NO_MODE;
+	} else if (restore != EV3_UART_NO_MODE &&
+		   (++port->restore_ticks % EV3_UART_RESTORE_EVERY ||
+		    port->restore_ticks > EV3_UART_RESTORE_TICKS)) {
+		restore = EV3_UART_NO_MODE;
+	}
+	spin_unlock(&port->lock);
+	if (!alive)
+		return;
+
+	if (restore != EV3_UART_NO_MODE)
+		ev3_uart_tx(port, select, ev3_uart_build_select(select, restore));
+	ev3_uart_tx(port, &nack, ev3_uart_build_nack(&nack));
+	if (!READ_ONCE(port->closing))
+		queue_delayed_work(port->wq, &port->keepalive_work,
+				   msecs_to_jiffies(EV3_UART_KEEPALIVE_MS));
+}
+
+static void ev3_uart_reset_work(struct work_struct *work)
+{
+	struct ev3_uart_port *port = container_of(work, struct ev3_uart_port,
+						  reset_work);
+	struct ev3_uart_sensor_dev *sd;
+
+	cancel_delayed_work(&port->keepalive_work);
+
+	spin_lock(&port->lock);
+	sd = port->sensor;
+	port->sensor = NULL;
+	if (sd)
+		sd->gone = true;
+	/* A sensor lost right after a restored mode does not get it again. */
+	if (port->restored_at &&
+	    time_before(jiffies, port->restored_at + EV3_UART_RESTORE_GRACE))
+		port->requested_mode = EV3_UART_NO_MODE;
+	port->restored_at = 0;
+	port->restore_mode = EV3_UART_NO_MODE;
+	port->select_mode = EV3_UART_NO_MODE;
+	complete_all(&port->select_done);
+	spin_unlock(&port->lock);
+
+	ev3_uart_set_speed(port->tty, EV3_UART_SPEED_MIN);
+	if (sd) {
+		dev_info(port->tty->dev, "%s: %s disconnected\n",
+			 port->tty->name, sd->driver_name);
+		ev3_uart_sensor_destroy(sd);
+	}
+}
+
+/**
+ * ev3_uart_get_data() - read a sensor's current mode and last values
+ * @sd: the sensor
+ * @mode: its current mode
+ * @data: %EV3_UART_MAX_PAYLOAD bytes for the last DATA payload
+ *
+ * Both are read together under the port lock, so they always match.
+ *
+ * Return: the payload length, or -%ENODEV if the sensor is gone.
+ */
+int ev3_uart_get_data(struct ev3_uart_sensor_dev *sd, u8 *mode, u8 *data)
+{
+	struct ev3_uart_port *port = sd->port;
+	int len;
+
+	spin_lock(&port->lock);
+	if (sd->gone) {
+		spin_unlock(&port->lock);
+		return -ENODEV;
+	}
+	*mode = sd->mode;
+	memcpy(data, sd->data, EV3_UART_MAX_PAYLOAD);
+	len = sd->data_len;
+	spin_unlock(&port->lock);
+	return len;
+}
+
+/*
+ * Wait until a new mode's values can be trusted: until @settle, then for one
+ * DATA message received after it (the last one before may be stale too).
+ */
+static int ev3_uart_settle(struct ev3_uart_sensor_dev *sd, u8 mode,
+			   unsigned long settle, unsigned long wait)
+{
+	struct ev3_uart_port *port = sd->port;
+	long left;
+
+	if (schedule_timeout_interruptible(settle - jiffies))
+		return -ERESTARTSYS;
+
+	spin_lock(&port->lock);
+	port->select_mode = mode;
+	reinit_completion(&port->select_done);
+	spin_unlock(&port->lock);
+
+	left = wait_for_completion_interruptible_timeout(&port->select_done, wait);
+
+	spin_lock(&port->lock);
+	port->select_mode = EV3_UART_NO_MODE;
+	spin_unlock(&port->lock);
+	if (left < 0)
+		return left;
+	return sd->gone ? -ENODEV : 0;
+}
+
+/**
+ * ev3_uart_set_mode() - switch a sensor to another mode
+ * @sd: the sensor
+ * @mode: the mode, 0 to num_modes - 1
+ *
+ * Sends SELECT and waits for the first DATA message of the new mode, which
+ * is the only confirmation the protocol has. SELECT is sent again only after
+ * 250 ms without an answer, so that slow one-shot modes (the ultrasonic
+ * sensor answers after 62 ms) are not restarted. Then waits until the new
+ * mode's values can be trusted (about 1.1 s for the infrared sensor).
+ * Selecting the current mode returns at once.
+ *
+ * Return: 0, -%EINVAL for a mode the sensor does not have, -%ENODEV if the
+ * sensor is gone, -%ETIMEDOUT if it never confirmed, -%ERESTARTSYS if
+ * interrupted.
+ */
+int ev3_uart_set_mode(struct ev3_uart_sensor_dev *sd, u8 mode)
+{
+	unsigned long wait = msecs_to_jiffies(EV3_UART_SELECT_WAIT_MS);
+	struct ev3_uart_port *port = sd->port;
+	unsigned long settle = 0;
+	long left = 0;
+	u8 msg[3];
+	int ret, i;
+
+	if (mode >= sd->desc.num_modes)
+		return -EINVAL;
+	ret = mutex_lock_interruptible(&port->select_mutex);
+	if (ret)
+		return ret;
+
+	spin_lock(&port->lock);
+	if (sd->gone) {
+		ret = -ENODEV;
+	} else if (sd->mode == mode &&
+		   port->parser.pending_mode == EV3_UART_NO_MODE) {
+		ret = 1;	/* nothing to do */
+	} else {
+		ret = ev3_uart_parser_select(&port->parser, mode);
+		port->select_mode = mode;
+		reinit_completion(&port->select_done);
+	}
+	spin_unlock(&port->lock);
+	if (ret)
+		goto out;
+
+	for (i = 0; i < EV3_UART_SELECT_TRIES; i++) {
+		ret = ev3_uart_tx(port, msg, ev3_uart_build_select(msg, mode));
+		if (ret)
+			break;
+		left = wait_for_completion_interruptible_timeout(&port->select_done,
+								 wait);
+		if (left)
+			break;
+	}
+
+	spin_lock(&port->lock);
+	if (sd->gone) {
+		ret = -ENODEV;
+	} else if (left > 0 && !ret) {
+		port->requested_type = sd->desc.type;
+		port->requested_mode = mode;
+		settle = sd->settle_until;
+	} else if (!ret) {
+		ret = left < 0 ? left : -ETIMEDOUT;
+	}
+	if (ret)
+		port->select_mode = EV3_UART_NO_MODE;
+	spin_unlock(&port->lock);
+
+	if (ret == -ETIMEDOUT)
+		dev_warn_ratelimited(&sd->dev, "mode %s not confirmed by the sensor\n",
+				     sd->desc.modes[mode].name);
+	else if (!ret && settle && time_before(jiffies, settle))
+		ret = ev3_uart_settle(sd, mode, settle, wait);
+out:
+	mutex_unlock(&port->select_mutex);
+	return ret < 0 ? ret : 0;
+}
+
+/**
+ * ev3_uart_write() - send a WRITE message to a sensor
+ * @sd: the sensor
+ * @data: the bytes, e.g. 0x11 to reset the gyro's angle
+ * @len: 1 to 32; shorter writes are padded with zeros to a power of two
+ *
+ * Return: 0, -%EINVAL for a bad length, -%ENODEV if the sensor is gone, or
+ * the tty's error.
+ */
+int ev3_uart_write(struct ev3_uart_sensor_dev *sd, const u8 *data, size_t len)
+{
+	u8 msg[EV3_UART_MAX_PAYLOAD + 2];
+	bool gone;
+	int n;
+
+	n = ev3_uart_build_write(msg, data, len);
+	if (n < 0)
+		return n;
+	spin_lock(&sd->port->lock);
+	gone = sd->gone;
+	spin_unlock(&sd->port->lock);
+	if (gone)
+		return -ENODEV;
+	return ev3_uart_tx(sd->port, msg, n);
+}
+
+static void ev3_uart_find_label(struct ev3_uart_port *port)
+{
+	size_t n = strlen(port->tty->name);
+	int i;
+
+	for (i = 0; i < num_port_labels; i++) {
+		const char *p = port_labels[i];
+
+		if (p && !strncmp(p, port->tty->name, n) && p[n] == '=') {
+			strscpy(port->label, p + n + 1, sizeof(port->label));
+			return;
+		}
+	}
+}
 
 static int ev3_uart_open(struct tty_struct *tty)
 {
@@ -50,7 +535,27 @@ static int ev3_uart_open(struct tty_struct *tty)
 	if (!port)
 		return -ENOMEM;
 
+	port->wq = alloc_ordered_workqueue("ev3-uart-%s", WQ_HIGHPRI, tty->name);
+	if (!port->wq) {
+		kfree(port);
+		return -ENOMEM;
+	}
+
 	port->tty = tty;
+	spin_lock_init(&port->lock);
+	mutex_init(&port->select_mutex);
+	mutex_init(&port->tx_mutex);
+	init_completion(&port->select_done);
+	INIT_DELAYED_WORK(&port->ack_work, ev3_uart_ack_work);
+	INIT_DELAYED_WORK(&port->keepalive_work, ev3_uart_keepalive_work);
+	INIT_WORK(&port->reset_work, ev3_uart_reset_work);
+	ev3_uart_parser_init(&port->parser);
+	port->select_mode = EV3_UART_NO_MODE;
+	port->requested_mode = EV3_UART_NO_MODE;
+	port->restore_mode = EV3_UART_NO_MODE;
+	ev3_uart_find_label(port);
+
+	ev3_uart_setup_tty(tty);
 	tty->disc_data = port;
 	tty->receive_room = 65536;
 	tty_driver_flush_buffer(tty);
@@ -61,18 +566,26 @@ static int ev3_uart_open(struct tty_struct *tty)
 static void ev3_uart_close(struct tty_struct *tty)
 {
 	struct ev3_uart_port *port = tty->disc_data;
+	struct ev3_uart_sensor_dev *sd;
+
+	spin_lock(&port->lock);
+	port->closing = true;
+	sd = port->sensor;
+	port->sensor = NULL;
+	if (sd)
+		sd->gone = true;
+	complete_all(&port->select_done);
+	spin_unlock(&port->lock);
+
+	cancel_delayed_work_sync(&port->ack_work);
+	cancel_delayed_work_sync(&port->keepalive_work);
+	/* Runs a pending reset_work, which may still hold a sensor. */
+	destroy_workqueue(port->wq);
+	if (sd)
+		ev3_uart_sensor_destroy(sd);
 
 	tty->disc_data = NULL;
 	kfree(port);
-}
-
-static void ev3_uart_receive_buf(struct tty_struct *tty, const u8 *cp,
-				 const LEGO_TTY_FLAG *fp,
-				 LEGO_TTY_COUNT count)
-{
-	struct ev3_uart_port *port = tty->disc_data;
-
-	port->rx_bytes += count;
 }
 
 static struct tty_ldisc_ops ev3_uart_ldisc = {
@@ -93,11 +606,17 @@ static int __init ev3_uart_init(void)
 		return -EINVAL;
 	}
 
+	ret = ev3_uart_class_init();
+	if (ret)
+		return ret;
+
 	ev3_uart_ldisc.num = ldisc_num;
 	ret = tty_register_ldisc(&ev3_uart_ldisc);
-	if (ret)
+	if (ret) {
 		pr_err("lego-ev3-uart: cannot register line discipline %d: %d\n",
 		       ldisc_num, ret);
+		ev3_uart_class_exit();
+	}
 	return ret;
 }
 module_init(ev3_uart_init);
@@ -105,6 +624,7 @@ module_init(ev3_uart_init);
 static void __exit ev3_uart_exit(void)
 {
 	tty_unregister_ldisc(&ev3_uart_ldisc);
+	ev3_uart_class_exit();
 }
 module_exit(ev3_uart_exit);
 

@@ -1,0 +1,140 @@
+/* SPDX-License-Identifier: GPL-2.0 */
+/*
+ * LEGO MINDSTORMS EV3 UART sensors: what the line discipline and the
+ * device front ends (lego-sensor class, IIO) share.
+ *
+ * Locking
+ * -------
+ * ev3_uart_port.lock (spinlock) protects the parser, ev3_uart_port.sensor
+ * and every ev3_uart_sensor's values (mode, data). It is taken by the
+ * receive path (tty flip-buffer work), the work items and the sysfs/IIO
+ * readers, never for longer than a copy; nothing sleeps under it.
+ *
+ * ev3_uart_port.select_mutex serialises mode changes (one SELECT in flight).
+ * ev3_uart_port.tx_mutex serialises writes to the tty (ACK, NACK, SELECT,
+ * WRITE), which all happen in process context.
+ *
+ * All work items run on the port's ordered workqueue, so a sensor is never
+ * registered and unregistered at the same time.
+ *
+ * Lifetime
+ * --------
+ * A struct ev3_uart_sensor lives from the end of a handshake until the
+ * sensor is lost or the discipline is closed; its description (modes,
+ * ranges) never changes during that time, so readers can never see it
+ * half reset. Its memory is freed by the release of its class device, which
+ * runs once the last reference (an open sysfs file, the IIO device) is gone.
+ * The port outlives every sensor on it: close() unregisters the sensor,
+ * which waits for sysfs callbacks in flight, before freeing the port.
+ */
+#ifndef _EV3_UART_H
+#define _EV3_UART_H
+
+#include <linux/completion.h>
+#include <linux/device.h>
+#include <linux/mutex.h>
+#include <linux/spinlock.h>
+#include <linux/tty.h>
+#include <linux/workqueue.h>
+
+#include "ev3_uart_proto.h"
+
+#define EV3_UART_LABEL_LEN	16
+/* "tty name:label" */
+#define EV3_UART_ADDRESS_LEN	(sizeof_field(struct tty_struct, name) + EV3_UART_LABEL_LEN)
+
+struct ev3_uart_port;
+
+/**
+ * struct ev3_uart_sensor_dev - one connected sensor
+ * @port: the line it is on
+ * @desc: what the sensor said about itself; never changes
+ * @driver_name: e.g. "lego-ev3-color", or "ev3-uart-<type>"
+ * @address: e.g. "ttyUSB0:in1" (tty name, then the port label if set)
+ * @dev: the lego-sensor class device (sensorN)
+ * @id: N of sensorN
+ * @gone: the sensor was lost or the line closed (under @port->lock)
+ * @mode: current mode (under @port->lock)
+ * @data: last DATA payload of @mode (under @port->lock)
+ * @data_len: its length (under @port->lock)
+ * @settle_until: jiffies before which values of a new mode may be stale
+ * @mode_work: sends the uevent for a mode change (uevents may sleep)
+ * @iio: the IIO front end, or NULL
+ */
+struct ev3_uart_sensor_dev {
+	struct ev3_uart_port *port;
+	struct ev3_uart_sensor desc;
+	char driver_name[24];
+	char address[EV3_UART_ADDRESS_LEN];
+	struct device dev;
+	int id;
+	bool gone;
+	u8 mode;
+	u8 data[EV3_UART_MAX_PAYLOAD];
+	u8 data_len;
+	unsigned long settle_until;
+	struct work_struct mode_work;
+	void *iio;
+};
+
+/**
+ * struct ev3_uart_port - one tty with the discipline attached
+ * @tty: the tty
+ * @lock: see "Locking" above
+ * @parser: protocol state
+ * @sensor: the registered sensor, or NULL
+ * @closing: close() has started; no work may be queued any more
+ * @wq: ordered workqueue for all work of this port
+ * @ack_work: answers the sensor's ACK and switches speed (10 ms after it)
+ * @keepalive_work: sends NACK every 100 ms and detects a lost sensor
+ * @reset_work: drops a lost sensor and goes back to 2400 baud
+ * @select_mutex: see "Locking"
+ * @select_mode: the mode a SELECT is waiting for, or %EV3_UART_NO_MODE
+ * @select_done: completed by the first DATA of @select_mode, or on loss
+ * @tx_mutex: see "Locking"
+ * @requested_type: sensor type the user chose @requested_mode for
+ * @requested_mode: mode restored after a reconnect, or %EV3_UART_NO_MODE
+ * @restored_at: jiffies of the last restore (a sensor lost right after
+ *	one, as calibration modes do, does not get it again)
+ * @restore_mode: mode being restored and not yet confirmed, or
+ *	%EV3_UART_NO_MODE
+ * @restore_ticks: keep-alive periods since the restore began
+ * @label: port label set by the user (module parameter), e.g. "in1"
+ * @last_error: reason of the last protocol error, for the log
+ */
+struct ev3_uart_port {
+	struct tty_struct *tty;
+	spinlock_t lock;	/* see "Locking" */
+	struct ev3_uart_parser parser;
+	struct ev3_uart_sensor_dev *sensor;
+	bool closing;
+	struct workqueue_struct *wq;
+	struct delayed_work ack_work;
+	struct delayed_work keepalive_work;
+	struct work_struct reset_work;
+	struct mutex select_mutex;	/* one mode change at a time */
+	u8 select_mode;
+	struct completion select_done;
+	struct mutex tx_mutex;		/* one writer to the tty at a time */
+	u8 requested_type;
+	u8 requested_mode;
+	unsigned long restored_at;
+	u8 restore_mode;
+	unsigned int restore_ticks;
+	char label[EV3_UART_LABEL_LEN];
+	const char *last_error;
+};
+
+/* ev3_uart_ldisc.c */
+int ev3_uart_set_mode(struct ev3_uart_sensor_dev *sd, u8 mode);
+int ev3_uart_write(struct ev3_uart_sensor_dev *sd, const u8 *data, size_t len);
+int ev3_uart_get_data(struct ev3_uart_sensor_dev *sd, u8 *mode, u8 *data);
+
+/* ev3_uart_class.c */
+int ev3_uart_class_init(void);
+void ev3_uart_class_exit(void);
+struct ev3_uart_sensor_dev *ev3_uart_sensor_create(struct ev3_uart_port *port,
+						   const struct ev3_uart_sensor *desc);
+void ev3_uart_sensor_destroy(struct ev3_uart_sensor_dev *sd);
+
+#endif /* _EV3_UART_H */

@@ -1,0 +1,435 @@
+// SPDX-License-Identifier: GPL-2.0
+/*
+ * LEGO MINDSTORMS EV3 UART sensors: the lego-sensor class.
+ *
+ * /sys/class/lego-sensor/sensorN with the attributes, formats and errors of
+ * ev3dev's lego-sensor ABI, so that programs written for ev3dev (such as
+ * python-ev3dev2) work unchanged. See
+ * Documentation/ABI/testing/sysfs-class-lego-sensor.
+ */
+#include <linux/device.h>
+#include <linux/idr.h>
+#include <linux/kobject.h>
+#include <linux/slab.h>
+#include <linux/sysfs.h>
+
+#include "lego_compat.h"
+#include "ev3_uart.h"
+
+#define EV3_UART_NUM_VALUES	8
+
+static DEFINE_IDA(ev3_uart_sensor_ida);
+
+static struct ev3_uart_sensor_dev *to_sensor(struct device *dev)
+{
+	return container_of(dev, struct ev3_uart_sensor_dev, dev);
+}
+
+static const struct ev3_uart_mode *current_mode(struct ev3_uart_sensor_dev *sd,
+						u8 *data, int *len)
+{
+	u8 buf[EV3_UART_MAX_PAYLOAD], mode;
+	int n;
+
+	n = ev3_uart_get_data(sd, &mode, data ?: buf);
+	if (n < 0)
+		return ERR_PTR(n);
+	if (len)
+		*len = n;
+	return &sd->desc.modes[mode];
+}
+
+static ssize_t address_show(struct device *dev, struct device_attribute *attr,
+			    char *buf)
+{
+	return sysfs_emit(buf, "%s\n", to_sensor(dev)->address);
+}
+static DEVICE_ATTR_RO(address);
+
+static ssize_t driver_name_show(struct device *dev,
+				struct device_attribute *attr, char *buf)
+{
+	return sysfs_emit(buf, "%s\n", to_sensor(dev)->driver_name);
+}
+static DEVICE_ATTR_RO(driver_name);
+
+static ssize_t modes_show(struct device *dev, struct device_attribute *attr,
+			  char *buf)
+{
+	struct ev3_uart_sensor_dev *sd = to_sensor(dev);
+	int i, len = 0;
+
+	for (i = 0; i < sd->desc.num_modes; i++)
+		len += sysfs_emit_at(buf, len, "%s%s", i ? " " : "",
+				     sd->desc.modes[i].name);
+	len += sysfs_emit_at(buf, len, "\n");
+	return len;
+}
+static DEVICE_ATTR_RO(modes);
+
+static ssize_t mode_show(struct device *dev, struct device_attribute *attr,
+			 char *buf)
+{
+	const struct ev3_uart_mode *m = current_mode(to_sensor(dev), NULL, NULL);
+
+	if (IS_ERR(m))
+		return PTR_ERR(m);
+	return sysfs_emit(buf, "%s\n", m->name);
+}
+
+static ssize_t mode_store(struct device *dev, struct device_attribute *attr,
+			  const char *buf, size_t count)
+{
+	struct ev3_uart_sensor_dev *sd = to_sensor(dev);
+	int i, ret;
+
+	for (i = 0; i < sd->desc.num_modes; i++) {
+		if (sysfs_streq(buf, sd->desc.modes[i].name)) {
+			ret = ev3_uart_set_mode(sd, i);
+			return ret ? ret : count;
+		}
+	}
+	return -EINVAL;
+}
+static DEVICE_ATTR_RW(mode);
+
+static ssize_t commands_show(struct device *dev, struct device_attribute *attr,
+			     char *buf)
+{
+	return sysfs_emit(buf, "\n");
+}
+static DEVICE_ATTR_RO(commands);
+
+/* No EV3 UART sensor has commands: every command is invalid. */
+static ssize_t command_store(struct device *dev, struct device_attribute *attr,
+			     const char *buf, size_t count)
+{
+	return -EINVAL;
+}
+static DEVICE_ATTR_WO(command);
+
+static ssize_t num_values_show(struct device *dev,
+			       struct device_attribute *attr, char *buf)
+{
+	const struct ev3_uart_mode *m = current_mode(to_sensor(dev), NULL, NULL);
+
+	if (IS_ERR(m))
+		return PTR_ERR(m);
+	return sysfs_emit(buf, "%u\n", m->num_values);
+}
+static DEVICE_ATTR_RO(num_values);
+
+static ssize_t decimals_show(struct device *dev, struct device_attribute *attr,
+			     char *buf)
+{
+	const struct ev3_uart_mode *m = current_mode(to_sensor(dev), NULL, NULL);
+
+	if (IS_ERR(m))
+		return PTR_ERR(m);
+	return sysfs_emit(buf, "%u\n", m->decimals);
+}
+static DEVICE_ATTR_RO(decimals);
+
+static ssize_t units_show(struct device *dev, struct device_attribute *attr,
+			  char *buf)
+{
+	const struct ev3_uart_mode *m = current_mode(to_sensor(dev), NULL, NULL);
+
+	if (IS_ERR(m))
+		return PTR_ERR(m);
+	return sysfs_emit(buf, "%s\n", m->units);
+}
+static DEVICE_ATTR_RO(units);
+
+static const char * const ev3_uart_bin_formats[] = {
+	[EV3_UART_DATA_S8] = "s8",
+	[EV3_UART_DATA_S16] = "s16",
+	[EV3_UART_DATA_S32] = "s32",
+	[EV3_UART_DATA_FLOAT] = "float",
+};
+
+static ssize_t bin_data_format_show(struct device *dev,
+				    struct device_attribute *attr, char *buf)
+{
+	const struct ev3_uart_mode *m = current_mode(to_sensor(dev), NULL, NULL);
+
+	if (IS_ERR(m))
+		return PTR_ERR(m);
+	return sysfs_emit(buf, "%s\n", ev3_uart_bin_formats[m->data_type]);
+}
+static DEVICE_ATTR_RO(bin_data_format);
+
+/* Only I2C sensors can be polled: not supported, as on ev3dev. */
+static ssize_t poll_ms_show(struct device *dev, struct device_attribute *attr,
+			    char *buf)
+{
+	return -EOPNOTSUPP;
+}
+
+static ssize_t poll_ms_store(struct device *dev, struct device_attribute *attr,
+			     const char *buf, size_t count)
+{
+	return -EOPNOTSUPP;
+}
+static DEVICE_ATTR_RW(poll_ms);
+
+static ssize_t fw_version_show(struct device *dev,
+			       struct device_attribute *attr, char *buf)
+{
+	return sysfs_emit(buf, "\n");
+}
+static DEVICE_ATTR_RO(fw_version);
+
+static ssize_t text_value_show(struct device *dev,
+			       struct device_attribute *attr, char *buf)
+{
+	return -EOPNOTSUPP;
+}
+static DEVICE_ATTR_RO(text_value);
+
+/**
+ * struct ev3_value_attr - one of value0 .. value7
+ * @attr: the sysfs attribute
+ * @index: which value of the DATA message it shows
+ */
+struct ev3_value_attr {
+	struct device_attribute attr;
+	unsigned int index;
+};
+
+static ssize_t value_show(struct device *dev, struct device_attribute *attr,
+			  char *buf)
+{
+	struct ev3_value_attr *va = container_of(attr, struct ev3_value_attr, attr);
+	u8 data[EV3_UART_MAX_PAYLOAD];
+	const struct ev3_uart_mode *m;
+	int len, ret;
+	s32 v;
+
+	m = current_mode(to_sensor(dev), data, &len);
+	if (IS_ERR(m))
+		return PTR_ERR(m);
+	if (va->index >= m->num_values)
+		return -ENXIO;
+	/* Before the first DATA message the values read as zero. */
+	ret = ev3_uart_read_value(m, data, EV3_UART_MAX_PAYLOAD, va->index, &v);
+	if (ret)
+		return ret;
+	return sysfs_emit(buf, "%d\n", ev3_uart_scale_value(m, v));
+}
+
+#define EV3_VALUE_ATTR(n) \
+	static struct ev3_value_attr ev3_value##n = { \
+		.attr = __ATTR(value##n, 0444, value_show, NULL), \
+		.index = n, \
+	}
+
+EV3_VALUE_ATTR(0);
+EV3_VALUE_ATTR(1);
+EV3_VALUE_ATTR(2);
+EV3_VALUE_ATTR(3);
+EV3_VALUE_ATTR(4);
+EV3_VALUE_ATTR(5);
+EV3_VALUE_ATTR(6);
+EV3_VALUE_ATTR(7);
+
+static ssize_t bin_data_read(struct file *file, struct kobject *kobj,
+			     struct bin_attribute *attr, char *buf,
+			     loff_t off, size_t count)
+{
+	struct ev3_uart_sensor_dev *sd = to_sensor(kobj_to_dev(kobj));
+	u8 data[EV3_UART_MAX_PAYLOAD];
+	const struct ev3_uart_mode *m;
+
+	m = current_mode(sd, data, NULL);
+	if (IS_ERR(m))
+		return PTR_ERR(m);
+	if (off >= EV3_UART_MAX_PAYLOAD)
+		return 0;
+	count = min_t(size_t, count, EV3_UART_MAX_PAYLOAD - off);
+	memcpy(buf, data + off, count);
+	return count;
+}
+static BIN_ATTR_RO(bin_data, EV3_UART_MAX_PAYLOAD);
+
+static ssize_t direct_read(struct file *file, struct kobject *kobj,
+			   struct bin_attribute *attr, char *buf,
+			   loff_t off, size_t count)
+{
+	return -EOPNOTSUPP;
+}
+
+/* A write sends the bytes to the sensor in one WRITE message. */
+static ssize_t direct_write(struct file *file, struct kobject *kobj,
+			    struct bin_attribute *attr, char *buf,
+			    loff_t off, size_t count)
+{
+	int ret;
+
+	if (off)
+		return -EINVAL;
+	ret = ev3_uart_write(to_sensor(kobj_to_dev(kobj)), buf, count);
+	return ret ? ret : count;
+}
+static BIN_ATTR_RW(direct, 255);
+
+static struct attribute *ev3_uart_sensor_attrs[] = {
+	&dev_attr_address.attr,
+	&dev_attr_driver_name.attr,
+	&dev_attr_modes.attr,
+	&dev_attr_mode.attr,
+	&dev_attr_commands.attr,
+	&dev_attr_command.attr,
+	&dev_attr_num_values.attr,
+	&dev_attr_decimals.attr,
+	&dev_attr_units.attr,
+	&dev_attr_bin_data_format.attr,
+	&dev_attr_poll_ms.attr,
+	&dev_attr_fw_version.attr,
+	&dev_attr_text_value.attr,
+	&ev3_value0.attr.attr,
+	&ev3_value1.attr.attr,
+	&ev3_value2.attr.attr,
+	&ev3_value3.attr.attr,
+	&ev3_value4.attr.attr,
+	&ev3_value5.attr.attr,
+	&ev3_value6.attr.attr,
+	&ev3_value7.attr.attr,
+	NULL
+};
+
+static struct bin_attribute *ev3_uart_sensor_bin_attrs[] = {
+	&bin_attr_bin_data,
+	&bin_attr_direct,
+	NULL
+};
+
+static const struct attribute_group ev3_uart_sensor_group = {
+	.attrs = ev3_uart_sensor_attrs,
+	.bin_attrs = ev3_uart_sensor_bin_attrs,
+};
+
+static const struct attribute_group *ev3_uart_sensor_groups[] = {
+	&ev3_uart_sensor_group,
+	NULL
+};
+
+static int ev3_uart_sensor_uevent(LEGO_UEVENT_CONST struct device *dev,
+				  struct kobj_uevent_env *env)
+{
+	const struct ev3_uart_sensor_dev *sd =
+		container_of(dev, struct ev3_uart_sensor_dev, dev);
+	int ret;
+
+	ret = add_uevent_var(env, "LEGO_DRIVER_NAME=%s", sd->driver_name);
+	if (ret)
+		return ret;
+	return add_uevent_var(env, "LEGO_ADDRESS=%s", sd->address);
+}
+
+static struct class lego_sensor_class = {
+	.name = "lego-sensor",
+	.dev_groups = ev3_uart_sensor_groups,
+	.dev_uevent = ev3_uart_sensor_uevent,
+};
+
+static void ev3_uart_sensor_release(struct device *dev)
+{
+	struct ev3_uart_sensor_dev *sd = to_sensor(dev);
+
+	ida_free(&ev3_uart_sensor_ida, sd->id);
+	kfree(sd);
+}
+
+static void ev3_uart_sensor_mode_work(struct work_struct *work)
+{
+	struct ev3_uart_sensor_dev *sd = container_of(work, struct ev3_uart_sensor_dev,
+						      mode_work);
+
+	kobject_uevent(&sd->dev.kobj, KOBJ_CHANGE);
+}
+
+/**
+ * ev3_uart_sensor_create() - register a sensor after its handshake
+ * @port: the line it is on
+ * @desc: what it said about itself (copied)
+ *
+ * Return: the sensor, or an ERR_PTR().
+ */
+struct ev3_uart_sensor_dev *ev3_uart_sensor_create(struct ev3_uart_port *port,
+						   const struct ev3_uart_sensor *desc)
+{
+	const char *name = ev3_uart_driver_name(desc->type);
+	struct ev3_uart_sensor_dev *sd;
+	int ret;
+
+	sd = kzalloc(sizeof(*sd), GFP_KERNEL);
+	if (!sd)
+		return ERR_PTR(-ENOMEM);
+
+	sd->id = ida_alloc(&ev3_uart_sensor_ida, GFP_KERNEL);
+	if (sd->id < 0) {
+		ret = sd->id;
+		kfree(sd);
+		return ERR_PTR(ret);
+	}
+
+	sd->port = port;
+	sd->desc = *desc;
+	if (name)
+		strscpy(sd->driver_name, name, sizeof(sd->driver_name));
+	else
+		snprintf(sd->driver_name, sizeof(sd->driver_name), "ev3-uart-%u",
+			 desc->type);
+	if (port->label[0])
+		snprintf(sd->address, sizeof(sd->address), "%s:%s",
+			 port->tty->name, port->label);
+	else
+		strscpy(sd->address, port->tty->name, sizeof(sd->address));
+	INIT_WORK(&sd->mode_work, ev3_uart_sensor_mode_work);
+
+	device_initialize(&sd->dev);
+	sd->dev.class = &lego_sensor_class;
+	sd->dev.parent = port->tty->dev;
+	sd->dev.release = ev3_uart_sensor_release;
+	ret = dev_set_name(&sd->dev, "sensor%d", sd->id);
+	if (!ret)
+		ret = device_add(&sd->dev);
+	if (ret) {
+		put_device(&sd->dev);
+		return ERR_PTR(ret);
+	}
+	return sd;
+}
+
+/**
+ * ev3_uart_sensor_destroy() - unregister a sensor that is gone
+ * @sd: the sensor, already marked gone
+ *
+ * Waits for sysfs callbacks in flight; the memory goes with the last
+ * reference to the device.
+ */
+void ev3_uart_sensor_destroy(struct ev3_uart_sensor_dev *sd)
+{
+	cancel_work_sync(&sd->mode_work);
+	device_unregister(&sd->dev);
+}
+
+/**
+ * ev3_uart_class_init() - register the lego-sensor class
+ *
+ * Return: 0 or the class registration error (-%EEXIST if another driver,
+ * such as ev3dev's own, registered it first).
+ */
+int ev3_uart_class_init(void)
+{
+	return class_register(&lego_sensor_class);
+}
+
+/**
+ * ev3_uart_class_exit() - unregister the lego-sensor class
+ */
+void ev3_uart_class_exit(void)
+{
+	class_unregister(&lego_sensor_class);
+}

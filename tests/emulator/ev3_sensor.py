@@ -1,0 +1,447 @@
+"""Emulated LEGO MINDSTORMS EV3 UART sensors.
+
+Each emulator plays one sensor on the sensor end of a serial line (in the
+tests: the far end of a lego_nullmodem pair, which paces bytes at the baud
+rate each end has set and garbles bytes sent at the wrong speed). It behaves
+like the real sensors described in shared/research (uart-peers.md,
+ev3dev.md):
+
+- reset: a line break (the real sensor holds TX low ~500 ms), then the whole
+  handshake back to back at 2400 baud, byte for byte as the real sensors send
+  it (names padded to 8 or 16 bytes, 8-byte ranges and units, 4-byte FORMAT,
+  modes from highest to lowest, ACK last);
+- waits 80 ms for the host's ACK, else starts over;
+- data phase at 57600 baud: answers every NACK with a DATA message, sends on
+  its own at the sensor's cadence (on change, or continuously), resets when
+  no NACK came for a second;
+- SELECT switches mode after the sensor's own delay; WRITE 0x11 resets the
+  gyro angle;
+- quirks: the colour sensor's RGB-RAW frames with a wrong checksum and a
+  fourth value, the infrared sensor's "00 ff" in its handshake and its stale
+  values for ~1.1 s after a mode switch, the ultrasonic sensor's US-DC-IN
+  frames tagged mode 5, modes that stop answering keep-alives (COL-CAL,
+  IR-S-ALT, IR-CAL) and so make the host drop the sensor.
+
+The `hostile` option sends garbage, truncated and oversized messages, bad
+checksums and absurd handshake values before a valid handshake.
+"""
+import math
+import os
+import random
+import select
+import struct
+import termios
+import threading
+import time
+
+SYS_SYNC, SYS_NACK, SYS_ACK = 0x00, 0x02, 0x04
+CMD_TYPE, CMD_MODES, CMD_SPEED, CMD_SELECT, CMD_WRITE = 0, 1, 2, 3, 4
+INFO_NAME, INFO_RAW, INFO_PCT, INFO_SI, INFO_UNITS, INFO_FORMAT = 0, 1, 2, 3, 4, 0x80
+S8, S16, S32, FLOAT = 0, 1, 2, 3
+
+BAUD = {2400: termios.B2400, 9600: termios.B9600, 19200: termios.B19200,
+        38400: termios.B38400, 57600: termios.B57600, 115200: termios.B115200,
+        230400: termios.B230400, 460800: termios.B460800}
+
+
+def checksum(data):
+    c = 0xff
+    for b in data:
+        c ^= b
+    return c
+
+
+def size_code(n):
+    code = 0
+    while (1 << code) < n:
+        code += 1
+    return code
+
+
+def pad(payload):
+    size = 1 << size_code(len(payload))
+    return bytes(payload) + bytes(size - len(payload))
+
+
+def cmd_msg(cmd, payload):
+    p = pad(payload)
+    m = bytes([0x40 | size_code(len(p)) << 3 | cmd]) + p
+    return m + bytes([checksum(m)])
+
+
+def info_msg(mode, itype, payload):
+    p = pad(payload)
+    m = bytes([0x80 | size_code(len(p)) << 3 | mode, itype]) + p
+    return m + bytes([checksum(m)])
+
+
+def data_msg(mode, payload, bad_checksum=False):
+    p = pad(payload)
+    m = bytes([0xc0 | size_code(len(p)) << 3 | mode]) + p
+    c = checksum(m)
+    return m + bytes([c ^ 0x5a if bad_checksum else c])
+
+
+def f32(x):
+    return struct.pack('<f', x)
+
+
+class Mode:
+    """One mode: what the sensor says about it and how it sends data."""
+
+    def __init__(self, name, raw, si, units, n, t, fig, dec, cadence='change',
+                 period=0.1, first_reply=0.002, deaf=False):
+        self.name, self.raw, self.si, self.units = name, raw, si, units
+        self.n, self.t, self.fig, self.dec = n, t, fig, dec
+        self.cadence = cadence          # 'change', 'continuous' or 'nack'
+        self.period = period            # seconds between spontaneous frames
+        self.first_reply = first_reply  # SELECT to the first new-mode frame
+        self.deaf = deaf                # stops answering keep-alives
+
+
+class SensorDef:
+    def __init__(self, type_id, driver, views, modes, speed=57600):
+        self.type, self.driver, self.views = type_id, driver, views
+        self.modes, self.speed = modes, speed
+
+
+COLOR = SensorDef(29, 'lego-ev3-color', 3, [
+    Mode('COL-REFLECT', (0, 100), (0, 100), 'pct', 1, S8, 3, 0),
+    Mode('COL-AMBIENT', (0, 100), (0, 100), 'pct', 1, S8, 3, 0),
+    Mode('COL-COLOR', (0, 8), (0, 8), 'col', 1, S8, 2, 0),
+    Mode('REF-RAW', (0, 1020.1875), (0, 1020.1875), None, 2, S16, 4, 0,
+         cadence='continuous', period=0.003),
+    Mode('RGB-RAW', (0, 1020.1875), (0, 1020.1875), None, 3, S16, 4, 0,
+         cadence='continuous', period=0.005),
+    Mode('COL-CAL', (0, 65535), (0, 65535), None, 4, S16, 5, 0, cadence='nack', deaf=True),
+])
+
+US = SensorDef(30, 'lego-ev3-us', 3, [
+    Mode('US-DIST-CM', (0, 2550), (0, 255), 'cm', 1, S16, 5, 1, 'continuous', 0.022, 0.002),
+    Mode('US-DIST-IN', (0, 1000), (0, 100), 'inch', 1, S16, 5, 1, 'continuous', 0.022, 0.002),
+    Mode('US-LISTEN', (0, 1), (0, 1), None, 1, S8, 1, 0, 'nack'),
+    Mode('US-SI-CM', (0, 2550), (0, 255), 'cm', 1, S16, 5, 1, 'nack', first_reply=0.061),
+    Mode('US-SI-IN', (0, 1000), (0, 100), 'inch', 1, S16, 5, 1, 'nack', first_reply=0.061),
+    Mode('US-DC-CM', (0, 2550), (0, 255), 'cm', 1, S16, 5, 1, 'continuous', 0.022, 0.002),
+    Mode('US-DC-IN', (0, 1000), (0, 100), 'inch', 1, S16, 5, 1, 'continuous', 0.022, 0.002),
+])
+
+
+def _gyro(new):
+    rate = 500 if new else 440
+    cal = (-32768, 32767) if new else (0, 65535)
+    modes = [
+        Mode('GYRO-ANG', (-180, 180), (-180, 180), 'deg', 1, S16, 4, 0,
+             'continuous', 0.0015, 0.015),
+        Mode('GYRO-RATE', (-rate, rate), (-rate, rate), 'd/s', 1, S16, 3, 0,
+             'continuous', 0.0019, 0.015),
+        Mode('GYRO-FAS', (-2000, 2000), (-2000, 2000), None, 1, S16, 4, 0,
+             'continuous', 0.0028, 0.015),
+        Mode('GYRO-G&A', (-180, 180), (-180, 180), None, 2, S16, 5, 0,
+             'continuous', 0.0029, 0.015),
+        Mode('GYRO-CAL', cal, cal, None, 4, S16, 5, 0, 'nack', first_reply=0.0013),
+    ]
+    if new:
+        modes += [
+            Mode('TILT-RATE', (-500, 500), (-500, 500), 'd/s', 1, S16, 3, 0,
+                 'continuous', 0.0019, 0.015),
+            Mode('TILT-ANG', (-180, 180), (-180, 180), 'deg', 1, S16, 3, 0,
+                 'continuous', 0.0019, 0.015),
+        ]
+    return SensorDef(32, 'lego-ev3-gyro', 2, modes)
+
+
+GYRO = _gyro(True)
+GYRO_OLD = _gyro(False)
+
+IR = SensorDef(33, 'lego-ev3-ir', 3, [
+    Mode('IR-PROX', (0, 100), (0, 100), 'pct', 1, S8, 3, 0, first_reply=0.03),
+    Mode('IR-SEEK', (-100, 100), (-100, 100), 'pct', 8, S8, 3, 0, first_reply=0.03),
+    Mode('IR-REMOTE', (0, 10), (0, 10), 'btn', 4, S8, 3, 0, first_reply=0.03),
+    Mode('IR-REM-A', (0, 65535), (0, 65535), None, 1, S16, 6, 0, first_reply=0.03),
+    Mode('IR-S-ALT', (0, 100), (0, 100), 'pct', 4, S8, 3, 0, deaf=True),
+    Mode('IR-CAL', (0, 65535), (0, 65535), None, 2, S16, 5, 0, deaf=True),
+])
+
+# A third-party sensor: FatcatLab's humidity sensor (type 77).
+FCL_HUMIDITY = SensorDef(77, 'fcl-humidity', 3, [
+    Mode('CENTIGRADE', (-400, 1250), (-40, 125), 'C', 1, S16, 4, 1),
+    Mode('FAHRENHEIT', (-400, 2570), (-40, 257), 'F', 1, S16, 4, 1),
+    Mode('HUMIDITY', (0, 1000), (0, 100), '%RH', 1, S16, 4, 1),
+], speed=9600)
+
+SENSORS = {'color': COLOR, 'us': US, 'gyro': GYRO, 'gyro-old': GYRO_OLD, 'ir': IR,
+           'fcl-humidity': FCL_HUMIDITY}
+
+IR_STALE_TIME = 1.1
+
+
+def handshake(s):
+    """The bytes a real sensor sends from TYPE to its ACK."""
+    out = cmd_msg(CMD_TYPE, [s.type])
+    out += cmd_msg(CMD_MODES, [len(s.modes) - 1, s.views - 1])
+    out += cmd_msg(CMD_SPEED, struct.pack('<I', s.speed))
+    for i in reversed(range(len(s.modes))):
+        m = s.modes[i]
+        name = m.name.encode()
+        # Up to 7 characters + NUL in 8 bytes, exactly 8 with no NUL, else 16.
+        out += info_msg(i, INFO_NAME, name + bytes(8 - len(name) if len(name) <= 8 else 16 - len(name)))
+        out += info_msg(i, INFO_RAW, f32(m.raw[0]) + f32(m.raw[1]))
+        out += info_msg(i, INFO_SI, f32(m.si[0]) + f32(m.si[1]))
+        if m.units:
+            out += info_msg(i, INFO_UNITS, m.units.encode().ljust(8, b'\0'))
+        elif s.type == 33:
+            out += bytes([SYS_SYNC, 0xff])  # the IR sensor's quirk
+        out += info_msg(i, INFO_FORMAT, [m.n, m.t, m.fig, m.dec])
+    return out + bytes([SYS_ACK])
+
+
+def pack_values(mode, values):
+    fmt = {S8: 'b', S16: 'h', S32: 'i', FLOAT: 'f'}[mode.t]
+    return struct.pack('<%d%s' % (len(values), fmt), *values)
+
+
+class EmulatedSensor(threading.Thread):
+    """Plays one sensor on the tty at `path` until stop() is called."""
+
+    def __init__(self, path, kind, hostile=False, seed=1, boot_delay=0.5):
+        super().__init__(daemon=True)
+        self.sdef = SENSORS[kind] if isinstance(kind, str) else kind
+        self.path, self.hostile, self.boot_delay = path, hostile, boot_delay
+        self.rng = random.Random(seed)
+        self.lock = threading.Lock()
+        self.values = {i: [0] * m.n for i, m in enumerate(self.sdef.modes)}
+        if self.sdef.type == 29:
+            self.values[4] = [0, 0, 0, 0]     # RGB-RAW sends four values
+        self.mode = 0
+        self.stopping = threading.Event()
+        self.unplugged = threading.Event()
+        self.events = []        # (time, what) for the tests
+        self.handshakes = 0
+        self.frames_sent = 0
+        self.writes = []
+        self.changed = True
+        self.stale_until = 0.0
+        self.fd = None
+
+    # ---- control from the tests ----
+
+    def set_values(self, mode, values):
+        with self.lock:
+            self.values[mode] = list(values)
+            self.changed = True
+
+    def stop(self):
+        self.stopping.set()
+        self.join(5)
+
+    def unplug(self):
+        """Go silent, as if the cable were pulled (the thread keeps running)."""
+        self.unplugged.set()
+
+    def plug(self):
+        self.unplugged.clear()
+
+    def log(self, what):
+        self.events.append((time.monotonic(), what))
+
+    # ---- the wire ----
+
+    def set_speed(self, baud):
+        attrs = termios.tcgetattr(self.fd)
+        attrs[4] = attrs[5] = BAUD[baud]
+        termios.tcsetattr(self.fd, termios.TCSANOW, attrs)
+
+    def send(self, data):
+        if not self.unplugged.is_set():
+            os.write(self.fd, data)
+
+    def read(self, timeout):
+        r, _, _ = select.select([self.fd], [], [], max(timeout, 0))
+        if not r:
+            return b''
+        data = os.read(self.fd, 256)
+        return b'' if self.unplugged.is_set() else data
+
+    # ---- behaviour ----
+
+    def run(self):
+        self.fd = os.open(self.path, os.O_RDWR | os.O_NOCTTY)
+        attrs = termios.tcgetattr(self.fd)
+        attrs[0] = 0                                   # iflag: raw
+        attrs[1] = 0                                   # oflag
+        attrs[2] = termios.CS8 | termios.CREAD | termios.CLOCAL
+        attrs[3] = 0                                   # lflag: raw
+        attrs[6][termios.VMIN] = 0
+        attrs[6][termios.VTIME] = 0
+        termios.tcsetattr(self.fd, termios.TCSANOW, attrs)
+        try:
+            while not self.stopping.is_set():
+                if self.unplugged.is_set():
+                    time.sleep(0.01)
+                    continue
+                if self.connect():
+                    self.data_phase()
+        finally:
+            os.close(self.fd)
+
+    def connect(self):
+        """Reset, handshake at 2400 baud; True once the host ACKed."""
+        self.set_speed(2400)
+        with self.lock:
+            self.mode = 0
+        termios.tcsendbreak(self.fd, 0)
+        self.stopping.wait(self.boot_delay)
+        termios.tcflush(self.fd, termios.TCIFLUSH)
+        if self.hostile:
+            self.send_hostile()
+        self.send(handshake(self.sdef))
+        termios.tcdrain(self.fd)
+        self.log('handshake sent')
+        # The sensor waits 80 ms for the host's ACK.
+        deadline = time.monotonic() + 0.080
+        while time.monotonic() < deadline:
+            data = self.read(deadline - time.monotonic())
+            if SYS_ACK in data:
+                self.handshakes += 1
+                self.log('acked')
+                self.set_speed(self.sdef.speed)
+                return True
+        self.log('no ack')
+        return False
+
+    def frame(self, mode, spontaneous):
+        m = self.sdef.modes[mode]
+        with self.lock:
+            values = list(self.values[mode])
+            stale = self.stale_until > time.monotonic()
+        if stale:
+            # IR: leftovers of the previous mode until it settles.
+            values = [self.rng.randrange(-128, 127) if m.t == S8 else self.rng.randrange(0, 3000)
+                      for _ in values]
+        tag = mode
+        # US-DC-IN tags its own frames with mode 5 (US-DC-CM).
+        if self.sdef.type == 30 and mode == 6 and spontaneous:
+            tag = 5
+        bad = self.sdef.type == 29 and mode == 4 and self.rng.random() < 0.99
+        self.send(data_msg(tag, pack_values(m, values), bad_checksum=bad))
+        self.frames_sent += 1
+
+    def data_phase(self):
+        last_nack = time.monotonic()
+        next_spont = 0.0
+        pending = None              # (time, mode) of a SELECT being carried out
+        deaf = False
+        buf = b''
+        self.changed = True
+        while not self.stopping.is_set():
+            now = time.monotonic()
+            if now - last_nack > 1.0:
+                self.log('watchdog reset')
+                return              # no keep-alive for a second: reset
+            if self.unplugged.is_set():
+                time.sleep(0.01)
+                continue
+            mode = self.mode
+            m = self.sdef.modes[mode]
+            if pending and now >= pending[0]:
+                with self.lock:
+                    self.mode = mode = pending[1]
+                    if self.sdef.type == 33:
+                        self.stale_until = now + IR_STALE_TIME
+                m = self.sdef.modes[mode]
+                pending = None
+                deaf = m.deaf
+                self.frame(mode, False)
+                self.log('mode %d' % mode)
+                next_spont = now + m.period
+            elif not deaf and not pending:
+                if m.cadence == 'continuous' and now >= next_spont:
+                    self.frame(mode, True)
+                    next_spont = now + m.period
+                elif m.cadence == 'change' and self.changed:
+                    self.changed = False
+                    self.frame(mode, True)
+            wait = 0.05
+            if pending:
+                wait = pending[0] - now
+            elif m.cadence == 'continuous' and not deaf:
+                wait = next_spont - now
+            buf += self.read(min(wait, 0.05))
+            while buf:
+                b = buf[0]
+                if b == SYS_NACK:
+                    buf = buf[1:]
+                    last_nack = time.monotonic()
+                    if not deaf and not pending:
+                        self.frame(self.mode, False)
+                elif b == 0x43:             # SELECT
+                    if len(buf) < 3:
+                        break
+                    if checksum(buf[:2]) == buf[2] and buf[1] < len(self.sdef.modes):
+                        new = buf[1]
+                        pending = (time.monotonic() + self.sdef.modes[new].first_reply, new)
+                    buf = buf[3:]
+                elif b & 0xc7 == 0x44:      # WRITE
+                    size = 1 << ((b >> 3) & 7)
+                    if len(buf) < size + 2:
+                        break
+                    if checksum(buf[:size + 1]) == buf[size + 1]:
+                        self.on_write(buf[1:size + 1])
+                    buf = buf[size + 2:]
+                else:
+                    buf = buf[1:]           # garbage, or an ACK repeated
+
+    def on_write(self, payload):
+        self.writes.append(bytes(payload))
+        if self.sdef.type == 32 and payload[0] == 0x11:
+            with self.lock:
+                self.values[0] = [0]        # gyro angle reset
+                self.changed = True
+            self.log('angle reset')
+
+    def send_hostile(self):
+        """Everything a broken or malicious sensor could send."""
+        r = self.rng
+        junk = [bytes(r.randrange(256) for _ in range(64)),
+                bytes([0x40, 0x1d]),                                  # truncated TYPE
+                cmd_msg(CMD_TYPE, [29])[:2] + b'\x00',                # bad checksum
+                cmd_msg(CMD_TYPE, [29]) + bytes([0xb0, 0x00]) + bytes(70),   # 64-byte INFO
+                cmd_msg(CMD_TYPE, [29]) + cmd_msg(CMD_MODES, [200, 200]),   # absurd modes
+                cmd_msg(CMD_TYPE, [29]) + cmd_msg(CMD_SPEED, struct.pack('<I', 10**9)),
+                cmd_msg(CMD_TYPE, [29]) + info_msg(0, INFO_NAME, b'X' * 16),  # no NUL
+                cmd_msg(CMD_TYPE, [29]) + info_msg(0, INFO_NAME, b'M\0') +
+                info_msg(0, INFO_SI, f32(0) + f32(math.nan)) +
+                info_msg(0, INFO_FORMAT, [1, 0, 2, 0]) + bytes([SYS_ACK]),  # NaN range
+                cmd_msg(CMD_TYPE, [29]) + info_msg(0, INFO_NAME, b'M\0') +
+                info_msg(0, INFO_FORMAT, [200, 1, 2, 0]) + bytes([SYS_ACK]),  # count overflow
+                bytes([0xc0, 0x01, 0x02, 0xff] * 8),                   # DATA before ACK
+                ]
+        for j in junk:
+            self.send(j)
+        termios.tcdrain(self.fd)
+        self.log('hostile sent')
+
+
+def main():
+    import argparse
+    ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
+    ap.add_argument('tty', help='the sensor end of the line, e.g. /dev/ttyNM1')
+    ap.add_argument('sensor', choices=sorted(SENSORS))
+    ap.add_argument('--hostile', action='store_true')
+    ap.add_argument('--seconds', type=float, default=0, help='run this long (0: forever)')
+    args = ap.parse_args()
+    s = EmulatedSensor(args.tty, args.sensor, hostile=args.hostile)
+    s.start()
+    try:
+        t0 = time.monotonic()
+        while s.is_alive() and (not args.seconds or time.monotonic() - t0 < args.seconds):
+            if s.sdef.type in (32, 30):
+                s.set_values(0, [int(50 * math.sin(time.monotonic()))])
+            time.sleep(0.1)
+    finally:
+        s.stop()
+
+
+if __name__ == '__main__':
+    main()

@@ -1,0 +1,99 @@
+"""Helpers for the EV3 guest tests: a sensor on a null-modem line."""
+import fcntl
+import glob
+import os
+import struct
+import subprocess
+import sys
+import termios
+import time
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), '..', 'emulator'))
+import ev3_sensor  # noqa: E402
+
+N_LEGOEV3 = 29
+CLASS = '/sys/class/lego-sensor'
+
+
+def load_nullmodem():
+    if not os.path.isdir('/sys/module/lego_nullmodem'):
+        ko = os.path.join(os.environ['LEGO_BUILD'], 'tests/kmod/lego_nullmodem.ko')
+        subprocess.run(['insmod', ko], check=True)
+
+
+def read_attr(path, name):
+    with open(os.path.join(path, name)) as f:
+        return f.read().strip()
+
+
+def write_attr(path, name, value):
+    with open(os.path.join(path, name), 'w') as f:
+        f.write(value)
+
+
+def find_sensor(address, timeout=10.0, gone_from=None):
+    """The sensorN directory whose address is `address`, waiting for it."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        for d in glob.glob(CLASS + '/sensor*'):
+            try:
+                if read_attr(d, 'address') == address and d != gone_from:
+                    return d
+            except OSError:
+                pass
+        time.sleep(0.05)
+    return None
+
+
+def wait_gone(path, timeout):
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if not os.path.exists(path):
+            return True
+        time.sleep(0.02)
+    return False
+
+
+def wait_value(path, index, want, timeout=3.0):
+    deadline = time.monotonic() + timeout
+    got = None
+    while time.monotonic() < deadline:
+        try:
+            got = int(read_attr(path, 'value%d' % index))
+        except OSError:
+            got = None
+        if got == want:
+            return got
+        time.sleep(0.02)
+    return got
+
+
+class Line:
+    """ttyNM<2n> with the discipline attached, ttyNM<2n+1> played by an emulator."""
+
+    def __init__(self, pair=0):
+        load_nullmodem()
+        self.host = '/dev/ttyNM%d' % (2 * pair)
+        self.far = '/dev/ttyNM%d' % (2 * pair + 1)
+        self.address = os.path.basename(self.host)
+        self.fd = None
+        self.emu = None
+
+    def attach(self):
+        self.fd = os.open(self.host, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+        fcntl.ioctl(self.fd, termios.TIOCSETD, struct.pack('i', N_LEGOEV3))
+
+    def detach(self):
+        if self.fd is not None:
+            os.close(self.fd)
+            self.fd = None
+
+    def plug(self, kind, **kw):
+        self.emu = ev3_sensor.EmulatedSensor(self.far, kind, **kw)
+        self.emu.start()
+        return self.emu
+
+    def close(self):
+        if self.emu:
+            self.emu.stop()
+        self.detach()

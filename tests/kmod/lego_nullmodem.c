@@ -1,0 +1,302 @@
+// SPDX-License-Identifier: GPL-2.0
+/*
+ * Test-only null-modem cable: pairs of ttys (ttyNM0 <-> ttyNM1, ttyNM2 <->
+ * ttyNM3, ...) wired like two UARTs, so that emulated sensors can be tested
+ * the way real ones behave on a wire:
+ *
+ *  - bytes are paced at the writer's baud rate (10 bits per byte, 8N1), so
+ *    a handshake at 2400 baud takes as long as on a real sensor and
+ *    tty_wait_until_sent() waits until the bytes are "on the wire";
+ *  - a byte whose writer and reader run at different speeds arrives as
+ *    garbage with TTY_FRAME set, as on a UART (one garbled byte per group of
+ *    bytes when the writer is faster, several when it is slower);
+ *  - a break (tcsendbreak) arrives as a TTY_BREAK character;
+ *  - nothing arrives when the other end is not open.
+ *
+ * Not meant for anything but tests.
+ */
+#include <linux/hrtimer.h>
+#include <linux/kfifo.h>
+#include <linux/module.h>
+#include <linux/slab.h>
+#include <linux/spinlock.h>
+#include <linux/tty.h>
+#include <linux/tty_driver.h>
+#include <linux/tty_flip.h>
+
+#include "lego_compat.h"
+
+#define NM_FIFO_SIZE	4096
+#define NM_TICK_NS	(500 * NSEC_PER_USEC)
+
+static unsigned int pairs = 4;
+module_param(pairs, uint, 0444);
+MODULE_PARM_DESC(pairs, "number of tty pairs (default 4, at most 16)");
+
+/**
+ * struct nm_port - one end of a cable
+ * @port: the tty port
+ * @peer: the other end
+ * @lock: protects @fifo, @credit and @running
+ * @fifo: bytes written and not yet on the wire
+ * @timer: paces the bytes out
+ * @running: @timer is started and will run again
+ * @baud: current speed of this end
+ * @credit: bit times available to send, in 1/1e9 bits
+ * @last: time of the last tick
+ * @garble: state of the garbage generator (timer context only)
+ */
+struct nm_port {
+	struct tty_port port;
+	struct nm_port *peer;
+	spinlock_t lock;	/* see above */
+	DECLARE_KFIFO(fifo, u8, NM_FIFO_SIZE);
+	struct hrtimer timer;
+	bool running;
+	unsigned int baud;
+	u64 credit;
+	ktime_t last;
+	u32 garble;
+};
+
+static struct nm_port *nm_ports;
+static struct tty_driver *nm_driver;
+
+static void nm_deliver(struct nm_port *from, const u8 *buf, unsigned int n)
+{
+	struct nm_port *to = from->peer;
+	unsigned int wbaud = READ_ONCE(from->baud), rbaud;
+	struct tty_struct *tty = tty_port_tty_get(&to->port);
+	unsigned int i, k, ratio;
+
+	if (!tty)
+		return;	/* nobody listening: the bytes are lost */
+	rbaud = READ_ONCE(to->baud);
+
+	if (wbaud == rbaud) {
+		tty_insert_flip_string(&to->port, buf, n);
+	} else if (wbaud > rbaud) {
+		/* The reader sees one mangled frame per group of bytes. */
+		ratio = DIV_ROUND_UP(wbaud, rbaud);
+		for (i = 0; i < n; i++) {
+			from->garble = from->garble * 1103515245 + 12345;
+			if (from->garble % ratio)
+				continue;
+			tty_insert_flip_char(&to->port, 0xff ^ buf[i] ^ (from->garble >> 16),
+					     TTY_FRAME);
+		}
+	} else {
+		/* Each slow byte reads as several short, broken frames. */
+		ratio = DIV_ROUND_UP(rbaud, wbaud);
+		for (i = 0; i < n; i++)
+			for (k = 0; k < ratio && k < 8; k++)
+				tty_insert_flip_char(&to->port,
+						     (buf[i] & BIT(k)) ? 0xff : 0x00,
+						     TTY_FRAME);
+	}
+	tty_flip_buffer_push(&to->port);
+	tty_kref_put(tty);
+}
+
+static enum hrtimer_restart nm_tick(struct hrtimer *timer)
+{
+	struct nm_port *p = container_of(timer, struct nm_port, timer);
+	u8 buf[64];
+	unsigned int n, bytes;
+	ktime_t now = ktime_get();
+	bool more;
+	struct tty_struct *tty;
+
+	spin_lock(&p->lock);
+	p->credit += (u64)ktime_to_ns(ktime_sub(now, p->last)) * READ_ONCE(p->baud);
+	p->last = now;
+	/* 10 bits a byte; credit is in 1e-9 bit units. */
+	bytes = min_t(u64, div_u64(p->credit, NSEC_PER_SEC) / 10, sizeof(buf));
+	n = kfifo_out(&p->fifo, buf, bytes);
+	p->credit -= (u64)n * 10 * NSEC_PER_SEC;
+	more = !kfifo_is_empty(&p->fifo);
+	if (!more) {
+		p->credit = 0;
+		p->running = false;
+	}
+	spin_unlock(&p->lock);
+
+	if (n)
+		nm_deliver(p, buf, n);
+
+	tty = tty_port_tty_get(&p->port);
+	if (tty) {
+		if (n)
+			tty_wakeup(tty);
+		tty_kref_put(tty);
+	}
+
+	if (!more)
+		return HRTIMER_NORESTART;
+	hrtimer_forward_now(timer, ns_to_ktime(NM_TICK_NS));
+	return HRTIMER_RESTART;
+}
+
+static int nm_install(struct tty_driver *driver, struct tty_struct *tty)
+{
+	return tty_port_install(&nm_ports[tty->index].port, driver, tty);
+}
+
+static int nm_open(struct tty_struct *tty, struct file *filp)
+{
+	return tty_port_open(tty->port, tty, filp);
+}
+
+static void nm_close(struct tty_struct *tty, struct file *filp)
+{
+	tty_port_close(tty->port, tty, filp);
+}
+
+static LEGO_TTY_WRITE_RET nm_write(struct tty_struct *tty, const u8 *buf,
+				   LEGO_TTY_COUNT count)
+{
+	struct nm_port *p = &nm_ports[tty->index];
+	unsigned long flags;
+	unsigned int n;
+
+	spin_lock_irqsave(&p->lock, flags);
+	n = kfifo_in(&p->fifo, buf, count);
+	if (n && !p->running) {
+		p->running = true;
+		p->last = ktime_get();
+		p->credit = 0;
+		hrtimer_start(&p->timer, ns_to_ktime(NM_TICK_NS), HRTIMER_MODE_REL_SOFT);
+	}
+	spin_unlock_irqrestore(&p->lock, flags);
+	return n;
+}
+
+static unsigned int nm_write_room(struct tty_struct *tty)
+{
+	return kfifo_avail(&nm_ports[tty->index].fifo);
+}
+
+static unsigned int nm_chars_in_buffer(struct tty_struct *tty)
+{
+	return kfifo_len(&nm_ports[tty->index].fifo);
+}
+
+static void nm_set_termios(struct tty_struct *tty, const struct ktermios *old)
+{
+	WRITE_ONCE(nm_ports[tty->index].baud, tty_get_baud_rate(tty) ?: 9600);
+}
+
+static int nm_break_ctl(struct tty_struct *tty, int state)
+{
+	struct nm_port *peer = nm_ports[tty->index].peer;
+	struct tty_struct *ptty;
+
+	if (state == 0)
+		return 0;
+	ptty = tty_port_tty_get(&peer->port);
+	if (ptty) {
+		tty_insert_flip_char(&peer->port, 0, TTY_BREAK);
+		tty_flip_buffer_push(&peer->port);
+		tty_kref_put(ptty);
+	}
+	return 0;
+}
+
+static void nm_flush_buffer(struct tty_struct *tty)
+{
+	struct nm_port *p = &nm_ports[tty->index];
+	unsigned long flags;
+
+	spin_lock_irqsave(&p->lock, flags);
+	kfifo_reset(&p->fifo);
+	spin_unlock_irqrestore(&p->lock, flags);
+	tty_wakeup(tty);
+}
+
+static const struct tty_operations nm_ops = {
+	.install	= nm_install,
+	.open		= nm_open,
+	.close		= nm_close,
+	.write		= nm_write,
+	.write_room	= nm_write_room,
+	.chars_in_buffer = nm_chars_in_buffer,
+	.set_termios	= nm_set_termios,
+	.break_ctl	= nm_break_ctl,
+	.flush_buffer	= nm_flush_buffer,
+};
+
+static const struct tty_port_operations nm_port_ops = { };
+
+static int __init nm_init(void)
+{
+	unsigned int i, n;
+	int ret;
+
+	if (!pairs || pairs > 16)
+		return -EINVAL;
+	n = 2 * pairs;
+	nm_ports = kcalloc(n, sizeof(*nm_ports), GFP_KERNEL);
+	if (!nm_ports)
+		return -ENOMEM;
+
+	nm_driver = tty_alloc_driver(n, TTY_DRIVER_REAL_RAW | TTY_DRIVER_RESET_TERMIOS);
+	if (IS_ERR(nm_driver)) {
+		ret = PTR_ERR(nm_driver);
+		goto free_ports;
+	}
+	nm_driver->driver_name = "lego_nullmodem";
+	nm_driver->name = "ttyNM";
+	nm_driver->type = TTY_DRIVER_TYPE_SERIAL;
+	nm_driver->subtype = SERIAL_TYPE_NORMAL;
+	nm_driver->init_termios = tty_std_termios;
+	nm_driver->init_termios.c_cflag = B9600 | CS8 | CREAD | HUPCL | CLOCAL;
+	nm_driver->init_termios.c_ispeed = 9600;
+	nm_driver->init_termios.c_ospeed = 9600;
+	tty_set_operations(nm_driver, &nm_ops);
+
+	for (i = 0; i < n; i++) {
+		struct nm_port *p = &nm_ports[i];
+
+		tty_port_init(&p->port);
+		p->port.ops = &nm_port_ops;
+		p->peer = &nm_ports[i ^ 1];
+		p->baud = 9600;
+		spin_lock_init(&p->lock);
+		INIT_KFIFO(p->fifo);
+		hrtimer_init(&p->timer, CLOCK_MONOTONIC, HRTIMER_MODE_REL_SOFT);
+		p->timer.function = nm_tick;
+		p->garble = i + 1;
+		tty_port_link_device(&p->port, nm_driver, i);
+	}
+
+	ret = tty_register_driver(nm_driver);
+	if (ret)
+		goto put_driver;
+	return 0;
+
+put_driver:
+	for (i = 0; i < n; i++)
+		tty_port_destroy(&nm_ports[i].port);
+	tty_driver_kref_put(nm_driver);
+free_ports:
+	kfree(nm_ports);
+	return ret;
+}
+module_init(nm_init);
+
+static void __exit nm_exit(void)
+{
+	unsigned int i;
+
+	tty_unregister_driver(nm_driver);
+	for (i = 0; i < 2 * pairs; i++) {
+		hrtimer_cancel(&nm_ports[i].timer);
+		tty_port_destroy(&nm_ports[i].port);
+	}
+	tty_driver_kref_put(nm_driver);
+	kfree(nm_ports);
+}
+module_exit(nm_exit);
+
+MODULE_DESCRIPTION("Test-only null-modem tty pairs with baud-rate pacing");
+MODULE_LICENSE("GPL");
