@@ -1,0 +1,92 @@
+"""python-ev3dev2 (from PyPI, unmodified) drives the emulated sensors.
+
+The sensors get the port labels in1..in4 from the module parameter, and
+the shipped udev rule's chmod is applied as udev would, since the test VM
+has no udev."""
+import os
+import re
+import subprocess
+import time
+
+import pytest
+
+import ev3
+from conftest import module_path
+from ev3 import find_sensor
+
+RULE = os.path.join(os.path.dirname(__file__), '..', '..', 'tools', 'udev',
+                    '90-lego-ev3-sensors.rules')
+
+
+def apply_udev_rule(path):
+    """Run the chmod commands of the shipped rule for one sensor."""
+    with open(RULE) as f:
+        rule = f.read()
+    for cmd in re.findall(r'RUN\+="(/bin/chmod [^"]*)"', rule):
+        subprocess.run(cmd.replace('/sys%p', path).split(), check=True)
+
+
+@pytest.fixture
+def four_sensors(ev3_module):
+    subprocess.run(['rmmod', 'lego_ev3_uart'], check=True)
+    subprocess.run(['insmod', module_path('lego_ev3_uart'),
+                    'port_labels=ttyNM0=in1,ttyNM2=in2,ttyNM4=in3,ttyNM6=in4'], check=True)
+    lines, emus = [], []
+    try:
+        for pair, kind in enumerate(['color', 'us', 'gyro', 'ir']):
+            ln = ev3.Line(pair)
+            ln.attach()
+            lines.append(ln)
+            emus.append(ln.plug(kind))
+        for pair, ln in enumerate(lines):
+            path = find_sensor('%s:in%d' % (ln.address, pair + 1), timeout=20)
+            assert path, 'sensor on in%d missing' % (pair + 1)
+            apply_udev_rule(path)
+        os.environ['FAKE_SYS'] = ''
+        yield emus
+    finally:
+        for ln in lines:
+            ln.close()
+        subprocess.run(['rmmod', 'lego_ev3_uart'], check=True)
+        subprocess.run(['insmod', module_path('lego_ev3_uart')], check=True)
+
+
+def eventually(fn, want, timeout=3.0):
+    deadline = time.monotonic() + timeout
+    got = fn()
+    while got != want and time.monotonic() < deadline:
+        time.sleep(0.05)
+        got = fn()
+    return got
+
+
+def test_python_ev3dev2(four_sensors):
+    from ev3dev2 import get_current_platform
+    from ev3dev2.sensor import INPUT_1, INPUT_2, INPUT_3, INPUT_4
+    from ev3dev2.sensor.lego import ColorSensor, GyroSensor, InfraredSensor, UltrasonicSensor
+
+    color, us, gyro, ir = four_sensors
+    assert get_current_platform() == 'fake'
+
+    cs = ColorSensor(INPUT_1)
+    color.set_values(0, [37])
+    assert eventually(lambda: cs.reflected_light_intensity, 37) == 37
+    color.set_values(2, [5])
+    assert eventually(lambda: cs.color, 5) == 5
+    assert cs.color_name == 'Red'
+    assert cs.mode == 'COL-COLOR'
+
+    ultra = UltrasonicSensor(INPUT_2)
+    us.set_values(0, [263])
+    assert eventually(lambda: ultra.distance_centimeters, 26.3) == pytest.approx(26.3)
+
+    gs = GyroSensor(INPUT_3)
+    gyro.set_values(0, [90])
+    assert eventually(lambda: gs.angle, 90) == 90
+    gs.reset()
+    assert eventually(lambda: gs.angle, 0) == 0
+    assert b'\x11' in gyro.writes
+
+    irs = InfraredSensor(INPUT_4)
+    ir.set_values(0, [64])
+    assert eventually(lambda: irs.proximity, 64) == 64
