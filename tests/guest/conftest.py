@@ -31,3 +31,14 @@ def ev3_module():
     yield 'lego_ev3_uart'
     if not loaded('lego_ev3_uart'):
         subprocess.run(['insmod', module_path('lego_ev3_uart')], check=True)
+
+
+@pytest.fixture
+def line(ev3_module):
+    """A null-modem line with the EV3 discipline attached on ttyNM0."""
+    import ev3
+    ln = ev3.Line(0)
+    ln.attach()
+    yield ln
+    ln.close()
+    assert not ev3.find_sensor(ln.address, timeout=0.01), 'sensor left behind after detach'

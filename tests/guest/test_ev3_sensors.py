@@ -7,19 +7,9 @@ import time
 
 import pytest
 
-import ev3
 from ev3 import ev3_sensor, find_sensor, read_attr, wait_gone, wait_value, write_attr
 
 KINDS = ['color', 'us', 'gyro', 'gyro-old', 'ir', 'fcl-humidity']
-
-
-@pytest.fixture
-def line(ev3_module):
-    ln = ev3.Line(0)
-    ln.attach()
-    yield ln
-    ln.close()
-    assert not find_sensor(ln.address, timeout=0.01), 'sensor left behind after detach'
 
 
 def connect(line, kind, **kw):

@@ -44,6 +44,7 @@
 #define EV3_UART_ADDRESS_LEN	(sizeof_field(struct tty_struct, name) + EV3_UART_LABEL_LEN)
 
 struct ev3_uart_port;
+struct ev3_uart_iio;
 
 /**
  * struct ev3_uart_sensor_dev - one connected sensor
@@ -59,7 +60,7 @@ struct ev3_uart_port;
  * @data_len: its length (under @port->lock)
  * @settle_until: jiffies before which values of a new mode may be stale
  * @mode_work: sends the uevent for a mode change (uevents may sleep)
- * @iio: the IIO front end, or NULL
+ * @iio: the IIO front end, or NULL (set under @port->lock)
  */
 struct ev3_uart_sensor_dev {
 	struct ev3_uart_port *port;
@@ -74,7 +75,7 @@ struct ev3_uart_sensor_dev {
 	u8 data_len;
 	unsigned long settle_until;
 	struct work_struct mode_work;
-	void *iio;
+	struct ev3_uart_iio *iio;
 };
 
 /**
@@ -136,5 +137,11 @@ void ev3_uart_class_exit(void);
 struct ev3_uart_sensor_dev *ev3_uart_sensor_create(struct ev3_uart_port *port,
 						   const struct ev3_uart_sensor *desc);
 void ev3_uart_sensor_destroy(struct ev3_uart_sensor_dev *sd);
+
+/* ev3_uart_iio.c */
+int ev3_uart_iio_register(struct ev3_uart_sensor_dev *sd);
+void ev3_uart_iio_unregister(struct ev3_uart_sensor_dev *sd);
+void ev3_uart_iio_push(struct ev3_uart_sensor_dev *sd, u8 mode,
+		       const u8 *data, unsigned int len);
 
 #endif /* _EV3_UART_H */

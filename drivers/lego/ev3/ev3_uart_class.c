@@ -9,6 +9,7 @@
  */
 #include <linux/device.h>
 #include <linux/idr.h>
+#include <linux/jiffies.h>
 #include <linux/kobject.h>
 #include <linux/slab.h>
 #include <linux/sysfs.h>
@@ -387,6 +388,7 @@ struct ev3_uart_sensor_dev *ev3_uart_sensor_create(struct ev3_uart_port *port,
 	else
 		strscpy(sd->address, port->tty->name, sizeof(sd->address));
 	INIT_WORK(&sd->mode_work, ev3_uart_sensor_mode_work);
+	sd->settle_until = jiffies;
 
 	device_initialize(&sd->dev);
 	sd->dev.class = &lego_sensor_class;
@@ -399,6 +401,11 @@ struct ev3_uart_sensor_dev *ev3_uart_sensor_create(struct ev3_uart_port *port,
 		put_device(&sd->dev);
 		return ERR_PTR(ret);
 	}
+
+	/* IIO is a second view of the same sensor: carry on without it. */
+	ret = ev3_uart_iio_register(sd);
+	if (ret)
+		dev_warn(&sd->dev, "no IIO device: %d\n", ret);
 	return sd;
 }
 
@@ -411,6 +418,7 @@ struct ev3_uart_sensor_dev *ev3_uart_sensor_create(struct ev3_uart_port *port,
  */
 void ev3_uart_sensor_destroy(struct ev3_uart_sensor_dev *sd)
 {
+	ev3_uart_iio_unregister(sd);
 	cancel_work_sync(&sd->mode_work);
 	device_unregister(&sd->dev);
 }

@@ -156,6 +156,7 @@ static void ev3_uart_event(struct ev3_uart_port *port,
 		memcpy(sd->data, port->parser.data, ev->len);
 		memset(sd->data + ev->len, 0, sizeof(sd->data) - ev->len);
 		sd->data_len = ev->len;
+		ev3_uart_iio_push(sd, ev->mode, sd->data, ev->len);
 		if (port->select_mode == ev->mode &&
 		    port->parser.pending_mode == EV3_UART_NO_MODE) {
 			port->select_mode = EV3_UART_NO_MODE;

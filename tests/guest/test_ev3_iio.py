@@ -1,0 +1,155 @@
+"""Each emulated sensor as an IIO device: channels, units, buffered capture
+with timestamps, and libiio's tools."""
+import errno
+import glob
+import os
+import struct
+import subprocess
+import time
+
+import pytest
+
+from ev3 import find_sensor, read_attr, write_attr
+
+
+def iio_device(name, timeout=5.0):
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        for d in glob.glob('/sys/bus/iio/devices/iio:device*'):
+            try:
+                if read_attr(d, 'name') == name:
+                    return d
+            except OSError:
+                pass
+        time.sleep(0.05)
+    return None
+
+
+def eventually_int(path, attr, want, timeout=3.0):
+    deadline = time.monotonic() + timeout
+    got = None
+    while time.monotonic() < deadline:
+        got = int(read_attr(path, attr))
+        if got == want:
+            break
+        time.sleep(0.02)
+    return got
+
+
+def test_iio_ultrasonic_distance_in_metres(line):
+    emu = line.plug('us')
+    assert find_sensor(line.address, timeout=15)
+    dev = iio_device('lego-ev3-us')
+    assert dev
+    assert os.path.realpath(os.path.join(dev, '..')).endswith('ttyNM0')
+    emu.set_values(0, [263])                        # 26.3 cm
+    assert eventually_int(dev, 'in_distance0_raw', 263) == 263
+    scale = float(read_attr(dev, 'in_distance0_scale'))
+    assert scale == pytest.approx(0.001)            # 263 * 0.001 m = 0.263 m
+    assert float(read_attr(dev, 'in_distance0_offset')) == 0
+    assert read_attr(dev, 'mode') == 'US-DIST-CM'
+    # US-DIST-IN is distance1: 0.1 inch per raw unit, in metres.
+    assert float(read_attr(dev, 'in_distance1_scale')) == pytest.approx(0.00254)
+    with pytest.raises(OSError) as e:
+        read_attr(dev, 'in_distance1_raw')
+    assert e.value.errno == errno.EBUSY
+    write_attr(dev, 'mode', 'US-DIST-IN')
+    emu.set_values(1, [104])
+    assert eventually_int(dev, 'in_distance1_raw', 104) == 104
+
+
+def test_iio_gyro_and_color_channels(line):
+    emu = line.plug('gyro')
+    assert find_sensor(line.address, timeout=15)
+    dev = iio_device('lego-ev3-gyro')
+    assert dev
+    emu.set_values(0, [-90])
+    assert eventually_int(dev, 'in_angl0_raw', -90) == -90
+    assert float(read_attr(dev, 'in_angl0_scale')) == pytest.approx(0.017453293)
+    assert 'GYRO-ANG' in read_attr(dev, 'modes').split()
+
+
+def test_iio_color_rgb_modifiers(line):
+    emu = line.plug('color')
+    path = find_sensor(line.address, timeout=15)
+    assert path
+    dev = iio_device('lego-ev3-color')
+    emu.set_values(4, [300, 400, 500, 7])
+    write_attr(dev, 'mode', 'RGB-RAW')
+    assert eventually_int(dev, 'in_intensity_red_raw', 300) == 300
+    assert int(read_attr(dev, 'in_intensity_green_raw')) == 400
+    assert int(read_attr(dev, 'in_intensity_blue_raw')) == 500
+    # Both views agree on the mode.
+    assert read_attr(path, 'mode') == 'RGB-RAW'
+
+
+def test_iio_buffer_gets_every_sample(line):
+    emu = line.plug('gyro')
+    assert find_sensor(line.address, timeout=15)
+    dev = iio_device('lego-ev3-gyro')
+    num = dev.rsplit('iio:device', 1)[1]
+    write_attr(dev, 'scan_elements/in_angl0_en', '1')
+    write_attr(dev, 'scan_elements/in_timestamp_en', '1')
+    write_attr(dev, 'buffer/length', '8192')
+    fd = os.open('/dev/iio:device' + num, os.O_RDONLY | os.O_NONBLOCK)
+    try:
+        write_attr(dev, 'buffer/enable', '1')
+        time.sleep(0.3)
+        _drain(fd, 0.2)                     # the start-up samples
+        sent0 = emu.frames_sent
+        for k in range(60):
+            emu.set_values(0, [k])
+            time.sleep(0.05)
+        time.sleep(0.3)
+        write_attr(dev, 'buffer/enable', '0')   # no more pushes after this
+        sent = emu.frames_sent - sent0
+        data = _drain(fd, 1.0)
+    finally:
+        os.close(fd)
+    # One sample: s32 value, padding, s64 timestamp.
+    samples = [struct.unpack('<i4xq', data[i:i + 16]) for i in range(0, len(data), 16)]
+    assert samples, 'no samples'
+    stamps = [t for _, t in samples]
+    assert stamps == sorted(stamps)
+    values = {v for v, _ in samples}
+    assert set(range(5, 55)) <= values
+    # Every frame the emulator sent in the window arrived (a few at its edges
+    # may fall either side of it).
+    assert len(samples) >= sent - 5, (len(samples), sent)
+
+
+def _drain(fd, seconds):
+    """Read what the buffer holds, for at most `seconds`."""
+    import select
+    data = b''
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        r, _, _ = select.select([fd], [], [], 0.05)
+        if not r:
+            break
+        try:
+            chunk = os.read(fd, 1 << 16)
+        except BlockingIOError:
+            break
+        if not chunk:
+            break
+        data += chunk
+    return data
+
+
+def test_libiio_tools(line):
+    emu = line.plug('gyro')
+    assert find_sensor(line.address, timeout=15)
+    assert iio_device('lego-ev3-gyro')
+    info = subprocess.run(['iio_info'], capture_output=True, text=True, timeout=60)
+    assert info.returncode == 0, info.stderr
+    assert 'lego-ev3-gyro' in info.stdout
+    assert 'angl0' in info.stdout
+    emu.set_values(0, [45])
+    out = subprocess.run(['iio_readdev', '-b', '16', '-s', '64', 'lego-ev3-gyro',
+                          'angl0', 'timestamp'], capture_output=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    assert len(out.stdout) == 64 * 16
+    samples = [struct.unpack('<i4xq', out.stdout[i:i + 16]) for i in range(0, len(out.stdout), 16)]
+    assert all(v == 45 for v, _ in samples[-8:])
+    assert [t for _, t in samples] == sorted(t for _, t in samples)
