@@ -196,3 +196,27 @@ def test_detach_with_files_open(line):
         g.close()
     except OSError:
         pass
+
+
+def test_mode_that_silences_the_sensor_is_not_restored_forever(line):
+    """IR-S-ALT makes the real sensor stop answering keep-alives: the host
+    drops it, restores the mode once after the reconnect, and when that
+    drops it again gives up, so the sensor comes back in its default mode."""
+    emu, path = connect(line, 'ir')
+    try:
+        write_attr(path, 'mode', 'IR-S-ALT')
+    except OSError as e:
+        assert e.errno in (errno.ETIMEDOUT, errno.ENODEV)
+    assert wait_gone(path, 3.0)
+    deadline = time.monotonic() + 30
+    found = None
+    while time.monotonic() < deadline and not found:
+        p = find_sensor(line.address, timeout=1)
+        try:
+            if p and read_attr(p, 'mode') == 'IR-PROX' and emu.handshakes >= 3:
+                found = p
+        except OSError:
+            pass
+    assert found, 'sensor never came back in IR-PROX (%d handshakes)' % emu.handshakes
+    time.sleep(2)
+    assert read_attr(found, 'mode') == 'IR-PROX'
