@@ -54,18 +54,23 @@ def wait_gone(path, timeout):
     return False
 
 
-def wait_value(path, index, want, timeout=3.0):
+def wait_attr_int(path, attr, want, timeout=3.0):
+    """Poll an integer attribute until it reads `want`; return the last read."""
     deadline = time.monotonic() + timeout
     got = None
     while time.monotonic() < deadline:
         try:
-            got = int(read_attr(path, 'value%d' % index))
+            got = int(read_attr(path, attr))
         except OSError:
             got = None
         if got == want:
             return got
         time.sleep(0.02)
     return got
+
+
+def wait_value(path, index, want, timeout=3.0):
+    return wait_attr_int(path, 'value%d' % index, want, timeout)
 
 
 class Line:

@@ -9,7 +9,7 @@ import time
 
 import pytest
 
-from ev3 import find_sensor, read_attr, write_attr
+from ev3 import find_sensor, read_attr, wait_attr_int, write_attr
 
 
 def iio_device(name, timeout=5.0):
@@ -25,17 +25,6 @@ def iio_device(name, timeout=5.0):
     return None
 
 
-def eventually_int(path, attr, want, timeout=3.0):
-    deadline = time.monotonic() + timeout
-    got = None
-    while time.monotonic() < deadline:
-        got = int(read_attr(path, attr))
-        if got == want:
-            break
-        time.sleep(0.02)
-    return got
-
-
 def test_iio_ultrasonic_distance_in_metres(line):
     emu = line.plug('us')
     assert find_sensor(line.address, timeout=15)
@@ -43,7 +32,7 @@ def test_iio_ultrasonic_distance_in_metres(line):
     assert dev
     assert os.path.realpath(os.path.join(dev, '..')).endswith('ttyNM0')
     emu.set_values(0, [263])                        # 26.3 cm
-    assert eventually_int(dev, 'in_distance0_raw', 263) == 263
+    assert wait_attr_int(dev, 'in_distance0_raw', 263) == 263
     scale = float(read_attr(dev, 'in_distance0_scale'))
     assert scale == pytest.approx(0.001)            # 263 * 0.001 m = 0.263 m
     assert float(read_attr(dev, 'in_distance0_offset')) == 0
@@ -55,7 +44,7 @@ def test_iio_ultrasonic_distance_in_metres(line):
     assert e.value.errno == errno.EBUSY
     write_attr(dev, 'mode', 'US-DIST-IN')
     emu.set_values(1, [104])
-    assert eventually_int(dev, 'in_distance1_raw', 104) == 104
+    assert wait_attr_int(dev, 'in_distance1_raw', 104) == 104
 
 
 def test_iio_gyro_and_color_channels(line):
@@ -64,7 +53,7 @@ def test_iio_gyro_and_color_channels(line):
     dev = iio_device('lego-ev3-gyro')
     assert dev
     emu.set_values(0, [-90])
-    assert eventually_int(dev, 'in_angl0_raw', -90) == -90
+    assert wait_attr_int(dev, 'in_angl0_raw', -90) == -90
     assert float(read_attr(dev, 'in_angl0_scale')) == pytest.approx(0.017453293)
     assert 'GYRO-ANG' in read_attr(dev, 'modes').split()
 
@@ -76,7 +65,7 @@ def test_iio_color_rgb_modifiers(line):
     dev = iio_device('lego-ev3-color')
     emu.set_values(4, [300, 400, 500, 7])
     write_attr(dev, 'mode', 'RGB-RAW')
-    assert eventually_int(dev, 'in_intensity_red_raw', 300) == 300
+    assert wait_attr_int(dev, 'in_intensity_red_raw', 300) == 300
     assert int(read_attr(dev, 'in_intensity_green_raw')) == 400
     assert int(read_attr(dev, 'in_intensity_blue_raw')) == 500
     # Both views agree on the mode.

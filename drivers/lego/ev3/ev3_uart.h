@@ -128,6 +128,8 @@ struct ev3_uart_port {
 
 /* ev3_uart_ldisc.c */
 int ev3_uart_set_mode(struct ev3_uart_sensor_dev *sd, u8 mode);
+int ev3_uart_set_mode_by_name(struct ev3_uart_sensor_dev *sd, const char *name);
+int ev3_uart_show_modes(struct ev3_uart_sensor_dev *sd, char *buf);
 int ev3_uart_write(struct ev3_uart_sensor_dev *sd, const u8 *data, size_t len);
 int ev3_uart_get_data(struct ev3_uart_sensor_dev *sd, u8 *mode, u8 *data);
 

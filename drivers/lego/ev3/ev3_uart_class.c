@@ -57,14 +57,7 @@ static DEVICE_ATTR_RO(driver_name);
 static ssize_t modes_show(struct device *dev, struct device_attribute *attr,
 			  char *buf)
 {
-	struct ev3_uart_sensor_dev *sd = to_sensor(dev);
-	int i, len = 0;
-
-	for (i = 0; i < sd->desc.num_modes; i++)
-		len += sysfs_emit_at(buf, len, "%s%s", i ? " " : "",
-				     sd->desc.modes[i].name);
-	len += sysfs_emit_at(buf, len, "\n");
-	return len;
+	return ev3_uart_show_modes(to_sensor(dev), buf);
 }
 static DEVICE_ATTR_RO(modes);
 
@@ -81,16 +74,9 @@ static ssize_t mode_show(struct device *dev, struct device_attribute *attr,
 static ssize_t mode_store(struct device *dev, struct device_attribute *attr,
 			  const char *buf, size_t count)
 {
-	struct ev3_uart_sensor_dev *sd = to_sensor(dev);
-	int i, ret;
+	int ret = ev3_uart_set_mode_by_name(to_sensor(dev), buf);
 
-	for (i = 0; i < sd->desc.num_modes; i++) {
-		if (sysfs_streq(buf, sd->desc.modes[i].name)) {
-			ret = ev3_uart_set_mode(sd, i);
-			return ret ? ret : count;
-		}
-	}
-	return -EINVAL;
+	return ret ? ret : count;
 }
 static DEVICE_ATTR_RW(mode);
 

@@ -238,15 +238,9 @@ static ssize_t mode_store(struct device *dev, struct device_attribute *attr,
 			  const char *buf, size_t count)
 {
 	struct ev3_uart_iio *iio = iio_priv(dev_to_iio_dev(dev));
-	int i, ret;
+	int ret = ev3_uart_set_mode_by_name(iio->sd, buf);
 
-	for (i = 0; i < iio->sd->desc.num_modes; i++) {
-		if (sysfs_streq(buf, iio->sd->desc.modes[i].name)) {
-			ret = ev3_uart_set_mode(iio->sd, i);
-			return ret ? ret : count;
-		}
-	}
-	return -EINVAL;
+	return ret ? ret : count;
 }
 static IIO_DEVICE_ATTR_RW(mode, 0);
 
@@ -254,13 +248,8 @@ static ssize_t modes_show(struct device *dev, struct device_attribute *attr,
 			  char *buf)
 {
 	struct ev3_uart_iio *iio = iio_priv(dev_to_iio_dev(dev));
-	int i, len = 0;
 
-	for (i = 0; i < iio->sd->desc.num_modes; i++)
-		len += sysfs_emit_at(buf, len, "%s%s", i ? " " : "",
-				     iio->sd->desc.modes[i].name);
-	len += sysfs_emit_at(buf, len, "\n");
-	return len;
+	return ev3_uart_show_modes(iio->sd, buf);
 }
 static IIO_DEVICE_ATTR_RO(modes, 0);
 

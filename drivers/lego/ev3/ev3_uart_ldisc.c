@@ -32,6 +32,7 @@
 #include <linux/sched.h>
 #include <linux/slab.h>
 #include <linux/string.h>
+#include <linux/sysfs.h>
 #include <linux/tty.h>
 #include <linux/tty_ldisc.h>
 
@@ -478,6 +479,42 @@ int ev3_uart_set_mode(struct ev3_uart_sensor_dev *sd, u8 mode)
 out:
 	mutex_unlock(&port->select_mutex);
 	return ret < 0 ? ret : 0;
+}
+
+/**
+ * ev3_uart_set_mode_by_name() - switch a sensor to the mode of that name
+ * @sd: the sensor
+ * @name: a mode name, as written to a sysfs attribute (a newline may follow)
+ *
+ * Return: 0, -%EINVAL if the sensor has no such mode, or the errors of
+ * ev3_uart_set_mode().
+ */
+int ev3_uart_set_mode_by_name(struct ev3_uart_sensor_dev *sd, const char *name)
+{
+	int i;
+
+	for (i = 0; i < sd->desc.num_modes; i++)
+		if (sysfs_streq(name, sd->desc.modes[i].name))
+			return ev3_uart_set_mode(sd, i);
+	return -EINVAL;
+}
+
+/**
+ * ev3_uart_show_modes() - the names of a sensor's modes, for sysfs
+ * @sd: the sensor
+ * @buf: the sysfs page
+ *
+ * Return: the length written: the names separated by spaces, then a newline.
+ */
+int ev3_uart_show_modes(struct ev3_uart_sensor_dev *sd, char *buf)
+{
+	int i, len = 0;
+
+	for (i = 0; i < sd->desc.num_modes; i++)
+		len += sysfs_emit_at(buf, len, "%s%s", i ? " " : "",
+				     sd->desc.modes[i].name);
+	len += sysfs_emit_at(buf, len, "\n");
+	return len;
 }
 
 /**
