@@ -204,8 +204,13 @@ def pack_values(mode, values):
 class EmulatedSensor(threading.Thread):
     """Plays one sensor on the tty at `path` until stop() is called."""
 
-    def __init__(self, path, kind, hostile=False, seed=1, boot_delay=0.5):
+    def __init__(self, path, kind, hostile=False, seed=1, boot_delay=0.5, period_scale=1.0):
+        """period_scale > 1 slows the spontaneous cadence of continuous modes
+        (NACK replies stay immediate): several emulators in one Python
+        process inside an emulated machine cannot all keep real cadences
+        and still answer every keep-alive in time."""
         super().__init__(daemon=True)
+        self.period_scale = period_scale
         self.sdef = SENSORS[kind] if isinstance(kind, str) else kind
         self.path, self.hostile, self.boot_delay = path, hostile, boot_delay
         self.rng = random.Random(seed)
@@ -354,11 +359,11 @@ class EmulatedSensor(threading.Thread):
                 deaf = m.deaf
                 self.frame(mode, False)
                 self.log('mode %d' % mode)
-                next_spont = now + m.period
+                next_spont = now + m.period * self.period_scale
             elif not deaf and not pending:
                 if m.cadence == 'continuous' and now >= next_spont:
                     self.frame(mode, True)
-                    next_spont = now + m.period
+                    next_spont = now + m.period * self.period_scale
                 elif m.cadence == 'change' and self.changed:
                     self.changed = False
                     self.frame(mode, True)

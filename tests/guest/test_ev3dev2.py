@@ -23,7 +23,8 @@ def apply_udev_rule(path):
     with open(RULE) as f:
         rule = f.read()
     for cmd in re.findall(r'RUN\+="(/bin/chmod [^"]*)"', rule):
-        subprocess.run(cmd.replace('/sys%p', path).split(), check=True)
+        subprocess.run(cmd.replace('/sys%p', path).split(), check=True,
+                       stderr=subprocess.DEVNULL)
 
 
 @pytest.fixture
@@ -37,11 +38,24 @@ def four_sensors(ev3_module):
             ln = ev3.Line(pair)
             ln.attach()
             lines.append(ln)
-            emus.append(ln.plug(kind))
+            # Four emulators share one Python process in an emulated
+            # machine: slow the gyro's 650 Hz stream and start them one
+            # after the other, so that each still answers its keep-alives.
+            emus.append(ln.plug(kind, period_scale=10))
+            time.sleep(0.5)
+        time.sleep(1.0)
         for pair, ln in enumerate(lines):
-            path = find_sensor('%s:in%d' % (ln.address, pair + 1), timeout=20)
-            assert path, 'sensor on in%d missing' % (pair + 1)
-            apply_udev_rule(path)
+            address = '%s:in%d' % (ln.address, pair + 1)
+            for attempt in range(3):
+                path = find_sensor(address, timeout=20)
+                assert path, 'sensor on in%d missing' % (pair + 1)
+                try:
+                    apply_udev_rule(path)
+                    break
+                except subprocess.CalledProcessError:
+                    time.sleep(0.5)     # it reconnected under us: find it again
+            else:
+                pytest.fail('could not apply the udev rule to %s' % address)
         os.environ['FAKE_SYS'] = ''
         yield emus
     finally:
