@@ -41,4 +41,6 @@ def line(ev3_module):
     ln.attach()
     yield ln
     ln.close()
-    assert not ev3.find_sensor(ln.address, timeout=0.01), 'sensor left behind after detach'
+    left = [d for d in ev3.glob.glob(ev3.CLASS + '/sensor*')
+            if ev3.read_attr(d, 'address').split(':')[0] == ln.address]
+    assert not left, 'sensor left behind after detach: %s' % left

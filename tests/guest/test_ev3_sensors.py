@@ -220,3 +220,22 @@ def test_mode_that_silences_the_sensor_is_not_restored_forever(line):
     assert found, 'sensor never came back in IR-PROX (%d handshakes)' % emu.handshakes
     time.sleep(2)
     assert read_attr(found, 'mode') == 'IR-PROX'
+
+
+def test_port_label_ioctl(line):
+    import fcntl
+    import termios
+    SET, GET = 0x4010e301, 0x8010e302      # _IOW/_IOR(0xE3, 1/2, char[16])
+    fcntl.ioctl(line.fd, SET, b'in3'.ljust(16, b'\0'))
+    assert fcntl.ioctl(line.fd, GET, bytes(16)).rstrip(b'\0') == b'in3'
+    for bad in (b'in 3', b'a:b', b'x' * 16):
+        with pytest.raises(OSError) as e:
+            fcntl.ioctl(line.fd, SET, bad.ljust(16, b'\0')[:16])
+        assert e.value.errno == errno.EINVAL
+    # termios ioctls still work with the discipline attached.
+    assert termios.tcgetattr(line.fd)[4] == termios.B2400
+    line.plug('color')
+    path = find_sensor('ttyNM0:in3', timeout=15)
+    assert path, 'no sensor with the labelled address'
+    with open(os.path.join(path, 'uevent')) as f:
+        assert 'LEGO_ADDRESS=ttyNM0:in3' in f.read().split('\n')

@@ -36,10 +36,11 @@
 #include <linux/spinlock.h>
 #include <linux/tty.h>
 #include <linux/workqueue.h>
+#include <linux/lego_ev3_uart.h>
 
 #include "ev3_uart_proto.h"
 
-#define EV3_UART_LABEL_LEN	16
+#define EV3_UART_LABEL_LEN	LEGO_EV3_LABEL_LEN
 /* "tty name:label" */
 #define EV3_UART_ADDRESS_LEN	(sizeof_field(struct tty_struct, name) + EV3_UART_LABEL_LEN)
 
@@ -100,7 +101,8 @@ struct ev3_uart_sensor_dev {
  * @restore_mode: mode being restored and not yet confirmed, or
  *	%EV3_UART_NO_MODE
  * @restore_ticks: keep-alive periods since the restore began
- * @label: port label set by the user (module parameter), e.g. "in1"
+ * @label: port label set by the user (module parameter or
+ *	%LEGO_EV3_SET_PORT_LABEL), e.g. "in1"; under @lock
  * @last_error: reason of the last protocol error, for the log
  */
 struct ev3_uart_port {

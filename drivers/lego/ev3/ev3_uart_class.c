@@ -368,11 +368,13 @@ struct ev3_uart_sensor_dev *ev3_uart_sensor_create(struct ev3_uart_port *port,
 	else
 		snprintf(sd->driver_name, sizeof(sd->driver_name), "ev3-uart-%u",
 			 desc->type);
+	spin_lock(&port->lock);
 	if (port->label[0])
 		snprintf(sd->address, sizeof(sd->address), "%s:%s",
 			 port->tty->name, port->label);
 	else
 		strscpy(sd->address, port->tty->name, sizeof(sd->address));
+	spin_unlock(&port->lock);
 	INIT_WORK(&sd->mode_work, ev3_uart_sensor_mode_work);
 	sd->settle_until = jiffies;
 

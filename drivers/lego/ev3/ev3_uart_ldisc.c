@@ -25,6 +25,7 @@
  * its choosing.
  */
 #include <linux/capability.h>
+#include <linux/ctype.h>
 #include <linux/jiffies.h>
 #include <linux/module.h>
 #include <linux/moduleparam.h>
@@ -35,6 +36,8 @@
 #include <linux/sysfs.h>
 #include <linux/tty.h>
 #include <linux/tty_ldisc.h>
+#include <linux/uaccess.h>
+#include <linux/lego_ev3_uart.h>
 
 #include "lego_compat.h"
 #include "ev3_uart.h"
@@ -558,6 +561,49 @@ static void ev3_uart_find_label(struct ev3_uart_port *port)
 	}
 }
 
+static bool ev3_uart_label_ok(const char *label, size_t size)
+{
+	size_t i, n = strnlen(label, size);
+
+	if (n == size)
+		return false;
+	for (i = 0; i < n; i++)
+		if (!isalnum(label[i]) && !strchr("_.-", label[i]))
+			return false;
+	return true;
+}
+
+static int ev3_uart_ioctl(struct tty_struct *tty, unsigned int cmd,
+			  unsigned long arg)
+{
+	struct ev3_uart_port *port = tty->disc_data;
+	void __user *uarg = (void __user *)arg;
+	struct lego_ev3_port_label pl;
+
+	switch (cmd) {
+	case LEGO_EV3_SET_PORT_LABEL:
+		if (!capable(CAP_SYS_ADMIN))
+			return -EPERM;
+		if (copy_from_user(&pl, uarg, sizeof(pl)))
+			return -EFAULT;
+		if (!ev3_uart_label_ok(pl.label, sizeof(pl.label)))
+			return -EINVAL;
+		spin_lock(&port->lock);
+		strscpy(port->label, pl.label, sizeof(port->label));
+		spin_unlock(&port->lock);
+		return 0;
+	case LEGO_EV3_GET_PORT_LABEL:
+		memset(&pl, 0, sizeof(pl));
+		spin_lock(&port->lock);
+		strscpy(pl.label, port->label, sizeof(pl.label));
+		spin_unlock(&port->lock);
+		return copy_to_user(uarg, &pl, sizeof(pl)) ? -EFAULT : 0;
+	default:
+		/* termios ioctls (tcgetattr...) keep working. */
+		return tty_mode_ioctl(tty, cmd, arg);
+	}
+}
+
 static int ev3_uart_open(struct tty_struct *tty)
 {
 	struct ev3_uart_port *port;
@@ -631,6 +677,7 @@ static struct tty_ldisc_ops ev3_uart_ldisc = {
 	.name		= EV3_UART_LDISC_NAME,
 	.open		= ev3_uart_open,
 	.close		= ev3_uart_close,
+	.ioctl		= ev3_uart_ioctl,
 	.receive_buf	= ev3_uart_receive_buf,
 };
 
