@@ -40,6 +40,44 @@ static const struct ev3_uart_mode *current_mode(struct ev3_uart_sensor_dev *sd,
 	return &sd->desc.modes[mode];
 }
 
+static const char * const ev3_uart_bin_formats[] = {
+	[EV3_UART_DATA_S8] = "s8",
+	[EV3_UART_DATA_S16] = "s16",
+	[EV3_UART_DATA_S32] = "s32",
+	[EV3_UART_DATA_FLOAT] = "float",
+};
+
+enum ev3_mode_field {
+	EV3_FIELD_NAME,
+	EV3_FIELD_NUM_VALUES,
+	EV3_FIELD_DECIMALS,
+	EV3_FIELD_UNITS,
+	EV3_FIELD_BIN_FORMAT,
+};
+
+/* Show one property of the current mode. */
+static ssize_t mode_field_show(struct device *dev, char *buf,
+			       enum ev3_mode_field field)
+{
+	const struct ev3_uart_mode *m = current_mode(to_sensor(dev), NULL, NULL);
+
+	if (IS_ERR(m))
+		return PTR_ERR(m);
+	switch (field) {
+	case EV3_FIELD_NAME:
+		return sysfs_emit(buf, "%s\n", m->name);
+	case EV3_FIELD_NUM_VALUES:
+		return sysfs_emit(buf, "%u\n", m->num_values);
+	case EV3_FIELD_DECIMALS:
+		return sysfs_emit(buf, "%u\n", m->decimals);
+	case EV3_FIELD_UNITS:
+		return sysfs_emit(buf, "%s\n", m->units);
+	case EV3_FIELD_BIN_FORMAT:
+		return sysfs_emit(buf, "%s\n", ev3_uart_bin_formats[m->data_type]);
+	}
+	return -EINVAL;
+}
+
 static ssize_t address_show(struct device *dev, struct device_attribute *attr,
 			    char *buf)
 {
@@ -64,11 +102,7 @@ static DEVICE_ATTR_RO(modes);
 static ssize_t mode_show(struct device *dev, struct device_attribute *attr,
 			 char *buf)
 {
-	const struct ev3_uart_mode *m = current_mode(to_sensor(dev), NULL, NULL);
-
-	if (IS_ERR(m))
-		return PTR_ERR(m);
-	return sysfs_emit(buf, "%s\n", m->name);
+	return mode_field_show(dev, buf, EV3_FIELD_NAME);
 }
 
 static ssize_t mode_store(struct device *dev, struct device_attribute *attr,
@@ -98,51 +132,28 @@ static DEVICE_ATTR_WO(command);
 static ssize_t num_values_show(struct device *dev,
 			       struct device_attribute *attr, char *buf)
 {
-	const struct ev3_uart_mode *m = current_mode(to_sensor(dev), NULL, NULL);
-
-	if (IS_ERR(m))
-		return PTR_ERR(m);
-	return sysfs_emit(buf, "%u\n", m->num_values);
+	return mode_field_show(dev, buf, EV3_FIELD_NUM_VALUES);
 }
 static DEVICE_ATTR_RO(num_values);
 
 static ssize_t decimals_show(struct device *dev, struct device_attribute *attr,
 			     char *buf)
 {
-	const struct ev3_uart_mode *m = current_mode(to_sensor(dev), NULL, NULL);
-
-	if (IS_ERR(m))
-		return PTR_ERR(m);
-	return sysfs_emit(buf, "%u\n", m->decimals);
+	return mode_field_show(dev, buf, EV3_FIELD_DECIMALS);
 }
 static DEVICE_ATTR_RO(decimals);
 
 static ssize_t units_show(struct device *dev, struct device_attribute *attr,
 			  char *buf)
 {
-	const struct ev3_uart_mode *m = current_mode(to_sensor(dev), NULL, NULL);
-
-	if (IS_ERR(m))
-		return PTR_ERR(m);
-	return sysfs_emit(buf, "%s\n", m->units);
+	return mode_field_show(dev, buf, EV3_FIELD_UNITS);
 }
 static DEVICE_ATTR_RO(units);
-
-static const char * const ev3_uart_bin_formats[] = {
-	[EV3_UART_DATA_S8] = "s8",
-	[EV3_UART_DATA_S16] = "s16",
-	[EV3_UART_DATA_S32] = "s32",
-	[EV3_UART_DATA_FLOAT] = "float",
-};
 
 static ssize_t bin_data_format_show(struct device *dev,
 				    struct device_attribute *attr, char *buf)
 {
-	const struct ev3_uart_mode *m = current_mode(to_sensor(dev), NULL, NULL);
-
-	if (IS_ERR(m))
-		return PTR_ERR(m);
-	return sysfs_emit(buf, "%s\n", ev3_uart_bin_formats[m->data_type]);
+	return mode_field_show(dev, buf, EV3_FIELD_BIN_FORMAT);
 }
 static DEVICE_ATTR_RO(bin_data_format);
 
