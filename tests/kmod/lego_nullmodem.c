@@ -121,14 +121,14 @@ static enum hrtimer_restart nm_tick(struct hrtimer *timer)
 	}
 	spin_unlock(&p->lock);
 
-	if (n)
+	if (n) {
 		nm_deliver(p, buf, n);
-
-	tty = tty_port_tty_get(&p->port);
-	if (tty) {
-		if (n)
+		/* Room in the fifo: let the writer go on. */
+		tty = tty_port_tty_get(&p->port);
+		if (tty) {
 			tty_wakeup(tty);
-		tty_kref_put(tty);
+			tty_kref_put(tty);
+		}
 	}
 
 	if (!more)

@@ -211,7 +211,7 @@ static bool ev3_iio_validate_scan_mask(struct iio_dev *indio,
 				       const unsigned long *mask)
 {
 	struct ev3_uart_iio *iio = iio_priv(indio);
-	unsigned int ch, last = iio->indio->num_channels - 1;
+	unsigned int ch, last = indio->num_channels - 1;
 	int mode = -1;
 
 	for_each_set_bit(ch, mask, last) {

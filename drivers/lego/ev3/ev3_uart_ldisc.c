@@ -302,9 +302,11 @@ static void ev3_uart_keepalive_work(struct work_struct *work)
 		restore = EV3_UART_NO_MODE;
 		port->restore_mode = EV3_UART_NO_MODE;
 	} else if (restore != EV3_UART_NO_MODE &&
-		   (++port->restore_ticks % EV3_UART_RESTORE_EVERY ||
-		    port->restore_ticks > EV3_UART_RESTORE_TICKS)) {
-		restore = EV3_UART_NO_MODE;
+		   ++port->restore_ticks > EV3_UART_RESTORE_TICKS) {
+		restore = EV3_UART_NO_MODE;	/* give up */
+		port->restore_mode = EV3_UART_NO_MODE;
+	} else if (port->restore_ticks % EV3_UART_RESTORE_EVERY) {
+		restore = EV3_UART_NO_MODE;	/* not this period */
 	}
 	spin_unlock(&port->lock);
 	if (!alive)

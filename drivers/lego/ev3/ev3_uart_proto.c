@@ -790,8 +790,7 @@ static void ev3_uart_msg_byte(struct ev3_uart_parser *p, u8 b,
 		ev3_uart_data_msg(p, ev);
 	else
 		ev3_uart_info_msg(p, ev);
-	if (ev->type != EV3_UART_EV_DATA)
-		p->msg_len = 0;
+	p->msg_len = 0;
 }
 
 /**

@@ -121,30 +121,35 @@ static unsigned int size_code(unsigned int plen)
 	return code;
 }
 
+/* One message: header, the INFO type byte if @itype >= 0, payload, checksum. */
+static size_t enc(u8 *buf, u8 type, u8 low, int itype, const u8 *payload,
+		  unsigned int plen)
+{
+	size_t n = 0;
+
+	buf[n++] = type | size_code(plen) << 3 | low;
+	if (itype >= 0)
+		buf[n++] = itype;
+	memcpy(buf + n, payload, plen);
+	n += plen;
+	buf[n] = ev3_uart_checksum(buf, n);
+	return n + 1;
+}
+
 static size_t enc_cmd(u8 *buf, u8 cmd, const u8 *payload, unsigned int plen)
 {
-	buf[0] = EV3_UART_MSG_CMD | size_code(plen) << 3 | cmd;
-	memcpy(buf + 1, payload, plen);
-	buf[plen + 1] = ev3_uart_checksum(buf, plen + 1);
-	return plen + 2;
+	return enc(buf, EV3_UART_MSG_CMD, cmd, -1, payload, plen);
 }
 
 static size_t enc_info(u8 *buf, u8 mode, u8 itype, const u8 *payload,
 		       unsigned int plen)
 {
-	buf[0] = EV3_UART_MSG_INFO | size_code(plen) << 3 | mode;
-	buf[1] = itype;
-	memcpy(buf + 2, payload, plen);
-	buf[plen + 2] = ev3_uart_checksum(buf, plen + 2);
-	return plen + 3;
+	return enc(buf, EV3_UART_MSG_INFO, mode, itype, payload, plen);
 }
 
 static size_t enc_data(u8 *buf, u8 mode, const u8 *payload, unsigned int plen)
 {
-	buf[0] = EV3_UART_MSG_DATA | size_code(plen) << 3 | mode;
-	memcpy(buf + 1, payload, plen);
-	buf[plen + 1] = ev3_uart_checksum(buf, plen + 1);
-	return plen + 2;
+	return enc(buf, EV3_UART_MSG_DATA, mode, -1, payload, plen);
 }
 
 static void put_le32(u8 *p, u32 v)
