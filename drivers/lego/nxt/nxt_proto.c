@@ -1,35 +1,291 @@
 // SPDX-License-Identifier: GPL-2.0
 /*
- * LEGO MINDSTORMS NXT telegrams: validation of commands and replies.
+ * LEGO MINDSTORMS NXT telegrams: validation, encoding and decoding.
  *
- * The brick's firmware takes one USB packet as one command and never checks
- * its length, so everything is checked here before it is sent, and nothing
- * the brick sends back is trusted.
+ * How the brick's firmware (LEGO 1.05 to 1.29) treats USB data shapes all of
+ * this:
+ *
+ *  - one OUT packet is one command, and its length is never checked: a short
+ *    command is completed with stale bytes of earlier ones, a long transfer
+ *    runs as several commands. Telegrams are therefore checked here before
+ *    anything is sent, and never longer than one 64-byte packet;
+ *  - only types 0x00 and 0x01 are answered; the reply is one IN packet,
+ *    "02 opcode status payload", with no sequence number, so a reply is
+ *    matched to its command by the echoed opcode and its length;
+ *  - replies have a fixed length per command, even on error (the payload is
+ *    then zero), except that an unknown opcode and a bad port for
+ *    LSGetStatus or LSRead give three bytes, and an unknown system opcode
+ *    gives the request's length plus two bytes of stale data.
  */
+#include <linux/bug.h>
+#include <linux/build_bug.h>
 #include <linux/errno.h>
 #include <linux/export.h>
-#include <linux/module.h>
+#include <linux/kernel.h>
+#include <linux/string.h>
 
 #include "lego_compat.h"
 #include "nxt_proto.h"
 
+/* Wire formats, after the type and opcode bytes or the reply's header. */
+
+struct nxt_req_hdr {
+	u8 type;
+	u8 opcode;
+} __packed;
+
+struct nxt_reply_hdr {
+	u8 type;
+	u8 opcode;
+	u8 status;
+} __packed;
+
+struct nxt_req_program {
+	struct nxt_req_hdr h;
+	char name[NXT_NAME_LEN];
+} __packed;
+
+struct nxt_req_sound_file {
+	struct nxt_req_hdr h;
+	u8 loop;
+	char name[NXT_NAME_LEN];
+} __packed;
+
+struct nxt_req_tone {
+	struct nxt_req_hdr h;
+	__le16 frequency;
+	__le16 duration;
+} __packed;
+
+struct nxt_req_output_state {
+	struct nxt_req_hdr h;
+	u8 port;
+	s8 power;
+	u8 mode;
+	u8 regulation_mode;
+	s8 turn_ratio;
+	u8 run_state;
+	__le32 tacho_limit;
+} __packed;
+
+struct nxt_req_input_mode {
+	struct nxt_req_hdr h;
+	u8 port;
+	u8 type;
+	u8 mode;
+} __packed;
+
+/* GetOutputState, GetInputValues, ResetInputScaledValue, LSGetStatus, LSRead */
+struct nxt_req_port {
+	struct nxt_req_hdr h;
+	u8 port;
+} __packed;
+
+struct nxt_req_message_write {
+	struct nxt_req_hdr h;
+	u8 inbox;
+	u8 size;
+	u8 data[NXT_MESSAGE_MAX];
+} __packed;
+
+struct nxt_req_motor_position {
+	struct nxt_req_hdr h;
+	u8 port;
+	u8 relative;
+} __packed;
+
+struct nxt_req_ls_write {
+	struct nxt_req_hdr h;
+	u8 port;
+	u8 tx_length;
+	u8 rx_length;
+	u8 tx_data[NXT_LS_DATA_MAX];
+} __packed;
+
+struct nxt_req_message_read {
+	struct nxt_req_hdr h;
+	u8 remote_inbox;
+	u8 local_inbox;
+	u8 remove;
+} __packed;
+
+struct nxt_reply_output_state {
+	struct nxt_reply_hdr h;
+	u8 port;
+	s8 power;
+	u8 mode;
+	u8 regulation_mode;
+	s8 turn_ratio;
+	u8 run_state;
+	__le32 tacho_limit;
+	__le32 tacho_count;
+	__le32 block_tacho_count;
+	__le32 rotation_count;
+} __packed;
+
+struct nxt_reply_input_values {
+	struct nxt_reply_hdr h;
+	u8 port;
+	u8 valid;
+	u8 calibrated;
+	u8 type;
+	u8 mode;
+	__le16 raw;
+	__le16 normalized;
+	__le16 scaled;
+	__le16 calibrated_value;
+} __packed;
+
+struct nxt_reply_battery {
+	struct nxt_reply_hdr h;
+	__le16 millivolts;
+} __packed;
+
+struct nxt_reply_keep_alive {
+	struct nxt_reply_hdr h;
+	__le32 sleep_limit;
+} __packed;
+
+struct nxt_reply_ls_status {
+	struct nxt_reply_hdr h;
+	u8 bytes_ready;
+} __packed;
+
+struct nxt_reply_ls_read {
+	struct nxt_reply_hdr h;
+	u8 length;
+	u8 data[NXT_LS_DATA_MAX];
+} __packed;
+
+struct nxt_reply_program {
+	struct nxt_reply_hdr h;
+	char name[NXT_NAME_LEN];
+} __packed;
+
+struct nxt_reply_message_read {
+	struct nxt_reply_hdr h;
+	u8 local_inbox;
+	u8 size;
+	u8 data[NXT_MESSAGE_MAX];
+} __packed;
+
+struct nxt_reply_versions {
+	struct nxt_reply_hdr h;
+	u8 protocol_minor;
+	u8 protocol_major;
+	u8 firmware_minor;
+	u8 firmware_major;
+} __packed;
+
+struct nxt_reply_device_info {
+	struct nxt_reply_hdr h;
+	char name[15];
+	u8 bt_address[7];	/* six bytes and a zero */
+	__le32 link_quality;	/* always 0 on LEGO's firmware */
+	__le32 free_flash;
+} __packed;
+
+/* The firmware's reply lengths, as the documentation and the source give them. */
+static_assert(sizeof(struct nxt_reply_output_state) == 25);
+static_assert(sizeof(struct nxt_reply_input_values) == 16);
+static_assert(sizeof(struct nxt_reply_battery) == 5);
+static_assert(sizeof(struct nxt_reply_keep_alive) == 7);
+static_assert(sizeof(struct nxt_reply_ls_status) == 4);
+static_assert(sizeof(struct nxt_reply_ls_read) == 20);
+static_assert(sizeof(struct nxt_reply_program) == 23);
+static_assert(sizeof(struct nxt_reply_message_read) == NXT_TELEGRAM_MAX);
+static_assert(sizeof(struct nxt_reply_versions) == 7);
+static_assert(sizeof(struct nxt_reply_device_info) == 33);
+static_assert(sizeof(struct nxt_req_message_write) == 4 + NXT_MESSAGE_MAX);
+
+/*
+ * Reply length of each direct command, whole telegram; 0 where the firmware
+ * does not know the opcode (it then answers "02 op BE"). 0x19 to 0x21 came
+ * with firmware 1.28.
+ */
+static const u8 nxt_direct_reply_len[] = {
+	[NXT_START_PROGRAM]		= NXT_REPLY_MIN,
+	[NXT_STOP_PROGRAM]		= NXT_REPLY_MIN,
+	[NXT_PLAY_SOUND_FILE]		= NXT_REPLY_MIN,
+	[NXT_PLAY_TONE]			= NXT_REPLY_MIN,
+	[NXT_SET_OUTPUT_STATE]		= NXT_REPLY_MIN,
+	[NXT_SET_INPUT_MODE]		= NXT_REPLY_MIN,
+	[NXT_GET_OUTPUT_STATE]		= sizeof(struct nxt_reply_output_state),
+	[NXT_GET_INPUT_VALUES]		= sizeof(struct nxt_reply_input_values),
+	[NXT_RESET_INPUT_SCALED_VALUE]	= NXT_REPLY_MIN,
+	[NXT_MESSAGE_WRITE]		= NXT_REPLY_MIN,
+	[NXT_RESET_MOTOR_POSITION]	= NXT_REPLY_MIN,
+	[NXT_GET_BATTERY_LEVEL]		= sizeof(struct nxt_reply_battery),
+	[NXT_STOP_SOUND_PLAYBACK]	= NXT_REPLY_MIN,
+	[NXT_KEEP_ALIVE]		= sizeof(struct nxt_reply_keep_alive),
+	[NXT_LS_GET_STATUS]		= sizeof(struct nxt_reply_ls_status),
+	[NXT_LS_WRITE]			= NXT_REPLY_MIN,
+	[NXT_LS_READ]			= sizeof(struct nxt_reply_ls_read),
+	[NXT_GET_CURRENT_PROGRAM_NAME]	= sizeof(struct nxt_reply_program),
+	[NXT_MESSAGE_READ]		= sizeof(struct nxt_reply_message_read),
+	[0x19]	= 64,	/* DatalogRead */
+	[0x1a]	= 3,	/* DatalogSetTimes */
+	[0x1b]	= 4,	/* BTGetContactCount */
+	[0x1c]	= 21,	/* BTGetContactName */
+	[0x1d]	= 4,	/* BTGetConnCount */
+	[0x1e]	= 21,	/* BTGetConnName */
+	[0x1f]	= 3,	/* SetProperty */
+	[0x20]	= 4,	/* GetProperty: 7 for property 2, see below */
+	[0x21]	= 3,	/* UpdateResetCount */
+};
+
+/* Reply length of each system command (opcode - 0x80), whole telegram. */
+static const u8 nxt_system_reply_len[] = {
+	[0x00] = 8,	/* OpenRead */
+	[0x01] = 4,	/* OpenWrite */
+	[0x02] = 6,	/* Read: plus the data, see below */
+	[0x03] = 6,	/* Write */
+	[0x04] = 4,	/* Close */
+	[0x05] = 23,	/* Delete */
+	[0x06] = 28,	/* FindFirst */
+	[0x07] = 28,	/* FindNext */
+	[0x08] = 7,	/* GetVersions */
+	[0x09] = 4,	/* OpenWriteLinear */
+	[0x0b] = 4,	/* OpenWriteData */
+	[0x0c] = 8,	/* OpenAppendData */
+	[0x0d] = 4,	/* CropDataFile */
+	[0x10] = 34,	/* FindFirstModule */
+	[0x11] = 34,	/* FindNextModule */
+	[0x12] = 4,	/* CloseModuleHandle */
+	[0x14] = 9,	/* ReadIOMap: plus the data, see below */
+	[0x15] = 9,	/* WriteIOMap */
+	[0x17] = 7,	/* BootCommand */
+	[0x18] = 3,	/* SetBrickName */
+	[0x1a] = 10,	/* GetBTAddress */
+	[0x1b] = 33,	/* GetDeviceInfo */
+	[0x20] = 3,	/* DeleteUserFlash */
+	[0x21] = 5,	/* PollCommandLength */
+	[0x22] = 5,	/* PollCommand: plus the data, see below */
+	[0x24] = 3,	/* BTFactoryReset */
+};
+
+/* Data bytes that fit a USB reply after the fixed part of these commands. */
+#define NXT_READ_DATA_MAX	58
+#define NXT_IOMAP_DATA_MAX	55
+#define NXT_POLL_DATA_MAX	59
+
 /**
  * nxt_telegram_check() - validate a telegram before it is sent to the brick
- * @buf: the telegram, starting with its type byte
+ * @tg: the telegram, starting with its type byte
  * @len: its length in bytes
  *
  * Return: 1 if the brick will reply to it, 0 if it will not, -%EMSGSIZE if it
  * does not fit one USB packet, -%EINVAL if it is too short or its type byte
  * is not a command.
  */
-int nxt_telegram_check(const u8 *buf, size_t len)
+int nxt_telegram_check(const u8 *tg, size_t len)
 {
 	if (len > NXT_TELEGRAM_MAX)
 		return -EMSGSIZE;
 	if (len < NXT_TELEGRAM_MIN)
 		return -EINVAL;
 
-	switch (buf[0]) {
+	switch (tg[0]) {
 	case NXT_DIRECT_CMD:
 	case NXT_SYSTEM_CMD:
 		return 1;
@@ -42,21 +298,706 @@ int nxt_telegram_check(const u8 *buf, size_t len)
 }
 EXPORT_SYMBOL_IF_KUNIT(nxt_telegram_check);
 
-/**
- * nxt_reply_check() - check that a packet from the brick answers a command
- * @reply: the packet as received
- * @len: its length in bytes
- * @opcode: the opcode of the command it should answer
- *
- * Return: the brick's status byte (0 for success) if @reply is a reply to
- * @opcode, -%EPROTO otherwise.
- */
-int nxt_reply_check(const u8 *reply, size_t len, u8 opcode)
+/* A little-endian count at @at, or -1 if the telegram is too short for it. */
+static int nxt_count_at(const u8 *tg, size_t len, size_t at, size_t size)
 {
+	if (len < at + size)
+		return -1;	/* the firmware would read stale bytes */
+	return size == 1 ? tg[at] : tg[at] | tg[at + 1] << 8;
+}
+
+/**
+ * nxt_reply_length() - the length of the reply the brick sends to a telegram
+ * @tg: a telegram that passed nxt_telegram_check()
+ * @len: its length
+ *
+ * Return: the whole reply's length in bytes, or 0 when the firmware does not
+ * know the command, when its reply length depends on bytes the telegram is
+ * too short to hold, or when the telegram asks for no reply.
+ */
+unsigned int nxt_reply_length(const u8 *tg, size_t len)
+{
+	u8 op = tg[1];
+	unsigned int n;
+	int count, cap;
+
+	switch (tg[0]) {
+	case NXT_DIRECT_CMD:
+		if (op >= ARRAY_SIZE(nxt_direct_reply_len))
+			return 0;
+		/* GetProperty: property 2, the sleep time, is a u32. */
+		if (op == 0x20)
+			return len > 2 && tg[2] == 2 ? 7 : 4;
+		return nxt_direct_reply_len[op];
+	case NXT_SYSTEM_CMD:
+		if (op < 0x80 || op - 0x80 >= ARRAY_SIZE(nxt_system_reply_len))
+			return 0;
+		n = nxt_system_reply_len[op - 0x80];
+		/* Data-carrying replies: the data is capped to fit 64 bytes. */
+		switch (op) {
+		case 0x82:	/* Read: handle, count u16 */
+			count = nxt_count_at(tg, len, 3, 2);
+			cap = NXT_READ_DATA_MAX;
+			break;
+		case 0x94:	/* ReadIOMap: id u32, offset u16, count u16 */
+			count = nxt_count_at(tg, len, 8, 2);
+			cap = NXT_IOMAP_DATA_MAX;
+			break;
+		case 0xa2:	/* PollCommand: buffer, count */
+			count = nxt_count_at(tg, len, 3, 1);
+			cap = NXT_POLL_DATA_MAX;
+			break;
+		default:
+			return n;
+		}
+		return count < 0 ? 0 : n + min(count, cap);
+		return n;
+	default:
+		return 0;
+	}
+}
+EXPORT_SYMBOL_IF_KUNIT(nxt_reply_length);
+
+/**
+ * nxt_reply_check() - check that a packet from the brick answers a telegram
+ * @tg: the telegram sent, which asked for a reply
+ * @tg_len: its length
+ * @reply: the packet received
+ * @len: its length in bytes
+ *
+ * A reply must be a reply telegram echoing @tg's opcode, and as long as the
+ * firmware makes that command's replies. An error reply may be shorter (the
+ * firmware sends three bytes for an unknown opcode or a bad low-speed port).
+ *
+ * Return: the brick's status byte (0 for success) if @reply answers @tg;
+ * -%ENOMSG if it is not a reply to @tg's opcode (a stale reply, or garbage);
+ * -%EPROTO if it is, but its length is wrong for the command.
+ */
+int nxt_reply_check(const u8 *tg, size_t tg_len, const u8 *reply, size_t len)
+{
+	unsigned int want;
+	u8 status;
+
+	if (len < 2 || reply[0] != NXT_REPLY || reply[1] != tg[1])
+		return -ENOMSG;
 	if (len < NXT_REPLY_MIN || len > NXT_TELEGRAM_MAX)
 		return -EPROTO;
-	if (reply[0] != NXT_REPLY || reply[1] != opcode)
+
+	status = reply[2];
+	want = nxt_reply_length(tg, tg_len);
+	if (want && len != want && (status == NXT_STATUS_SUCCESS || len > want))
 		return -EPROTO;
-	return reply[2];
+	return status;
 }
 EXPORT_SYMBOL_IF_KUNIT(nxt_reply_check);
+
+/**
+ * nxt_status_to_errno() - the errno a status byte of the brick maps to
+ * @status: the status byte of a reply
+ *
+ * Return: 0 for %NXT_STATUS_SUCCESS, else a negative errno; -%EIO for codes
+ * the firmware does not define. Documentation/lego/nxt-usb.rst has the table.
+ */
+int nxt_status_to_errno(u8 status)
+{
+	switch (status) {
+	case NXT_STATUS_SUCCESS:
+		return 0;
+	case NXT_STATUS_PENDING:
+		return -EAGAIN;
+	case NXT_STATUS_MAILBOX_EMPTY:
+		return -ENOMSG;
+	case NXT_STATUS_NO_MORE_HANDLES:
+		return -EMFILE;
+	case NXT_STATUS_NO_SPACE:
+	case NXT_STATUS_NO_LINEAR_SPACE:
+		return -ENOSPC;
+	case NXT_STATUS_NO_MORE_FILES:
+	case NXT_STATUS_FILE_NOT_FOUND:
+	case NXT_STATUS_MODULE_NOT_FOUND:
+	case NXT_STATUS_FILE_TX_SRC_MISSING:
+		return -ENOENT;
+	case NXT_STATUS_END_OF_FILE:
+		return -ENODATA;
+	case NXT_STATUS_HANDLE_CLOSED:
+	case NXT_STATUS_ILLEGAL_HANDLE:
+		return -EBADF;
+	case NXT_STATUS_FILE_BUSY:
+	case NXT_STATUS_BT_BUSY:
+	case NXT_STATUS_CHANNEL_BUSY:
+		return -EBUSY;
+	case NXT_STATUS_NO_WRITE_BUFFERS:
+	case NXT_STATUS_BUFFER_FULL:
+		return -ENOBUFS;
+	case NXT_STATUS_FILE_FULL:
+		return -EFBIG;
+	case NXT_STATUS_FILE_EXISTS:
+	case NXT_STATUS_FILE_TX_DST_EXISTS:
+		return -EEXIST;
+	case NXT_STATUS_OUT_OF_BOUNDS:
+	case NXT_STATUS_OUT_OF_RANGE:
+		return -ERANGE;
+	case NXT_STATUS_NOT_LINEAR_FILE:
+	case NXT_STATUS_APPEND_NOT_POSSIBLE:
+	case NXT_STATUS_ILLEGAL_FILE_NAME:
+	case NXT_STATUS_BAD_MAILBOX:
+	case NXT_STATUS_BAD_FIELD:
+	case NXT_STATUS_BAD_PORT:
+	case NXT_STATUS_BAD_ARGUMENTS:
+		return -EINVAL;
+	case NXT_STATUS_BT_CONNECT_FAIL:
+		return -ECONNREFUSED;
+	case NXT_STATUS_BT_TIMEOUT:
+	case NXT_STATUS_FILE_TX_TIMEOUT:
+		return -ETIMEDOUT;
+	case NXT_STATUS_UNKNOWN_OPCODE:
+		return -EOPNOTSUPP;
+	case NXT_STATUS_INSANE_PACKET:
+		return -EBADMSG;
+	case NXT_STATUS_BAD_CHANNEL:
+		return -ENXIO;
+	case NXT_STATUS_NO_PROGRAM:
+		return -ESRCH;
+	case NXT_STATUS_BAD_SIZE:
+		return -EMSGSIZE;
+	case NXT_STATUS_NO_MEMORY:
+		return -ENOMEM;
+	default:
+		/* EOF expected, undefined error, bus error, VM fatal codes... */
+		return -EIO;
+	}
+}
+EXPORT_SYMBOL_IF_KUNIT(nxt_status_to_errno);
+
+/* Encoders: check every argument, then build the telegram. */
+
+static void nxt_put_hdr(u8 *tg, u8 opcode)
+{
+	struct nxt_req_hdr *h = (struct nxt_req_hdr *)tg;
+
+	/* Typed commands always ask for a reply: its status is the result. */
+	h->type = NXT_DIRECT_CMD;
+	h->opcode = opcode;
+}
+
+static bool nxt_reserved_clear(const void *p, size_t n)
+{
+	return !memchr_inv(p, 0, n);
+}
+
+/* A file name: 1 to 19 printable ASCII characters and a NUL, zero-padded. */
+static int nxt_put_name(char *dst, const char *name)
+{
+	size_t i, n = strnlen(name, NXT_NAME_LEN);
+
+	if (n == 0 || n == NXT_NAME_LEN)
+		return -EINVAL;
+	for (i = 0; i < n; i++)
+		if (name[i] < 0x20 || name[i] > 0x7e)
+			return -EINVAL;
+	memset(dst, 0, NXT_NAME_LEN);
+	memcpy(dst, name, n);
+	return 0;
+}
+
+static int nxt_encode_status_only(const void *arg, u8 *tg)
+{
+	const struct nxt_status_only *a = arg;
+
+	if (!nxt_reserved_clear(a->reserved, sizeof(a->reserved)))
+		return -EINVAL;
+	return sizeof(struct nxt_req_hdr);
+}
+
+static int nxt_encode_start_program(const void *arg, u8 *tg)
+{
+	const struct nxt_program *a = arg;
+	struct nxt_req_program *r = (void *)tg;
+
+	if (!nxt_reserved_clear(a->reserved, sizeof(a->reserved)) ||
+	    nxt_put_name(r->name, a->name))
+		return -EINVAL;
+	return sizeof(*r);
+}
+
+static int nxt_encode_sound_file(const void *arg, u8 *tg)
+{
+	const struct nxt_sound_file *a = arg;
+	struct nxt_req_sound_file *r = (void *)tg;
+
+	if (a->loop > 1 || !nxt_reserved_clear(a->reserved, sizeof(a->reserved)) ||
+	    nxt_put_name(r->name, a->name))
+		return -EINVAL;
+	r->loop = a->loop;
+	return sizeof(*r);
+}
+
+static int nxt_encode_tone(const void *arg, u8 *tg)
+{
+	const struct nxt_tone *a = arg;
+	struct nxt_req_tone *r = (void *)tg;
+
+	if (a->frequency < NXT_TONE_MIN_HZ || a->frequency > NXT_TONE_MAX_HZ ||
+	    !nxt_reserved_clear(a->reserved, sizeof(a->reserved)))
+		return -EINVAL;
+	r->frequency = cpu_to_le16(a->frequency);
+	r->duration = cpu_to_le16(a->duration);
+	return sizeof(*r);
+}
+
+static bool nxt_run_state_valid(u8 state)
+{
+	return state == NXT_RUN_STATE_IDLE || state == NXT_RUN_STATE_RAMPUP ||
+	       state == NXT_RUN_STATE_RUNNING || state == NXT_RUN_STATE_RAMPDOWN;
+}
+
+static int nxt_encode_set_output_state(const void *arg, u8 *tg)
+{
+	const struct nxt_output_state *a = arg;
+	struct nxt_req_output_state *r = (void *)tg;
+	const u8 mode_bits = NXT_MODE_MOTORON | NXT_MODE_BRAKE | NXT_MODE_REGULATED;
+
+	if ((a->port >= NXT_OUTPUT_PORTS && a->port != NXT_OUTPUT_ALL) ||
+	    abs(a->power) > NXT_POWER_MAX || abs(a->turn_ratio) > NXT_POWER_MAX ||
+	    (a->mode & ~mode_bits) || a->regulation_mode > NXT_REGULATION_MOTOR_SYNC ||
+	    !nxt_run_state_valid(a->run_state) || a->reserved)
+		return -EINVAL;
+	r->port = a->port;
+	r->power = a->power;
+	r->mode = a->mode;
+	r->regulation_mode = a->regulation_mode;
+	r->turn_ratio = a->turn_ratio;
+	r->run_state = a->run_state;
+	r->tacho_limit = cpu_to_le32(a->tacho_limit);
+	return sizeof(*r);
+}
+
+static int nxt_encode_input_mode(const void *arg, u8 *tg)
+{
+	const struct nxt_input_mode *a = arg;
+	struct nxt_req_input_mode *r = (void *)tg;
+
+	/* Every mode byte is valid: a mode in the top bits, a slope below. */
+	if (a->port >= NXT_INPUT_PORTS || a->type >= NXT_SENSOR_TYPES)
+		return -EINVAL;
+	r->port = a->port;
+	r->type = a->type;
+	r->mode = a->mode;
+	return sizeof(*r);
+}
+
+static int nxt_encode_port(u8 port, unsigned int ports, u8 *tg)
+{
+	struct nxt_req_port *r = (void *)tg;
+
+	if (port >= ports)
+		return -EINVAL;
+	r->port = port;
+	return sizeof(*r);
+}
+
+static int nxt_encode_get_output_state(const void *arg, u8 *tg)
+{
+	const struct nxt_output_state *a = arg;
+
+	if (a->reserved)
+		return -EINVAL;
+	return nxt_encode_port(a->port, NXT_OUTPUT_PORTS, tg);
+}
+
+static int nxt_encode_get_input_values(const void *arg, u8 *tg)
+{
+	const struct nxt_input_values *a = arg;
+
+	if (a->reserved)
+		return -EINVAL;
+	return nxt_encode_port(a->port, NXT_INPUT_PORTS, tg);
+}
+
+static int nxt_encode_input_port(const void *arg, u8 *tg)
+{
+	const struct nxt_input_port *a = arg;
+
+	if (!nxt_reserved_clear(a->reserved, sizeof(a->reserved)))
+		return -EINVAL;
+	return nxt_encode_port(a->port, NXT_INPUT_PORTS, tg);
+}
+
+static int nxt_encode_ls_status(const void *arg, u8 *tg)
+{
+	const struct nxt_ls_status *a = arg;
+
+	if (a->reserved)
+		return -EINVAL;
+	return nxt_encode_port(a->port, NXT_INPUT_PORTS, tg);
+}
+
+static int nxt_encode_ls_read(const void *arg, u8 *tg)
+{
+	const struct nxt_ls_read *a = arg;
+
+	if (a->reserved)
+		return -EINVAL;
+	return nxt_encode_port(a->port, NXT_INPUT_PORTS, tg);
+}
+
+static int nxt_encode_message_write(const void *arg, u8 *tg)
+{
+	const struct nxt_message *a = arg;
+	struct nxt_req_message_write *r = (void *)tg;
+
+	/* The firmware takes only NUL-terminated messages, NUL counted. */
+	if (a->inbox >= NXT_INBOXES || a->size < 1 || a->size > NXT_MESSAGE_MAX ||
+	    a->data[a->size - 1] != '\0')
+		return -EINVAL;
+	r->inbox = a->inbox;
+	r->size = a->size;
+	memcpy(r->data, a->data, a->size);
+	return offsetof(struct nxt_req_message_write, data) + a->size;
+}
+
+static int nxt_encode_motor_position(const void *arg, u8 *tg)
+{
+	const struct nxt_motor_position *a = arg;
+	struct nxt_req_motor_position *r = (void *)tg;
+
+	if (a->port >= NXT_OUTPUT_PORTS || a->relative > 1 || a->reserved)
+		return -EINVAL;
+	r->port = a->port;
+	r->relative = a->relative;
+	return sizeof(*r);
+}
+
+static int nxt_encode_battery(const void *arg, u8 *tg)
+{
+	const struct nxt_battery *a = arg;
+
+	if (a->reserved)
+		return -EINVAL;
+	return sizeof(struct nxt_req_hdr);
+}
+
+static int nxt_encode_keep_alive(const void *arg, u8 *tg)
+{
+	const struct nxt_keep_alive *a = arg;
+
+	if (!nxt_reserved_clear(a->reserved, sizeof(a->reserved)))
+		return -EINVAL;
+	return sizeof(struct nxt_req_hdr);
+}
+
+static int nxt_encode_ls_write(const void *arg, u8 *tg)
+{
+	const struct nxt_ls_write *a = arg;
+	struct nxt_req_ls_write *r = (void *)tg;
+
+	if (a->port >= NXT_INPUT_PORTS || a->tx_length < 1 ||
+	    a->tx_length > NXT_LS_DATA_MAX || a->rx_length > NXT_LS_DATA_MAX)
+		return -EINVAL;
+	r->port = a->port;
+	r->tx_length = a->tx_length;
+	r->rx_length = a->rx_length;
+	memcpy(r->tx_data, a->tx_data, a->tx_length);
+	return offsetof(struct nxt_req_ls_write, tx_data) + a->tx_length;
+}
+
+static int nxt_encode_program_name(const void *arg, u8 *tg)
+{
+	const struct nxt_program *a = arg;
+
+	if (!nxt_reserved_clear(a->reserved, sizeof(a->reserved)))
+		return -EINVAL;
+	return sizeof(struct nxt_req_hdr);
+}
+
+static int nxt_encode_message_read(const void *arg, u8 *tg)
+{
+	const struct nxt_message *a = arg;
+	struct nxt_req_message_read *r = (void *)tg;
+
+	if (a->inbox >= NXT_REMOTE_INBOXES || a->local_inbox >= NXT_INBOXES ||
+	    a->remove > 1)
+		return -EINVAL;
+	r->remote_inbox = a->inbox;
+	r->local_inbox = a->local_inbox;
+	r->remove = a->remove;
+	return sizeof(*r);
+}
+
+/*
+ * Decoders. The reply has been checked for type, opcode and length and is
+ * zero-padded, and zero entirely past the header when its status is not
+ * success, so each decoder reads a whole reply; a count it reads is still
+ * checked against its field before it is used.
+ */
+
+static int nxt_decode_output_state(const u8 *reply, void *arg)
+{
+	const struct nxt_reply_output_state *r = (const void *)reply;
+	struct nxt_output_state *a = arg;
+
+	a->power = r->power;
+	a->mode = r->mode;
+	a->regulation_mode = r->regulation_mode;
+	a->turn_ratio = r->turn_ratio;
+	a->run_state = r->run_state;
+	a->tacho_limit = le32_to_cpu(r->tacho_limit);
+	a->tacho_count = (s32)le32_to_cpu(r->tacho_count);
+	a->block_tacho_count = (s32)le32_to_cpu(r->block_tacho_count);
+	a->rotation_count = (s32)le32_to_cpu(r->rotation_count);
+	return 0;
+}
+
+static int nxt_decode_input_values(const u8 *reply, void *arg)
+{
+	const struct nxt_reply_input_values *r = (const void *)reply;
+	struct nxt_input_values *a = arg;
+
+	a->valid = r->valid;
+	a->calibrated = r->calibrated;
+	a->type = r->type;
+	a->mode = r->mode;
+	a->raw = le16_to_cpu(r->raw);
+	a->normalized = le16_to_cpu(r->normalized);
+	a->scaled = (s16)le16_to_cpu(r->scaled);
+	a->calibrated_value = (s16)le16_to_cpu(r->calibrated_value);
+	return 0;
+}
+
+static int nxt_decode_battery(const u8 *reply, void *arg)
+{
+	const struct nxt_reply_battery *r = (const void *)reply;
+	struct nxt_battery *a = arg;
+
+	a->millivolts = le16_to_cpu(r->millivolts);
+	return 0;
+}
+
+static int nxt_decode_keep_alive(const u8 *reply, void *arg)
+{
+	const struct nxt_reply_keep_alive *r = (const void *)reply;
+	struct nxt_keep_alive *a = arg;
+
+	a->sleep_limit = le32_to_cpu(r->sleep_limit);
+	return 0;
+}
+
+static int nxt_decode_ls_status(const u8 *reply, void *arg)
+{
+	const struct nxt_reply_ls_status *r = (const void *)reply;
+	struct nxt_ls_status *a = arg;
+
+	if (r->bytes_ready > NXT_LS_DATA_MAX)
+		return -EPROTO;
+	a->bytes_ready = r->bytes_ready;
+	return 0;
+}
+
+static int nxt_decode_ls_read(const u8 *reply, void *arg)
+{
+	const struct nxt_reply_ls_read *r = (const void *)reply;
+	struct nxt_ls_read *a = arg;
+
+	if (r->length > NXT_LS_DATA_MAX)
+		return -EPROTO;
+	a->length = r->length;
+	memset(a->data, 0, sizeof(a->data));
+	memcpy(a->data, r->data, r->length);
+	return 0;
+}
+
+static int nxt_decode_program_name(const u8 *reply, void *arg)
+{
+	const struct nxt_reply_program *r = (const void *)reply;
+	struct nxt_program *a = arg;
+	size_t n = strnlen(r->name, NXT_NAME_LEN);
+
+	if (n == NXT_NAME_LEN)
+		return -EPROTO;
+	memset(a->name, 0, sizeof(a->name));
+	memcpy(a->name, r->name, n);
+	return 0;
+}
+
+static int nxt_decode_message_read(const u8 *reply, void *arg)
+{
+	const struct nxt_reply_message_read *r = (const void *)reply;
+	struct nxt_message *a = arg;
+
+	if (r->size > NXT_MESSAGE_MAX)
+		return -EPROTO;
+	a->size = r->size;
+	memset(a->data, 0, sizeof(a->data));
+	memcpy(a->data, r->data, r->size);
+	return 0;
+}
+
+#define NXT_CMD(_ioctl, _op, _type, _enc, _dec) {			\
+	.ioctl = _ioctl,						\
+	.opcode = _op,							\
+	.status_offset = offsetof(_type, status),			\
+	.encode = _enc,							\
+	.decode = _dec,							\
+}
+
+static const struct nxt_command nxt_commands[] = {
+	NXT_CMD(NXT_IOC_START_PROGRAM, NXT_START_PROGRAM, struct nxt_program,
+		nxt_encode_start_program, NULL),
+	NXT_CMD(NXT_IOC_STOP_PROGRAM, NXT_STOP_PROGRAM, struct nxt_status_only,
+		nxt_encode_status_only, NULL),
+	NXT_CMD(NXT_IOC_PLAY_SOUND_FILE, NXT_PLAY_SOUND_FILE, struct nxt_sound_file,
+		nxt_encode_sound_file, NULL),
+	NXT_CMD(NXT_IOC_PLAY_TONE, NXT_PLAY_TONE, struct nxt_tone,
+		nxt_encode_tone, NULL),
+	NXT_CMD(NXT_IOC_SET_OUTPUT_STATE, NXT_SET_OUTPUT_STATE, struct nxt_output_state,
+		nxt_encode_set_output_state, NULL),
+	NXT_CMD(NXT_IOC_SET_INPUT_MODE, NXT_SET_INPUT_MODE, struct nxt_input_mode,
+		nxt_encode_input_mode, NULL),
+	NXT_CMD(NXT_IOC_GET_OUTPUT_STATE, NXT_GET_OUTPUT_STATE, struct nxt_output_state,
+		nxt_encode_get_output_state, nxt_decode_output_state),
+	NXT_CMD(NXT_IOC_GET_INPUT_VALUES, NXT_GET_INPUT_VALUES, struct nxt_input_values,
+		nxt_encode_get_input_values, nxt_decode_input_values),
+	NXT_CMD(NXT_IOC_RESET_INPUT_SCALED_VALUE, NXT_RESET_INPUT_SCALED_VALUE,
+		struct nxt_input_port, nxt_encode_input_port, NULL),
+	NXT_CMD(NXT_IOC_MESSAGE_WRITE, NXT_MESSAGE_WRITE, struct nxt_message,
+		nxt_encode_message_write, NULL),
+	NXT_CMD(NXT_IOC_RESET_MOTOR_POSITION, NXT_RESET_MOTOR_POSITION,
+		struct nxt_motor_position, nxt_encode_motor_position, NULL),
+	NXT_CMD(NXT_IOC_GET_BATTERY_LEVEL, NXT_GET_BATTERY_LEVEL, struct nxt_battery,
+		nxt_encode_battery, nxt_decode_battery),
+	NXT_CMD(NXT_IOC_STOP_SOUND_PLAYBACK, NXT_STOP_SOUND_PLAYBACK,
+		struct nxt_status_only, nxt_encode_status_only, NULL),
+	NXT_CMD(NXT_IOC_KEEP_ALIVE, NXT_KEEP_ALIVE, struct nxt_keep_alive,
+		nxt_encode_keep_alive, nxt_decode_keep_alive),
+	NXT_CMD(NXT_IOC_LS_GET_STATUS, NXT_LS_GET_STATUS, struct nxt_ls_status,
+		nxt_encode_ls_status, nxt_decode_ls_status),
+	NXT_CMD(NXT_IOC_LS_WRITE, NXT_LS_WRITE, struct nxt_ls_write,
+		nxt_encode_ls_write, NULL),
+	NXT_CMD(NXT_IOC_LS_READ, NXT_LS_READ, struct nxt_ls_read,
+		nxt_encode_ls_read, nxt_decode_ls_read),
+	NXT_CMD(NXT_IOC_GET_CURRENT_PROGRAM_NAME, NXT_GET_CURRENT_PROGRAM_NAME,
+		struct nxt_program, nxt_encode_program_name, nxt_decode_program_name),
+	NXT_CMD(NXT_IOC_MESSAGE_READ, NXT_MESSAGE_READ, struct nxt_message,
+		nxt_encode_message_read, nxt_decode_message_read),
+};
+
+/**
+ * nxt_command_find() - the typed direct command of an ioctl number
+ * @ioctl: the ioctl number, size and direction included
+ *
+ * Return: the command, or NULL if @ioctl is not a typed direct command.
+ */
+const struct nxt_command *nxt_command_find(unsigned int ioctl)
+{
+	size_t i;
+
+	for (i = 0; i < ARRAY_SIZE(nxt_commands); i++)
+		if (nxt_commands[i].ioctl == ioctl)
+			return &nxt_commands[i];
+	return NULL;
+}
+EXPORT_SYMBOL_IF_KUNIT(nxt_command_find);
+
+/**
+ * nxt_command_encode() - check a typed command's argument, build its telegram
+ * @cmd: the command
+ * @arg: its ioctl argument, _IOC_SIZE(@cmd->ioctl) bytes
+ * @tg: NXT_TELEGRAM_MAX bytes for the telegram; bytes past its length are zero
+ *
+ * Return: the telegram's length, or -%EINVAL if an argument is out of range
+ * or a reserved member is not zero.
+ */
+int nxt_command_encode(const struct nxt_command *cmd, const void *arg, u8 *tg)
+{
+	int len;
+
+	memset(tg, 0, NXT_TELEGRAM_MAX);
+	nxt_put_hdr(tg, cmd->opcode);
+	len = cmd->encode(arg, tg);
+	if (len < 0)
+		memset(tg, 0, NXT_TELEGRAM_MAX);
+	return len;
+}
+EXPORT_SYMBOL_IF_KUNIT(nxt_command_encode);
+
+/**
+ * nxt_command_decode() - fill a typed command's argument from its reply
+ * @cmd: the command
+ * @reply: a reply that passed nxt_reply_check() for the command's telegram
+ * @len: its length, NXT_REPLY_MIN to NXT_TELEGRAM_MAX
+ * @arg: the ioctl argument; its status and output members are written, its
+ *	input members are left as they are
+ *
+ * When the status is not success, the output members are zero.
+ *
+ * Return: 0, or -%EPROTO if a count in the reply does not fit its field.
+ */
+int nxt_command_decode(const struct nxt_command *cmd, const u8 *reply,
+		       size_t len, void *arg)
+{
+	u8 buf[NXT_TELEGRAM_MAX] = { };
+	u8 status = reply[2];
+	int ret = 0;
+
+	if (WARN_ON_ONCE(len < NXT_REPLY_MIN || len > NXT_TELEGRAM_MAX))
+		return -EPROTO;
+	memcpy(buf, reply, status == NXT_STATUS_SUCCESS ? len : NXT_REPLY_MIN);
+	if (cmd->decode)
+		ret = cmd->decode(buf, arg);
+	((u8 *)arg)[cmd->status_offset] = status;
+	return ret;
+}
+EXPORT_SYMBOL_IF_KUNIT(nxt_command_decode);
+
+/**
+ * nxt_decode_versions() - decode a reply to GetVersions
+ * @reply: a reply that passed nxt_reply_check() with status success
+ * @len: its length
+ * @protocol: the protocol version: major, minor
+ * @firmware: the firmware version: major, minor
+ *
+ * Return: 0, or -%EPROTO if @reply is not a whole successful reply.
+ */
+int nxt_decode_versions(const u8 *reply, size_t len, u8 protocol[2],
+			u8 firmware[2])
+{
+	const struct nxt_reply_versions *r = (const void *)reply;
+
+	if (len != sizeof(*r) || r->h.opcode != NXT_GET_VERSIONS ||
+	    r->h.status != NXT_STATUS_SUCCESS)
+		return -EPROTO;
+	protocol[0] = r->protocol_major;
+	protocol[1] = r->protocol_minor;
+	firmware[0] = r->firmware_major;
+	firmware[1] = r->firmware_minor;
+	return 0;
+}
+EXPORT_SYMBOL_IF_KUNIT(nxt_decode_versions);
+
+/**
+ * nxt_decode_device_info() - decode a reply to GetDeviceInfo
+ * @reply: a reply that passed nxt_reply_check() with status success
+ * @len: its length
+ * @info: the decoded information
+ *
+ * Return: 0, or -%EPROTO if @reply is not a whole successful reply.
+ */
+int nxt_decode_device_info(const u8 *reply, size_t len,
+			   struct nxt_device_info *info)
+{
+	const struct nxt_reply_device_info *r = (const void *)reply;
+	size_t i, n;
+
+	if (len != sizeof(*r) || r->h.opcode != NXT_GET_DEVICE_INFO ||
+	    r->h.status != NXT_STATUS_SUCCESS)
+		return -EPROTO;
+
+	memset(info, 0, sizeof(*info));
+	n = strnlen(r->name, sizeof(r->name));
+	for (i = 0; i < n; i++)
+		info->name[i] = r->name[i] >= 0x20 && r->name[i] <= 0x7e ? r->name[i] : '?';
+	memcpy(info->bt_address, r->bt_address, sizeof(info->bt_address));
+	info->free_flash = le32_to_cpu(r->free_flash);
+	return 0;
+}
+EXPORT_SYMBOL_IF_KUNIT(nxt_decode_device_info);

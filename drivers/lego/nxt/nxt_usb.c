@@ -1,95 +1,638 @@
 // SPDX-License-Identifier: GPL-2.0
 /*
- * LEGO MINDSTORMS NXT brick: USB char device.
+ * LEGO MINDSTORMS NXT brick: USB transport.
  *
- * Binds the brick's vendor interface (0694:0002, interface 0) and registers
- * /dev/nxtN through the USB class. This file is the transport glue; telegram
- * validation lives in nxt_proto.c.
+ * Binds the brick's vendor interface (0694:0002, interface 0), keeps a
+ * 64-byte IN transfer pending to collect replies, and runs transactions:
+ * one telegram out, its reply (if its type asks for one) in. See
+ * nxt_usb.h for the slot, the locking and the lifetimes; telegram
+ * validation lives in nxt_proto.c, the char device in nxt_cdev.c.
  *
- * Lifetime: struct nxt_usb is reference counted. probe() holds one reference
- * and every open file holds one; disconnect() clears @intf under @io_mutex so
- * that file operations still in flight see the brick is gone.
+ * What the firmware does on USB and why it matters here:
+ *
+ *  - it handles one OUT packet as one command, about one per millisecond;
+ *  - it writes each reply into its IN FIFO and then busy-waits, up to about
+ *    500 ms with the whole brick frozen, for the host to collect it. An
+ *    uncollected reply stays queued (the endpoint is double-buffered) and
+ *    comes out later in front of newer ones, which is how host tools lose
+ *    track of which reply answers what. Keeping an IN transfer pending
+ *    avoids the freeze, and anything that arrives while no reply is awaited
+ *    is dropped;
+ *  - it never sends a zero-length packet after a full 64-byte reply, so IN
+ *    transfers are exactly one packet long.
  */
-#include <linux/kref.h>
+#include <linux/errno.h>
+#include <linux/jiffies.h>
 #include <linux/module.h>
-#include <linux/mutex.h>
+#include <linux/sched/signal.h>
 #include <linux/slab.h>
 #include <linux/usb.h>
 
 #include "lego_compat.h"
 #include "nxt_proto.h"
+#include "nxt_usb.h"
 
 #define NXT_USB_VENDOR		0x0694
 #define NXT_USB_PRODUCT		0x0002
-/* Minors used when the kernel has no dynamic USB minors. */
-#define NXT_USB_MINOR_BASE	240
+/* Restart delay of the reader after a transfer error other than a stall. */
+#define NXT_RECOVER_MS		10
+
+static bool nxt_drains_after(const struct nxt_xfer *x, int status)
+{
+	/* A reply may still be on its way, or queued behind the brick's FIFO. */
+	return status && x->want_reply;
+}
+
+/* Ends the transaction @x with @status and frees the slot. @lock held. */
+static void nxt_finish(struct nxt_usb *nxt, struct nxt_xfer *x, int status)
+{
+	x->status = status;
+	if (nxt->cur == x) {
+		nxt->cur = NULL;
+		timer_delete(&nxt->timer);
+	}
+	if (nxt_drains_after(x, status))
+		nxt->drain_until = jiffies + msecs_to_jiffies(NXT_DRAIN_MS);
+	wake_up_all(&nxt->wait);
+}
+
+static int nxt_urb_errno(int status, bool timed_out)
+{
+	if (timed_out)
+		return -ETIMEDOUT;
+	switch (status) {
+	case -EPIPE:
+		return -EPIPE;
+	case -ENODEV:
+	case -ESHUTDOWN:
+		return -ENODEV;
+	case -ENOENT:
+	case -ECONNRESET:
+		return -EINTR;
+	default:
+		return -EIO;
+	}
+}
+
+/* A packet from the brick: the awaited reply, or something to drop. @lock held. */
+static void nxt_take_packet(struct nxt_usb *nxt, const u8 *buf, unsigned int len)
+{
+	struct nxt_xfer *x = nxt->cur;
+	int ret;
+
+	if (!x || !x->want_reply || x->status != -EINPROGRESS ||
+	    time_before(jiffies, nxt->drain_until)) {
+		nxt->stale++;
+		dev_dbg_ratelimited(&nxt->udev->dev, "dropped a stale packet (%u bytes)\n", len);
+		return;
+	}
+
+	ret = nxt_reply_check(x->tg, x->len, buf, len);
+	if (ret == -ENOMSG) {
+		/* Not this reply: stale, or garbage. The timeout decides. */
+		x->saw_bad = true;
+		nxt->stale++;
+		dev_dbg_ratelimited(&nxt->udev->dev,
+				    "packet %*ph... does not answer opcode 0x%02x\n",
+				    min(len, 4U), buf, x->tg[1]);
+		return;
+	}
+	if (ret < 0) {
+		dev_warn_ratelimited(&nxt->udev->dev,
+				     "reply to opcode 0x%02x has a bad length (%u bytes)\n",
+				     x->tg[1], len);
+		nxt_finish(nxt, x, ret);
+		return;
+	}
+	memcpy(x->reply, buf, len);
+	x->reply_len = len;
+	nxt_finish(nxt, x, 0);
+}
+
+static void nxt_in_complete(struct urb *urb)
+{
+	struct nxt_usb *nxt = urb->context;
+	bool resubmit = false, recover = false;
+	unsigned long flags;
+	int ret;
+
+	spin_lock_irqsave(&nxt->lock, flags);
+	switch (urb->status) {
+	case 0:
+		nxt_take_packet(nxt, nxt->in_buf, urb->actual_length);
+		resubmit = true;
+		break;
+	case -ENOENT:
+	case -ECONNRESET:
+	case -ESHUTDOWN:
+	case -ENODEV:
+		/* Killed, or the brick is gone. */
+		break;
+	case -EPIPE:
+		dev_warn_ratelimited(&nxt->udev->dev, "IN endpoint stalled\n");
+		nxt->halted_in = true;
+		if (nxt->cur && nxt->cur->want_reply && nxt->cur->status == -EINPROGRESS)
+			nxt_finish(nxt, nxt->cur, -EPIPE);
+		recover = true;
+		break;
+	default:
+		/* -EPROTO, -EILSEQ, -EOVERFLOW...: often an unplug in progress. */
+		dev_dbg_ratelimited(&nxt->udev->dev, "IN transfer error %d\n", urb->status);
+		if (nxt->cur)
+			nxt->cur->saw_bad = true;
+		recover = true;
+		break;
+	}
+	if (!resubmit)
+		nxt->reader_running = false;
+	spin_unlock_irqrestore(&nxt->lock, flags);
+
+	if (resubmit) {
+		ret = usb_submit_urb(urb, GFP_ATOMIC);
+		if (ret) {
+			spin_lock_irqsave(&nxt->lock, flags);
+			nxt->reader_running = false;
+			spin_unlock_irqrestore(&nxt->lock, flags);
+			/* -EPERM: being killed; -ENODEV: unplugged. */
+			if (ret != -EPERM && ret != -ENODEV) {
+				dev_err_ratelimited(&nxt->udev->dev,
+						    "cannot resubmit the IN transfer: %d\n", ret);
+				recover = true;
+			}
+		}
+	}
+	if (recover)
+		schedule_delayed_work(&nxt->recover_work,
+				      nxt->halted_in ? 0 : msecs_to_jiffies(NXT_RECOVER_MS));
+}
+
+static void nxt_out_complete(struct urb *urb)
+{
+	struct nxt_xfer *x = urb->context;
+	struct nxt_usb *nxt = x->nxt;
+	unsigned long flags;
+
+	spin_lock_irqsave(&nxt->lock, flags);
+	if (x->status == -EINPROGRESS) {
+		if (urb->status) {
+			if (!x->timed_out && urb->status != -ENOENT)
+				dev_warn_ratelimited(&nxt->udev->dev,
+						     "sending opcode 0x%02x failed: %d\n",
+						     x->tg[1], urb->status);
+			nxt_finish(nxt, x, nxt_urb_errno(urb->status, x->timed_out));
+		} else if (!x->want_reply) {
+			nxt_finish(nxt, x, 0);
+		}
+	}
+	if (urb->status == -EPIPE) {
+		nxt->halted_out = true;
+		schedule_delayed_work(&nxt->recover_work, 0);
+	}
+	/* The last touch of @x: its owner may free it once it sees this. */
+	x->out_done = true;
+	wake_up_all(&nxt->wait);
+	spin_unlock_irqrestore(&nxt->lock, flags);
+}
+
+/* The transaction in the slot is out of time. */
+static void nxt_timer_fn(struct timer_list *t)
+{
+	struct nxt_usb *nxt = from_timer(nxt, t, timer);
+	struct urb *unlink = NULL;
+	struct nxt_xfer *x;
+	unsigned long flags;
+
+	spin_lock_irqsave(&nxt->lock, flags);
+	x = nxt->cur;
+	if (x && x->status == -EINPROGRESS) {
+		if (time_before(jiffies, x->deadline)) {
+			mod_timer(&nxt->timer, x->deadline);
+		} else if (!x->out_done) {
+			/* The brick did not take the telegram: cancel it. */
+			x->timed_out = true;
+			unlink = usb_get_urb(x->urb);
+		} else {
+			dev_warn_ratelimited(&nxt->udev->dev, "%s reply to opcode 0x%02x\n",
+					     x->saw_bad ? "malformed" : "no", x->tg[1]);
+			nxt_finish(nxt, x, x->saw_bad ? -EPROTO : -ETIMEDOUT);
+		}
+	}
+	spin_unlock_irqrestore(&nxt->lock, flags);
+
+	if (unlink) {
+		usb_unlink_urb(unlink);
+		usb_put_urb(unlink);
+	}
+}
+
+/* Starts the reader unless it runs, cannot run or is not wanted. @io_mutex held. */
+static int nxt_reader_start_locked(struct nxt_usb *nxt)
+{
+	bool start;
+	int ret;
+
+	lockdep_assert_held(&nxt->io_mutex);
+	if (!nxt->intf || nxt->suspended || !nxt->reader_wanted)
+		return 0;
+
+	spin_lock_irq(&nxt->lock);
+	start = !nxt->reader_running && !nxt->halted_in;
+	if (start) {
+		nxt->reader_running = true;
+		/* Whatever the brick still holds from before is stale. */
+		nxt->drain_until = jiffies + msecs_to_jiffies(NXT_DRAIN_MS);
+	}
+	spin_unlock_irq(&nxt->lock);
+	if (!start)
+		return 0;
+
+	ret = usb_submit_urb(nxt->in_urb, GFP_KERNEL);
+	if (ret) {
+		spin_lock_irq(&nxt->lock);
+		nxt->reader_running = false;
+		spin_unlock_irq(&nxt->lock);
+		dev_err_ratelimited(&nxt->udev->dev, "cannot start the IN transfer: %d\n", ret);
+	}
+	return ret;
+}
 
 /**
- * struct nxt_usb - one brick
- * @udev: the USB device, referenced while this structure lives
- * @intf: the bound interface, NULL once the brick is disconnected
- * @ep_out: bulk OUT endpoint number
- * @ep_in: bulk IN endpoint number
- * @io_mutex: serialises transactions; protects @intf against disconnect
- * @kref: references: probe() and each open file
+ * nxt_reader_ensure() - start collecting the brick's replies
+ * @nxt: the brick
+ *
+ * Called on open; the reader then runs until the brick is gone, and stale
+ * packets are drained for NXT_DRAIN_MS when it starts.
+ *
+ * Return: 0, -%ENODEV if the brick is gone, or -%EINTR.
  */
-struct nxt_usb {
-	struct usb_device *udev;
-	struct usb_interface *intf;
-	u8 ep_out;
-	u8 ep_in;
-	struct mutex io_mutex;	/* one transaction at a time; guards @intf */
-	struct kref kref;
-};
+int nxt_reader_ensure(struct nxt_usb *nxt)
+{
+	int ret;
 
-static struct usb_driver nxt_usb_driver;
+	if (mutex_lock_interruptible(&nxt->io_mutex))
+		return -EINTR;
+	if (nxt->intf) {
+		nxt->reader_wanted = true;
+		ret = nxt_reader_start_locked(nxt);
+	} else {
+		ret = -ENODEV;
+	}
+	mutex_unlock(&nxt->io_mutex);
+	return ret;
+}
+
+/* Clears stalls and restarts the reader, in process context. */
+static void nxt_recover_work(struct work_struct *work)
+{
+	struct nxt_usb *nxt = container_of(to_delayed_work(work), struct nxt_usb,
+					   recover_work);
+	bool in, out;
+
+	mutex_lock(&nxt->io_mutex);
+	if (!nxt->intf || nxt->suspended)
+		goto out;
+
+	spin_lock_irq(&nxt->lock);
+	in = nxt->halted_in;
+	out = nxt->halted_out;
+	spin_unlock_irq(&nxt->lock);
+
+	if (out && usb_clear_halt(nxt->udev, nxt->out_pipe))
+		dev_warn_ratelimited(&nxt->udev->dev, "cannot clear the OUT stall\n");
+	if (in && usb_clear_halt(nxt->udev, nxt->in_pipe))
+		dev_warn_ratelimited(&nxt->udev->dev, "cannot clear the IN stall\n");
+
+	spin_lock_irq(&nxt->lock);
+	nxt->halted_in = false;
+	nxt->halted_out = false;
+	spin_unlock_irq(&nxt->lock);
+	nxt_reader_start_locked(nxt);
+out:
+	mutex_unlock(&nxt->io_mutex);
+}
+
+/* Claims the slot for @x; true when done or when the brick is gone (@err). */
+static bool nxt_claim(struct nxt_usb *nxt, struct nxt_xfer *x, int *err)
+{
+	bool done = true;
+
+	spin_lock_irq(&nxt->lock);
+	if (nxt->gone) {
+		*err = -ENODEV;
+	} else if (!nxt->cur) {
+		nxt->cur = x;
+		x->status = -EINPROGRESS;
+		*err = 0;
+	} else {
+		done = false;
+	}
+	spin_unlock_irq(&nxt->lock);
+	return done;
+}
+
+/**
+ * nxt_xfer_done() - whether a transaction has finished
+ * @nxt: the brick
+ * @x: the transaction
+ *
+ * Return: true once @x has finished (or was never started).
+ */
+bool nxt_xfer_done(struct nxt_usb *nxt, struct nxt_xfer *x)
+{
+	bool done;
+
+	spin_lock_irq(&nxt->lock);
+	done = x->status != -EINPROGRESS;
+	spin_unlock_irq(&nxt->lock);
+	return done;
+}
+
+static bool nxt_out_done(struct nxt_usb *nxt, struct nxt_xfer *x)
+{
+	bool done;
+
+	spin_lock_irq(&nxt->lock);
+	done = x->out_done;
+	spin_unlock_irq(&nxt->lock);
+	return done;
+}
+
+/**
+ * nxt_slot_free() - whether a transaction could start now
+ * @nxt: the brick
+ *
+ * Return: true if no transaction holds the brick.
+ */
+bool nxt_slot_free(struct nxt_usb *nxt)
+{
+	bool free;
+
+	spin_lock_irq(&nxt->lock);
+	free = !nxt->cur;
+	spin_unlock_irq(&nxt->lock);
+	return free;
+}
+
+/**
+ * nxt_gone() - whether the brick has been disconnected
+ * @nxt: the brick
+ *
+ * Return: true once disconnect() has run.
+ */
+bool nxt_gone(struct nxt_usb *nxt)
+{
+	bool gone;
+
+	spin_lock_irq(&nxt->lock);
+	gone = nxt->gone;
+	spin_unlock_irq(&nxt->lock);
+	return gone;
+}
+
+/* Submits the telegram of @x, which holds the slot. */
+static int nxt_send(struct nxt_usb *nxt, struct nxt_xfer *x, struct urb *urb,
+		    unsigned int timeout_ms)
+{
+	unsigned long until;
+	int ret;
+
+	if (mutex_lock_interruptible(&nxt->io_mutex))
+		return -EINTR;
+	if (!nxt->intf) {
+		ret = -ENODEV;
+		goto out;
+	}
+	if (nxt->suspended) {
+		ret = -EIO;
+		goto out;
+	}
+	nxt->reader_wanted = true;
+	ret = nxt_reader_start_locked(nxt);
+	if (ret)
+		goto out;
+
+	/* Let stale packets come and be dropped before this telegram goes. */
+	spin_lock_irq(&nxt->lock);
+	until = nxt->drain_until;
+	spin_unlock_irq(&nxt->lock);
+	if (time_before(jiffies, until) &&
+	    schedule_timeout_interruptible(until - jiffies)) {
+		ret = -EINTR;
+		goto out;
+	}
+
+	usb_fill_bulk_urb(urb, nxt->udev, nxt->out_pipe, urb->transfer_buffer,
+			  x->len, nxt_out_complete, x);
+	spin_lock_irq(&nxt->lock);
+	x->urb = urb;
+	x->deadline = jiffies + msecs_to_jiffies(timeout_ms);
+	mod_timer(&nxt->timer, x->deadline);
+	spin_unlock_irq(&nxt->lock);
+
+	usb_anchor_urb(urb, &nxt->out_anchor);
+	ret = usb_submit_urb(urb, GFP_KERNEL);
+	if (ret) {
+		usb_unanchor_urb(urb);
+		dev_err_ratelimited(&nxt->udev->dev, "cannot send a telegram: %d\n", ret);
+	}
+out:
+	mutex_unlock(&nxt->io_mutex);
+	return ret;
+}
+
+/**
+ * nxt_xfer_start() - send a telegram
+ * @nxt: the brick
+ * @x: the transaction, owned by the caller (see nxt_usb.h)
+ * @tg: the telegram
+ * @len: its length
+ * @timeout_ms: time from now within which the reply must have arrived
+ * @nonblock: fail with -%EAGAIN instead of waiting for the brick to be free
+ *
+ * Claims the brick's slot and sends @tg. Returns once the telegram has been
+ * sent; its reply, if its type asks for one, arrives in @x later (see
+ * nxt_xfer_wait()).
+ *
+ * Return: 0, or -%EINVAL / -%EMSGSIZE for a bad telegram, -%EAGAIN,
+ * -%ERESTARTSYS or -%EINTR, -%ENODEV, -%ENOMEM, -%ETIMEDOUT if the brick did
+ * not take the telegram in time, -%EPIPE if it stalled, -%EIO.
+ */
+int nxt_xfer_start(struct nxt_usb *nxt, struct nxt_xfer *x, const u8 *tg,
+		   size_t len, unsigned int timeout_ms, bool nonblock)
+{
+	struct urb *urb;
+	int want, ret, err = 0;
+
+	want = nxt_telegram_check(tg, len);
+	if (want < 0)
+		return want;
+
+	memset(x, 0, sizeof(*x));
+	x->nxt = nxt;
+	memcpy(x->tg, tg, len);
+	x->len = len;
+	x->want_reply = want;
+
+	urb = usb_alloc_urb(0, GFP_KERNEL);
+	if (!urb)
+		return -ENOMEM;
+	/* @x may live on the stack: the URB gets a buffer of its own. */
+	urb->transfer_buffer = kmemdup(tg, len, GFP_KERNEL);
+	if (!urb->transfer_buffer) {
+		usb_free_urb(urb);
+		return -ENOMEM;
+	}
+	urb->transfer_flags |= URB_FREE_BUFFER;
+
+	if (nonblock) {
+		if (!nxt_claim(nxt, x, &err))
+			err = -EAGAIN;
+	} else if (wait_event_interruptible(nxt->wait, nxt_claim(nxt, x, &err))) {
+		err = -ERESTARTSYS;
+	}
+	if (err) {
+		usb_free_urb(urb);
+		return err;
+	}
+
+	ret = nxt_send(nxt, x, urb, timeout_ms);
+	if (ret) {
+		spin_lock_irq(&nxt->lock);
+		x->out_done = true;
+		if (x->status == -EINPROGRESS)
+			nxt_finish(nxt, x, ret);
+		x->urb = NULL;
+		spin_unlock_irq(&nxt->lock);
+		usb_free_urb(urb);
+		return ret;
+	}
+
+	if (wait_event_interruptible(nxt->wait, nxt_out_done(nxt, x))) {
+		/* Its completion runs before usb_kill_urb() returns. */
+		usb_kill_urb(urb);
+		spin_lock_irq(&nxt->lock);
+		if (x->status == -EINPROGRESS)
+			nxt_finish(nxt, x, -EINTR);
+		spin_unlock_irq(&nxt->lock);
+	}
+
+	spin_lock_irq(&nxt->lock);
+	x->urb = NULL;
+	ret = x->status == -EINPROGRESS ? 0 : x->status;
+	spin_unlock_irq(&nxt->lock);
+	usb_free_urb(urb);
+	return ret;
+}
+
+/**
+ * nxt_xfer_wait() - wait for a started transaction to finish
+ * @nxt: the brick
+ * @x: a transaction nxt_xfer_start() started
+ * @nonblock: return -%EAGAIN instead of waiting
+ *
+ * Return: 0 when the reply is in @x, -%EAGAIN, -%ERESTARTSYS (the transaction
+ * goes on), or the transaction's error: -%ETIMEDOUT, -%EPROTO, -%EPIPE,
+ * -%ENODEV, -%EIO, -%EINTR.
+ */
+int nxt_xfer_wait(struct nxt_usb *nxt, struct nxt_xfer *x, bool nonblock)
+{
+	int status;
+
+	if (nonblock) {
+		if (!nxt_xfer_done(nxt, x))
+			return -EAGAIN;
+	} else if (wait_event_interruptible(nxt->wait, nxt_xfer_done(nxt, x))) {
+		return -ERESTARTSYS;
+	}
+	spin_lock_irq(&nxt->lock);
+	status = x->status;
+	spin_unlock_irq(&nxt->lock);
+	return status;
+}
+
+/**
+ * nxt_xfer_cancel() - stop waiting for a transaction's reply
+ * @nxt: the brick
+ * @x: a transaction nxt_xfer_start() started
+ *
+ * Frees the slot if @x still holds it; a reply that comes later is drained.
+ * @x may be freed after this.
+ */
+void nxt_xfer_cancel(struct nxt_usb *nxt, struct nxt_xfer *x)
+{
+	spin_lock_irq(&nxt->lock);
+	if (x->status == -EINPROGRESS)
+		nxt_finish(nxt, x, -EINTR);
+	spin_unlock_irq(&nxt->lock);
+}
+
+/**
+ * nxt_transact() - send a telegram and wait for its reply
+ * @nxt: the brick
+ * @x: the transaction, owned by the caller; the reply is in it on success
+ * @tg: the telegram
+ * @len: its length
+ * @timeout_ms: reply timeout
+ * @nonblock: fail with -%EAGAIN if the brick is busy
+ *
+ * Return: 0, or an error of nxt_xfer_start() or nxt_xfer_wait() (-%EINTR
+ * when a signal came while the reply was awaited).
+ */
+int nxt_transact(struct nxt_usb *nxt, struct nxt_xfer *x, const u8 *tg,
+		 size_t len, unsigned int timeout_ms, bool nonblock)
+{
+	int ret;
+
+	ret = nxt_xfer_start(nxt, x, tg, len, timeout_ms, nonblock);
+	if (ret || !x->want_reply)
+		return ret;
+	ret = nxt_xfer_wait(nxt, x, false);
+	if (ret == -ERESTARTSYS) {
+		nxt_xfer_cancel(nxt, x);
+		ret = -EINTR;
+	}
+	return ret;
+}
 
 static void nxt_usb_free(struct kref *kref)
 {
 	struct nxt_usb *nxt = container_of(kref, struct nxt_usb, kref);
 
+	usb_free_urb(nxt->in_urb);
+	kfree(nxt->in_buf);
 	usb_put_dev(nxt->udev);
 	kfree(nxt);
 }
 
-static int nxt_usb_open(struct inode *inode, struct file *file)
+/**
+ * nxt_usb_get() - take a reference to a brick
+ * @nxt: the brick
+ */
+void nxt_usb_get(struct nxt_usb *nxt)
 {
-	struct usb_interface *intf;
-	struct nxt_usb *nxt;
-
-	intf = usb_find_interface(&nxt_usb_driver, iminor(inode));
-	if (!intf)
-		return -ENODEV;
-
-	nxt = usb_get_intfdata(intf);
-	if (!nxt)
-		return -ENODEV;
-
 	kref_get(&nxt->kref);
-	file->private_data = nxt;
-	return 0;
 }
 
-static int nxt_usb_release(struct inode *inode, struct file *file)
+/**
+ * nxt_usb_put() - drop a reference to a brick
+ * @nxt: the brick
+ */
+void nxt_usb_put(struct nxt_usb *nxt)
 {
-	struct nxt_usb *nxt = file->private_data;
-
 	kref_put(&nxt->kref, nxt_usb_free);
-	return 0;
 }
 
-static const struct file_operations nxt_usb_fops = {
-	.owner		= THIS_MODULE,
-	.open		= nxt_usb_open,
-	.release	= nxt_usb_release,
-	.llseek		= noop_llseek,
-};
-
-static struct usb_class_driver nxt_usb_class = {
-	.name		= "nxt%d",
-	.fops		= &nxt_usb_fops,
-	.minor_base	= NXT_USB_MINOR_BASE,
-};
+/* Ends the transaction in the slot and stops every transfer. @io_mutex held. */
+static void nxt_stop_io(struct nxt_usb *nxt, int err)
+{
+	lockdep_assert_held(&nxt->io_mutex);
+	spin_lock_irq(&nxt->lock);
+	if (nxt->cur && nxt->cur->status == -EINPROGRESS)
+		nxt_finish(nxt, nxt->cur, err);
+	spin_unlock_irq(&nxt->lock);
+	usb_kill_anchored_urbs(&nxt->out_anchor);
+	usb_kill_urb(nxt->in_urb);
+}
 
 static int nxt_usb_probe(struct usb_interface *intf,
 			 const struct usb_device_id *id)
@@ -104,48 +647,149 @@ static int nxt_usb_probe(struct usb_interface *intf,
 		dev_err(&intf->dev, "no bulk endpoints\n");
 		return ret;
 	}
+	if (usb_endpoint_maxp(in) < NXT_TELEGRAM_MAX ||
+	    usb_endpoint_maxp(out) < NXT_TELEGRAM_MAX) {
+		dev_err(&intf->dev, "bulk endpoints smaller than a telegram\n");
+		return -ENODEV;
+	}
 
 	nxt = kzalloc(sizeof(*nxt), GFP_KERNEL);
 	if (!nxt)
 		return -ENOMEM;
-
 	kref_init(&nxt->kref);
 	mutex_init(&nxt->io_mutex);
+	spin_lock_init(&nxt->lock);
+	init_waitqueue_head(&nxt->wait);
+	init_usb_anchor(&nxt->out_anchor);
+	timer_setup(&nxt->timer, nxt_timer_fn, 0);
+	INIT_DELAYED_WORK(&nxt->recover_work, nxt_recover_work);
+	nxt_info_init(&nxt->info);
 	nxt->udev = usb_get_dev(interface_to_usbdev(intf));
 	nxt->intf = intf;
-	nxt->ep_in = usb_endpoint_num(in);
-	nxt->ep_out = usb_endpoint_num(out);
+	nxt->out_pipe = usb_sndbulkpipe(nxt->udev, usb_endpoint_num(out));
+	nxt->in_pipe = usb_rcvbulkpipe(nxt->udev, usb_endpoint_num(in));
+
+	nxt->in_urb = usb_alloc_urb(0, GFP_KERNEL);
+	nxt->in_buf = kmalloc(NXT_TELEGRAM_MAX, GFP_KERNEL);
+	if (!nxt->in_urb || !nxt->in_buf) {
+		ret = -ENOMEM;
+		goto err_put;
+	}
+	/* Exactly one packet: the brick sends no zero-length packet after 64 bytes. */
+	usb_fill_bulk_urb(nxt->in_urb, nxt->udev, nxt->in_pipe, nxt->in_buf,
+			  NXT_TELEGRAM_MAX, nxt_in_complete, nxt);
 	usb_set_intfdata(intf, nxt);
 
 	ret = usb_register_dev(intf, &nxt_usb_class);
 	if (ret) {
 		dev_err(&intf->dev, "cannot get a minor: %d\n", ret);
 		usb_set_intfdata(intf, NULL);
-		kref_put(&nxt->kref, nxt_usb_free);
-		return ret;
+		goto err_put;
 	}
+	nxt->minor = intf->minor;
 
-	dev_info(&intf->dev, "LEGO NXT brick now at nxt%d\n", intf->minor);
+	/* Nothing is sent to the brick until someone opens it or reads sysfs. */
+	dev_info(&intf->dev, "LEGO NXT brick %s now at %s\n",
+		 nxt->udev->serial ?: "(no serial)", dev_name(intf->usb_dev));
 	return 0;
+
+err_put:
+	nxt_usb_put(nxt);
+	return ret;
 }
 
 static void nxt_usb_disconnect(struct usb_interface *intf)
 {
 	struct nxt_usb *nxt = usb_get_intfdata(intf);
 
+	/* No new opens; then no new transfers; then none in flight. */
 	usb_deregister_dev(intf, &nxt_usb_class);
 
 	mutex_lock(&nxt->io_mutex);
 	nxt->intf = NULL;
+	spin_lock_irq(&nxt->lock);
+	nxt->gone = true;
+	spin_unlock_irq(&nxt->lock);
+	nxt_stop_io(nxt, -ENODEV);
 	mutex_unlock(&nxt->io_mutex);
 
+	cancel_delayed_work_sync(&nxt->recover_work);
+	timer_delete_sync(&nxt->timer);
+	wake_up_all(&nxt->wait);
+
 	usb_set_intfdata(intf, NULL);
-	kref_put(&nxt->kref, nxt_usb_free);
+	dev_info(&intf->dev, "LEGO NXT brick disconnected\n");
+	nxt_usb_put(nxt);
+}
+
+/*
+ * A USB reset (nxt-python resets the brick before using it) keeps the
+ * driver bound: transfers stop in pre_reset() and start again in
+ * post_reset(), and @io_mutex is held in between. A transaction in flight
+ * fails with -EIO, since its reply is lost.
+ */
+static int nxt_usb_pre_reset(struct usb_interface *intf)
+{
+	struct nxt_usb *nxt = usb_get_intfdata(intf);
+
+	mutex_lock(&nxt->io_mutex);
+	nxt->suspended = true;
+	nxt_stop_io(nxt, -EIO);
+	return 0;
+}
+
+static int nxt_usb_post_reset(struct usb_interface *intf)
+{
+	struct nxt_usb *nxt = usb_get_intfdata(intf);
+
+	spin_lock_irq(&nxt->lock);
+	nxt->halted_in = false;
+	nxt->halted_out = false;
+	spin_unlock_irq(&nxt->lock);
+	nxt->suspended = false;
+	nxt_info_invalidate(&nxt->info, true);
+	nxt_reader_start_locked(nxt);
+	mutex_unlock(&nxt->io_mutex);
+	return 0;
+}
+
+static int nxt_usb_suspend(struct usb_interface *intf, pm_message_t message)
+{
+	struct nxt_usb *nxt = usb_get_intfdata(intf);
+
+	mutex_lock(&nxt->io_mutex);
+	nxt->suspended = true;
+	nxt_stop_io(nxt, -EIO);
+	mutex_unlock(&nxt->io_mutex);
+	return 0;
+}
+
+static int nxt_usb_resume(struct usb_interface *intf)
+{
+	struct nxt_usb *nxt = usb_get_intfdata(intf);
+	int ret;
+
+	mutex_lock(&nxt->io_mutex);
+	nxt->suspended = false;
+	ret = nxt_reader_start_locked(nxt);
+	mutex_unlock(&nxt->io_mutex);
+	return ret;
+}
+
+static int nxt_usb_reset_resume(struct usb_interface *intf)
+{
+	struct nxt_usb *nxt = usb_get_intfdata(intf);
+
+	nxt_info_invalidate(&nxt->info, true);
+	return nxt_usb_resume(intf);
 }
 
 /*
  * The brick's vendor interface is interface 0, class ff/ff/ff. Matching the
- * interface number keeps the driver off anything else sharing the ID.
+ * interface number keeps the driver off anything else sharing the ID; the
+ * firmware-update (SAM-BA, 03eb:6124) and WeDo (0694:0003) devices have IDs
+ * of their own. Bricks running leJOS NXJ share this ID; nothing is sent to
+ * a brick unless a user asks.
  */
 static const struct usb_device_id nxt_usb_ids[] = {
 	{ USB_DEVICE_INTERFACE_NUMBER(NXT_USB_VENDOR, NXT_USB_PRODUCT, 0) },
@@ -153,11 +797,17 @@ static const struct usb_device_id nxt_usb_ids[] = {
 };
 MODULE_DEVICE_TABLE(usb, nxt_usb_ids);
 
-static struct usb_driver nxt_usb_driver = {
+struct usb_driver nxt_usb_driver = {
 	.name		= "lego_nxt_usb",
 	.probe		= nxt_usb_probe,
 	.disconnect	= nxt_usb_disconnect,
+	.pre_reset	= nxt_usb_pre_reset,
+	.post_reset	= nxt_usb_post_reset,
+	.suspend	= nxt_usb_suspend,
+	.resume		= nxt_usb_resume,
+	.reset_resume	= nxt_usb_reset_resume,
 	.id_table	= nxt_usb_ids,
+	.dev_groups	= nxt_groups,
 };
 module_usb_driver(nxt_usb_driver);
 

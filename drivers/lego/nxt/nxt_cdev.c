@@ -1,0 +1,341 @@
+// SPDX-License-Identifier: GPL-2.0
+/*
+ * LEGO MINDSTORMS NXT brick: the char device /dev/nxtN.
+ *
+ * write() sends one telegram; read() returns the reply to that same open
+ * file's last telegram, so that two processes never see each other's
+ * replies. NXT_IOC_TRANSACT and the typed ioctls do both in one call. The
+ * userspace interface is in include/uapi/linux/lego_nxt.h and
+ * Documentation/lego/nxt-usb.rst.
+ *
+ * Each open file has one transaction of its own (struct nxt_file), and
+ * @lock makes its operations take turns: a write() waits for the reply to
+ * the file's previous telegram to arrive (and drops it if it was not read),
+ * so the transaction is never reused while it is in flight.
+ */
+#include <linux/fs.h>
+#include <linux/module.h>
+#include <linux/poll.h>
+#include <linux/slab.h>
+#include <linux/uaccess.h>
+#include <linux/usb.h>
+
+#include "lego_compat.h"
+#include "nxt_proto.h"
+#include "nxt_usb.h"
+
+/* Minors used when the kernel has no dynamic USB minors. */
+#define NXT_USB_MINOR_BASE	240
+
+/**
+ * struct nxt_file - an open /dev/nxtN
+ * @nxt: the brick, referenced while the file is open
+ * @lock: one operation of this file at a time; protects the members below
+ * @timeout_ms: reply timeout of this file's transactions
+ * @pending: @xfer was started and its result has not been read
+ * @xfer: this file's transaction
+ */
+struct nxt_file {
+	struct nxt_usb *nxt;
+	struct mutex lock;	/* see above */
+	unsigned int timeout_ms;
+	bool pending;
+	struct nxt_xfer xfer;
+};
+
+static int nxt_open(struct inode *inode, struct file *file)
+{
+	struct usb_interface *intf;
+	struct nxt_file *f;
+	struct nxt_usb *nxt;
+	int ret;
+
+	/* usb_open() holds off usb_deregister_dev() while this runs. */
+	intf = usb_find_interface(&nxt_usb_driver, iminor(inode));
+	if (!intf)
+		return -ENODEV;
+	nxt = usb_get_intfdata(intf);
+	if (!nxt)
+		return -ENODEV;
+
+	f = kzalloc(sizeof(*f), GFP_KERNEL);
+	if (!f)
+		return -ENOMEM;
+	f->nxt = nxt;
+	mutex_init(&f->lock);
+	f->timeout_ms = NXT_TIMEOUT_DEFAULT_MS;
+	nxt_usb_get(nxt);
+
+	/* Start collecting replies; stale ones are drained. */
+	ret = nxt_reader_ensure(nxt);
+	if (ret) {
+		nxt_usb_put(nxt);
+		kfree(f);
+		return ret;
+	}
+	file->private_data = f;
+	return stream_open(inode, file);
+}
+
+static int nxt_release(struct inode *inode, struct file *file)
+{
+	struct nxt_file *f = file->private_data;
+
+	mutex_lock(&f->lock);
+	if (f->pending)
+		nxt_xfer_cancel(f->nxt, &f->xfer);
+	mutex_unlock(&f->lock);
+	nxt_usb_put(f->nxt);
+	kfree(f);
+	return 0;
+}
+
+static int nxt_file_lock(struct nxt_file *f, bool nonblock)
+{
+	if (nonblock)
+		return mutex_trylock(&f->lock) ? 0 : -EAGAIN;
+	return mutex_lock_interruptible(&f->lock) ? -ERESTARTSYS : 0;
+}
+
+/* Lets the file's previous transaction finish, and forgets it. @lock held. */
+static int nxt_file_settle(struct nxt_file *f, bool nonblock)
+{
+	int ret;
+
+	if (!f->pending)
+		return 0;
+	ret = nxt_xfer_wait(f->nxt, &f->xfer, nonblock);
+	if (ret == -EAGAIN || ret == -ERESTARTSYS)
+		return ret;
+	f->pending = false;
+	return 0;
+}
+
+static ssize_t nxt_write(struct file *file, const char __user *buf,
+			 size_t count, loff_t *ppos)
+{
+	struct nxt_file *f = file->private_data;
+	bool nonblock = file->f_flags & O_NONBLOCK;
+	u8 tg[NXT_TELEGRAM_MAX];
+	int ret;
+
+	/* The firmware takes each packet as one command: never split one. */
+	if (count > NXT_TELEGRAM_MAX)
+		return -EMSGSIZE;
+	if (count < NXT_TELEGRAM_MIN)
+		return -EINVAL;
+	if (copy_from_user(tg, buf, count))
+		return -EFAULT;
+	ret = nxt_telegram_check(tg, count);
+	if (ret < 0)
+		return ret;
+
+	ret = nxt_file_lock(f, nonblock);
+	if (ret)
+		return ret;
+	ret = nxt_file_settle(f, nonblock);
+	if (ret)
+		goto out;
+	ret = nxt_xfer_start(f->nxt, &f->xfer, tg, count, f->timeout_ms, nonblock);
+	if (ret)
+		goto out;
+	f->pending = f->xfer.want_reply;
+	nxt_info_telegram_sent(&f->nxt->info, tg);
+	ret = count;
+out:
+	mutex_unlock(&f->lock);
+	return ret;
+}
+
+static ssize_t nxt_read(struct file *file, char __user *buf, size_t count,
+			loff_t *ppos)
+{
+	struct nxt_file *f = file->private_data;
+	bool nonblock = file->f_flags & O_NONBLOCK;
+	int ret;
+
+	ret = nxt_file_lock(f, nonblock);
+	if (ret)
+		return ret;
+	if (!f->pending) {
+		/* Nothing was asked that has a reply. */
+		ret = nxt_gone(f->nxt) ? -ENODEV : -ENODATA;
+		goto out;
+	}
+	ret = nxt_xfer_wait(f->nxt, &f->xfer, nonblock);
+	if (ret == -EAGAIN || ret == -ERESTARTSYS)
+		goto out;
+	if (ret) {
+		f->pending = false;
+		goto out;
+	}
+	if (count < f->xfer.reply_len) {
+		/* Kept for a read with a buffer big enough. */
+		ret = -EMSGSIZE;
+		goto out;
+	}
+	f->pending = false;
+	ret = f->xfer.reply_len;
+	if (copy_to_user(buf, f->xfer.reply, f->xfer.reply_len))
+		ret = -EFAULT;
+out:
+	mutex_unlock(&f->lock);
+	return ret;
+}
+
+static __poll_t nxt_poll(struct file *file, poll_table *wait)
+{
+	struct nxt_file *f = file->private_data;
+	struct nxt_usb *nxt = f->nxt;
+	__poll_t mask = 0;
+	bool pending, done;
+
+	poll_wait(file, &nxt->wait, wait);
+	if (nxt_gone(nxt))
+		return EPOLLERR | EPOLLHUP;
+
+	/* Lockless: a transaction in @xfer only moves from pending to done. */
+	pending = READ_ONCE(f->pending);
+	done = nxt_xfer_done(nxt, &f->xfer);
+	if (pending && done)
+		mask |= EPOLLIN | EPOLLRDNORM;
+	if ((!pending || done) && nxt_slot_free(nxt))
+		mask |= EPOLLOUT | EPOLLWRNORM;
+	return mask;
+}
+
+/* A telegram and its reply, for the ioctls. @lock held. */
+static int nxt_file_transact(struct nxt_file *f, const u8 *tg, size_t len,
+			     bool nonblock)
+{
+	int ret;
+
+	ret = nxt_file_settle(f, nonblock);
+	if (ret)
+		return ret;
+	ret = nxt_transact(f->nxt, &f->xfer, tg, len, f->timeout_ms, nonblock);
+	if (ret == -ERESTARTSYS)
+		ret = -EINTR;
+	return ret;
+}
+
+static long nxt_ioctl_transact(struct nxt_file *f, void __user *argp,
+			       bool nonblock)
+{
+	struct nxt_transaction t;
+	int ret;
+
+	if (copy_from_user(&t, argp, sizeof(t)))
+		return -EFAULT;
+	if (t.length > NXT_TELEGRAM_MAX)
+		return -EMSGSIZE;
+	ret = nxt_telegram_check(t.telegram, t.length);
+	if (ret < 0)
+		return ret;
+
+	ret = nxt_file_lock(f, nonblock);
+	if (ret)
+		return ret;
+	ret = nxt_file_transact(f, t.telegram, t.length, nonblock);
+	if (!ret) {
+		nxt_info_telegram_sent(&f->nxt->info, t.telegram);
+		/* Zero past the reply's length. */
+		memcpy(t.reply, f->xfer.reply, sizeof(t.reply));
+		t.reply_length = f->xfer.reply_len;
+	}
+	mutex_unlock(&f->lock);
+	if (ret)
+		return ret;
+	return copy_to_user(argp, &t, sizeof(t)) ? -EFAULT : 0;
+}
+
+static long nxt_ioctl_command(struct nxt_file *f, const struct nxt_command *cmd,
+			      void __user *argp, bool nonblock)
+{
+	struct device *dev = &f->nxt->udev->dev;
+	size_t size = _IOC_SIZE(cmd->ioctl);
+	u8 arg[NXT_TELEGRAM_MAX];
+	u8 tg[NXT_TELEGRAM_MAX];
+	int len, ret;
+	u8 status;
+
+	if (WARN_ON_ONCE(size > sizeof(arg)))
+		return -EINVAL;
+	if (copy_from_user(arg, argp, size))
+		return -EFAULT;
+	len = nxt_command_encode(cmd, arg, tg);
+	if (len < 0) {
+		dev_dbg_ratelimited(dev, "bad arguments for opcode 0x%02x\n", cmd->opcode);
+		return len;
+	}
+
+	ret = nxt_file_lock(f, nonblock);
+	if (ret)
+		return ret;
+	ret = nxt_file_transact(f, tg, len, nonblock);
+	if (!ret) {
+		ret = nxt_command_decode(cmd, f->xfer.reply, f->xfer.reply_len, arg);
+		if (ret)
+			dev_warn_ratelimited(dev, "reply to opcode 0x%02x out of range\n",
+					     cmd->opcode);
+	}
+	mutex_unlock(&f->lock);
+	if (ret)
+		return ret;
+
+	if (copy_to_user(argp, arg, size))
+		return -EFAULT;
+	status = arg[cmd->status_offset];
+	if (status)
+		dev_dbg_ratelimited(dev, "opcode 0x%02x: status 0x%02x\n", cmd->opcode, status);
+	return nxt_status_to_errno(status);
+}
+
+static long nxt_ioctl(struct file *file, unsigned int cmd, unsigned long arg)
+{
+	struct nxt_file *f = file->private_data;
+	bool nonblock = file->f_flags & O_NONBLOCK;
+	void __user *argp = (void __user *)arg;
+	const struct nxt_command *c;
+	u32 ms;
+
+	switch (cmd) {
+	case NXT_IOC_TRANSACT:
+		return nxt_ioctl_transact(f, argp, nonblock);
+	case NXT_IOC_SET_TIMEOUT:
+		if (get_user(ms, (u32 __user *)argp))
+			return -EFAULT;
+		if (ms < 1 || ms > NXT_TIMEOUT_MAX_MS)
+			return -EINVAL;
+		if (mutex_lock_interruptible(&f->lock))
+			return -ERESTARTSYS;
+		f->timeout_ms = ms;
+		mutex_unlock(&f->lock);
+		return 0;
+	case NXT_IOC_GET_TIMEOUT:
+		return put_user(READ_ONCE(f->timeout_ms), (u32 __user *)argp);
+	}
+
+	c = nxt_command_find(cmd);
+	if (!c)
+		return -ENOTTY;
+	return nxt_ioctl_command(f, c, argp, nonblock);
+}
+
+static const struct file_operations nxt_fops = {
+	.owner		= THIS_MODULE,
+	.open		= nxt_open,
+	.release	= nxt_release,
+	.read		= nxt_read,
+	.write		= nxt_write,
+	.poll		= nxt_poll,
+	.unlocked_ioctl	= nxt_ioctl,
+	/* Every argument has the same layout on 32 and 64 bits. */
+	.compat_ioctl	= compat_ptr_ioctl,
+};
+
+struct usb_class_driver nxt_usb_class = {
+	.name		= "nxt%d",
+	.fops		= &nxt_fops,
+	.minor_base	= NXT_USB_MINOR_BASE,
+};

@@ -1,0 +1,198 @@
+/* SPDX-License-Identifier: GPL-2.0 */
+/*
+ * LEGO MINDSTORMS NXT brick over USB: what the transport (nxt_usb.c), the
+ * char device (nxt_cdev.c) and the sysfs attributes (nxt_sysfs.c) share.
+ *
+ * Transactions
+ * ------------
+ * The brick answers one command at a time and its replies carry no sequence
+ * number, so a brick has one transaction slot, @cur: a transaction claims
+ * it, sends its telegram, and holds it until its reply has arrived, its
+ * timeout has passed or it was cancelled. A 64-byte IN transfer is kept
+ * pending from the first transaction on (the "reader"), so the brick never
+ * freezes waiting for a host to collect a reply; a packet that does not
+ * answer the transaction in the slot is dropped as stale. After a timeout,
+ * and when the reader starts, packets are drained for NXT_DRAIN_MS before
+ * the next telegram goes out.
+ *
+ * Locking
+ * -------
+ * @io_mutex (sleeping) serialises everything that submits URBs from process
+ * context against disconnect, reset and suspend: @intf (NULL once the brick
+ * is gone), @suspended and @reader_wanted. It is held by pre_reset() until
+ * post_reset().
+ *
+ * @lock (spinlock, taken in URB completions and the timer) protects the
+ * slot @cur and the state of the transaction in it, @reader_running,
+ * @drain_until, @gone and the reply hand-off. Order: @io_mutex, then @lock.
+ *
+ * Lifetime
+ * --------
+ * struct nxt_usb is reference counted: probe() holds one reference and each
+ * open file one. A struct nxt_xfer belongs to its caller, which must not
+ * free it before nxt_xfer_start() has returned and, if that succeeded, the
+ * transaction has finished (nxt_xfer_wait()) or been cancelled
+ * (nxt_xfer_cancel()).
+ */
+#ifndef _NXT_USB_H
+#define _NXT_USB_H
+
+#include <linux/kref.h>
+#include <linux/mutex.h>
+#include <linux/spinlock.h>
+#include <linux/timer.h>
+#include <linux/types.h>
+#include <linux/usb.h>
+#include <linux/wait.h>
+#include <linux/workqueue.h>
+#include <linux/lego_nxt.h>
+
+#include "nxt_proto.h"
+
+/* Stale packets are drained this long after a timeout or a (re)start. */
+#define NXT_DRAIN_MS		20
+/* Reply timeout of a new open file, and its limit. */
+#define NXT_TIMEOUT_DEFAULT_MS	1000
+#define NXT_TIMEOUT_MAX_MS	60000
+
+/**
+ * struct nxt_info - what the sysfs attributes show, cached
+ * @lock: one query at a time; protects the values below. The valid flags
+ *	are also cleared without it (nxt_info_invalidate()).
+ * @versions_valid: @protocol and @firmware were read since the last reset
+ * @protocol: protocol version, major and minor
+ * @firmware: firmware version, major and minor
+ * @device_valid: @device was read at @device_time
+ * @device_time: jiffies of the last GetDeviceInfo
+ * @device: name, Bluetooth address and free flash
+ * @battery_valid: @battery was read at @battery_time
+ * @battery_time: jiffies of the last GetBatteryLevel
+ * @battery: battery voltage in millivolts
+ */
+struct nxt_info {
+	struct mutex lock;	/* see above */
+	bool versions_valid;
+	u8 protocol[2];
+	u8 firmware[2];
+	bool device_valid;
+	unsigned long device_time;
+	struct nxt_device_info device;
+	bool battery_valid;
+	unsigned long battery_time;
+	u16 battery;
+};
+
+/**
+ * struct nxt_usb - one brick
+ * @kref: references: probe() and each open file
+ * @udev: the USB device, referenced while this structure lives
+ * @intf: the bound interface; NULL once disconnected (@io_mutex)
+ * @out_pipe: bulk OUT pipe (endpoint 0x01 on a LEGO brick)
+ * @in_pipe: bulk IN pipe (endpoint 0x82)
+ * @minor: the char device's minor
+ * @io_mutex: see the comment at the top of this file
+ * @suspended: suspended or being reset: no URB may be submitted (@io_mutex)
+ * @reader_wanted: the reader was started and runs when not suspended (@io_mutex)
+ * @lock: see the comment at the top of this file
+ * @cur: the transaction in the slot, or NULL (@lock)
+ * @gone: disconnected; set with @intf cleared (@lock)
+ * @reader_running: @in_urb is submitted (@lock)
+ * @drain_until: jiffies until which no telegram is sent (@lock)
+ * @stale: packets dropped as stale (@lock)
+ * @wait: woken when the slot is freed, a transaction progresses or the
+ *	brick goes away
+ * @in_urb: the reader's URB
+ * @in_buf: its 64-byte buffer
+ * @out_anchor: telegrams in flight, killed on disconnect, reset, suspend
+ * @timer: ends the transaction in the slot when its time is up
+ * @recover_work: clears a halted endpoint and restarts the reader
+ * @halted_in: the IN endpoint stalled (@lock)
+ * @halted_out: the OUT endpoint stalled (@lock)
+ * @info: the cached brick information behind the sysfs attributes
+ */
+struct nxt_usb {
+	struct kref kref;
+	struct usb_device *udev;
+	struct usb_interface *intf;
+	unsigned int out_pipe;
+	unsigned int in_pipe;
+	int minor;
+
+	struct mutex io_mutex;	/* see the comment at the top */
+	bool suspended;
+	bool reader_wanted;
+
+	spinlock_t lock;	/* see the comment at the top */
+	struct nxt_xfer *cur;
+	bool gone;
+	bool reader_running;
+	unsigned long drain_until;
+	unsigned long stale;
+	wait_queue_head_t wait;
+
+	struct urb *in_urb;
+	u8 *in_buf;
+	struct usb_anchor out_anchor;
+	struct timer_list timer;
+	struct delayed_work recover_work;
+	bool halted_in;
+	bool halted_out;
+
+	struct nxt_info info;
+};
+
+/**
+ * struct nxt_xfer - one telegram and its reply
+ * @nxt: the brick it is sent to
+ * @tg: the telegram
+ * @len: its length
+ * @want_reply: the telegram's type asks for a reply
+ * @urb: the OUT URB, while the telegram is being sent
+ * @deadline: jiffies by which the transaction must have finished
+ * @out_done: the OUT URB has completed (@lock)
+ * @timed_out: the timer unlinked the OUT URB (@lock)
+ * @saw_bad: a packet that was not this telegram's reply came while its
+ *	reply was awaited (@lock)
+ * @status: -%EINPROGRESS until finished; then 0 or a negative errno (@lock)
+ * @reply: the reply, zero past @reply_len
+ * @reply_len: its length; 0 if none
+ */
+struct nxt_xfer {
+	struct nxt_usb *nxt;
+	u8 tg[NXT_TELEGRAM_MAX];
+	unsigned int len;
+	bool want_reply;
+	struct urb *urb;
+	unsigned long deadline;
+	bool out_done;
+	bool timed_out;
+	bool saw_bad;
+	int status;
+	u8 reply[NXT_TELEGRAM_MAX];
+	unsigned int reply_len;
+};
+
+int nxt_xfer_start(struct nxt_usb *nxt, struct nxt_xfer *x, const u8 *tg,
+		   size_t len, unsigned int timeout_ms, bool nonblock);
+int nxt_xfer_wait(struct nxt_usb *nxt, struct nxt_xfer *x, bool nonblock);
+void nxt_xfer_cancel(struct nxt_usb *nxt, struct nxt_xfer *x);
+bool nxt_xfer_done(struct nxt_usb *nxt, struct nxt_xfer *x);
+bool nxt_slot_free(struct nxt_usb *nxt);
+int nxt_transact(struct nxt_usb *nxt, struct nxt_xfer *x, const u8 *tg,
+		 size_t len, unsigned int timeout_ms, bool nonblock);
+bool nxt_gone(struct nxt_usb *nxt);
+int nxt_reader_ensure(struct nxt_usb *nxt);
+void nxt_usb_get(struct nxt_usb *nxt);
+void nxt_usb_put(struct nxt_usb *nxt);
+extern struct usb_driver nxt_usb_driver;
+
+/* nxt_cdev.c */
+extern struct usb_class_driver nxt_usb_class;
+
+/* nxt_sysfs.c */
+extern const struct attribute_group *nxt_groups[];
+void nxt_info_init(struct nxt_info *info);
+void nxt_info_invalidate(struct nxt_info *info, bool all);
+void nxt_info_telegram_sent(struct nxt_info *info, const u8 *tg);
+
+#endif /* _NXT_USB_H */
