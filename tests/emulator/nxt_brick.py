@@ -56,6 +56,13 @@ What dummy_hcd and raw-gadget cannot reproduce, and other simplifications:
   brick's 1 (raw-gadget has no way to mark the gadget self-powered), and
   SET_FEATURE(ENDPOINT_HALT) halts the endpoint (the host gets EPIPE) where
   the brick disables it.
+- dummy_hcd completes the first IN request of 64 bytes or less as soon as it
+  is queued (it emulates a one-packet FIFO for the whole UDC), so a
+  completed write would not mean the host read the reply. The emulator
+  enables the brick's undescribed EP3 (interrupt IN, which the host never
+  reads) and parks a packet there, so that the FIFO stays occupied and every
+  reply completes only once the host has read it. Right after a bus reset
+  there is a short window in which a reply could take the FIFO instead.
 - bMaxPacketSize0 is 8 in the device descriptor, as on the brick, and the
   host uses 8; dummy_hcd itself moves control data in chunks of up to 64
   bytes, which makes no difference the host can see.
@@ -1047,3 +1054,449 @@ class Firmware:
     def _sa4(self, op, length):         # BTFactoryReset (USB only)
         return self._r(op, SUCCESS)
 
+
+# ---------------------------------------------------------------------------
+# USB: descriptors and raw-gadget
+
+VID, PID = 0x0694, 0x0002
+EP_OUT_ADDR, EP_IN_ADDR = 0x01, 0x82
+BULK = 0x02
+
+DEVICE_DESCRIPTOR = struct.pack('<BBHBBBBHHHBBBB', 18, 1, 0x0200, 0, 0, 0, 8,
+                                VID, PID, 0x0000, 0, 0, 1, 1)
+EP_OUT_DESCRIPTOR = struct.pack('<BBBBHB', 7, 5, EP_OUT_ADDR, BULK, 64, 0)
+EP_IN_DESCRIPTOR = struct.pack('<BBBBHB', 7, 5, EP_IN_ADDR, BULK, 64, 0)
+# The brick's hardware EP3, an interrupt IN endpoint it never describes;
+# the emulator uses it to keep dummy_hcd's IN FIFO busy (see RawGadgetBrick).
+EP_HIDDEN_DESCRIPTOR = struct.pack('<BBBBHB', 7, 5, 0x83, 0x03, 64, 10)
+CONFIG_DESCRIPTOR = (struct.pack('<BBHBBBBB', 9, 2, 32, 1, 1, 0, 0xC0, 0) +
+                     struct.pack('<BBBBBBBBB', 9, 4, 0, 0, 2, 0xFF, 0xFF, 0xFF, 0) +
+                     EP_OUT_DESCRIPTOR + EP_IN_DESCRIPTOR)
+
+
+def string_descriptor(index, serial):
+    if index == 0:
+        return bytes([4, 3, 0x09, 0x04])
+    if index == 1:
+        s = serial.encode('utf-16-le')
+        return bytes([2 + len(s), 3]) + s
+    return None
+
+
+def _ioc(direction, nr, size):
+    return (direction << 30) | (size << 16) | (ord('U') << 8) | nr
+
+
+_W, _R = 1, 2
+USB_RAW_IOCTL_INIT = _ioc(_W, 0, 257)
+USB_RAW_IOCTL_RUN = _ioc(0, 1, 0)
+USB_RAW_IOCTL_EVENT_FETCH = _ioc(_R, 2, 8)
+USB_RAW_IOCTL_EP0_WRITE = _ioc(_W, 3, 8)
+USB_RAW_IOCTL_EP0_READ = _ioc(_W | _R, 4, 8)
+USB_RAW_IOCTL_EP_ENABLE = _ioc(_W, 5, 9)
+USB_RAW_IOCTL_EP_WRITE = _ioc(_W, 7, 8)
+USB_RAW_IOCTL_EP_READ = _ioc(_W | _R, 8, 8)
+USB_RAW_IOCTL_CONFIGURE = _ioc(0, 9, 0)
+USB_RAW_IOCTL_VBUS_DRAW = _ioc(_W, 10, 4)
+USB_RAW_IOCTL_EP0_STALL = _ioc(0, 12, 0)
+USB_RAW_IOCTL_EP_SET_HALT = _ioc(_W, 13, 4)
+
+EVENT_CONNECT, EVENT_CONTROL, EVENT_SUSPEND, EVENT_RESUME = 1, 2, 3, 4
+EVENT_RESET, EVENT_DISCONNECT = 5, 6
+USB_SPEED_FULL = 2
+
+# Standard requests.
+GET_STATUS, SET_ADDRESS, GET_DESCRIPTOR = 0x00, 0x05, 0x06
+GET_CONFIGURATION, SET_CONFIGURATION = 0x08, 0x09
+DT_DEVICE, DT_CONFIG, DT_STRING = 1, 2, 3
+
+HOSTILE_MODES = ('short', 'long', 'opcode', 'noreply', 'garbage', 'stall', 'disconnect')
+
+# Blocking raw-gadget ioctls are woken by this signal (its handler does
+# nothing, so the ioctl returns EINTR and the thread sees it should stop).
+WAKE_SIGNAL = signal.SIGUSR1
+
+_libc = ctypes.CDLL(None, use_errno=True)
+_libc.ioctl.argtypes = [ctypes.c_int, ctypes.c_ulong, ctypes.c_void_p]
+_libc.ioctl.restype = ctypes.c_int
+
+
+def _ioctl(fd, request, arg=None):
+    """ioctl through ctypes, which lets other threads run while it blocks."""
+    ret = _libc.ioctl(fd, request, arg)
+    if ret < 0:
+        e = ctypes.get_errno()
+        raise OSError(e, os.strerror(e))
+    return ret
+
+
+def _ensure_wake_handler():
+    if signal.getsignal(WAKE_SIGNAL) in (signal.SIG_DFL, signal.SIG_IGN, None):
+        if threading.current_thread() is not threading.main_thread():
+            raise RuntimeError('start the first RawGadgetBrick from the main thread '
+                               '(it installs a handler for SIGUSR1)')
+        signal.signal(WAKE_SIGNAL, lambda signum, frame: None)
+
+
+class _Reply:
+    def __init__(self, data):
+        self.data = data
+        self.collected = threading.Event()
+
+
+class RawGadgetBrick:
+    """A brick on the UDC `udc` (dummy_udc.N), running `firmware`.
+
+    start() plugs it in, stop() or unplug() pulls it out (closing the files
+    opened over USB), replug() plugs the same brick in again. `configured`
+    is set while the host has it configured; `events` logs what happened.
+    """
+
+    def __init__(self, udc='dummy_udc.0', serial='001653A0B1C2', name='NXT',
+                 hostile=None, firmware=None, driver='dummy_udc', seed=1,
+                 reply_timeout=USB_REPLY_TIMEOUT, verbose=False):
+        if hostile is not None and hostile not in HOSTILE_MODES:
+            raise ValueError('hostile must be one of %s' % ', '.join(HOSTILE_MODES))
+        if len(serial) != 12 or any(c not in '0123456789ABCDEF' for c in serial):
+            raise ValueError('the serial is the BT address as 12 upper-case hex digits')
+        self.udc, self.driver, self.serial = udc, driver, serial
+        self.fw = firmware or Firmware(name=name, bt_address=serial)
+        self.hostile = hostile
+        self.rng = random.Random(seed)
+        self.reply_timeout = reply_timeout
+        self.verbose = verbose
+        self.configured = threading.Event()
+        self.events = []
+        self.commands = 0
+        self.replies_lost = 0
+        self.times_configured = 0
+        self.fd = None
+        self._ctl = threading.Lock()
+        self._stopping = threading.Event()
+        self._threads = []
+        self._banks = collections.deque()
+        self._cond = threading.Condition()
+        self._config = 0
+        self._ep_out = self._ep_in = self._ep_hidden = None
+        self._parked = threading.Event()
+
+    def log(self, what):
+        self.events.append((time.monotonic(), what))
+        if self.verbose:
+            print('nxt_brick %s: %s' % (self.udc, what), flush=True)
+
+    # ---- control ----
+
+    def start(self):
+        with self._ctl:
+            if self.fd is not None:
+                return
+            _ensure_wake_handler()
+            fd = os.open('/dev/raw-gadget', os.O_RDWR)
+            try:
+                init = struct.pack('128s128sB', self.driver.encode(), self.udc.encode(),
+                                   USB_SPEED_FULL)
+                _ioctl(fd, USB_RAW_IOCTL_INIT, ctypes.create_string_buffer(init, len(init)))
+                _ioctl(fd, USB_RAW_IOCTL_RUN)
+            except OSError:
+                os.close(fd)
+                raise
+            self.fd = fd
+            self._stopping.clear()
+            self._banks.clear()
+            self._config = 0
+            self._ep_out = self._ep_in = self._ep_hidden = None
+            self._parked.clear()
+            self.fw.rebooting = False       # plugged in again: the firmware booted
+            self._spawn(self._ep0_loop, 'ep0')
+            self.log('plugged in')
+
+    def stop(self):
+        self.unplug()
+
+    def unplug(self):
+        """Pull the cable: the host sees a disconnect, USB file handles close."""
+        with self._ctl:
+            if self.fd is None:
+                return
+            self._stopping.set()
+            with self._cond:
+                self._cond.notify_all()
+            me = threading.current_thread()
+            for t in self._threads:
+                while t is not me and t.is_alive():
+                    try:
+                        signal.pthread_kill(t.ident, WAKE_SIGNAL)
+                    except ProcessLookupError:
+                        pass
+                    t.join(0.05)
+            self._threads = []
+            os.close(self.fd)
+            self.fd = None
+            self.configured.clear()
+            self.fw.usb_disconnected()
+            self.log('unplugged')
+
+    def replug(self):
+        self.unplug()
+        self.start()
+
+    def wait_configured(self, timeout):
+        return self.configured.wait(timeout)
+
+    def _spawn(self, fn, name):
+        t = threading.Thread(target=fn, name='nxt-%s-%s' % (self.udc, name), daemon=True)
+        self._threads.append(t)
+        t.start()
+
+    def _unplug_soon(self, why):
+        self.log(why)
+        threading.Thread(target=self.unplug, daemon=True).start()
+
+    # ---- raw-gadget I/O ----
+
+    def _io(self, request, ep, data=b'', length=None):
+        n = len(data) if length is None else length
+        buf = ctypes.create_string_buffer(struct.pack('<HHI', ep, 0, n) + data, 8 + n)
+        got = _ioctl(self.fd, request, buf)
+        return buf.raw[8:8 + got]
+
+    def _fetch_event(self):
+        buf = ctypes.create_string_buffer(struct.pack('<II', 0, 8), 16)
+        _ioctl(self.fd, USB_RAW_IOCTL_EVENT_FETCH, buf)
+        etype, length = struct.unpack_from('<II', buf.raw)
+        return etype, buf.raw[8:8 + min(length, 8)]
+
+    # ---- ep0 ----
+
+    def _ep0_loop(self):
+        while not self._stopping.is_set():
+            try:
+                etype, data = self._fetch_event()
+            except OSError as e:
+                if e.errno != errno.EINTR and not self._stopping.is_set():
+                    self.log('event fetch failed: %s' % e)
+                    self._stopping.wait(0.1)
+                continue
+            if etype == EVENT_CONTROL:
+                try:
+                    self._control(data)
+                except OSError as e:
+                    if not self._stopping.is_set():
+                        self.log('control request %s failed: %s' % (data.hex(), e))
+            elif etype == EVENT_CONNECT:
+                self.log('bound to %s' % self.udc)
+            elif etype == EVENT_RESET:
+                self.log('bus reset')
+                self._config = 0
+                self.configured.clear()
+            elif etype == EVENT_DISCONNECT:
+                self.log('disconnected')
+                self._config = 0
+                self.configured.clear()
+                self.fw.usb_disconnected()
+            elif etype == EVENT_SUSPEND:
+                self.log('suspended')
+                self.configured.clear()
+            elif etype == EVENT_RESUME:
+                self.log('resumed')
+                if self._config:
+                    self.configured.set()
+
+    def _control(self, setup):
+        rtype, req, value, index, length = struct.unpack('<BBHHH', setup)
+        reply = None
+        if rtype & 0x60 == 0:                       # standard
+            if rtype == 0x80 and req == GET_DESCRIPTOR:
+                dtype, dindex = value >> 8, value & 0xFF
+                if dtype == DT_DEVICE:
+                    reply = DEVICE_DESCRIPTOR
+                elif dtype == DT_CONFIG and dindex == 0:
+                    reply = CONFIG_DESCRIPTOR
+                elif dtype == DT_STRING:
+                    reply = string_descriptor(dindex, self.serial)
+            elif rtype == 0x80 and req == GET_CONFIGURATION:
+                reply = bytes([self._config])
+            elif rtype == 0x80 and req == GET_STATUS:   # dummy_hcd answers it first
+                reply = b'\x01\x00'
+            elif rtype == 0x00 and req == SET_CONFIGURATION and value in (0, 1):
+                self._set_configuration(value)
+                self._io(USB_RAW_IOCTL_EP0_READ, 0, length=0)
+                return
+        if reply is None:
+            _ioctl(self.fd, USB_RAW_IOCTL_EP0_STALL)
+            self.log('stalled control request %s' % setup.hex())
+            return
+        self._io(USB_RAW_IOCTL_EP0_WRITE, 0, reply[:length])
+
+    def _set_configuration(self, value):
+        if value == 1 and self._ep_out is None:
+            self._ep_out = _ioctl(self.fd, USB_RAW_IOCTL_EP_ENABLE,
+                                  ctypes.create_string_buffer(EP_OUT_DESCRIPTOR + b'\0\0', 9))
+            self._ep_in = _ioctl(self.fd, USB_RAW_IOCTL_EP_ENABLE,
+                                 ctypes.create_string_buffer(EP_IN_DESCRIPTOR + b'\0\0', 9))
+            self._ep_hidden = _ioctl(self.fd, USB_RAW_IOCTL_EP_ENABLE,
+                                     ctypes.create_string_buffer(EP_HIDDEN_DESCRIPTOR + b'\0\0', 9))
+            self._spawn(self._park_loop, 'park')
+            self._spawn(self._command_loop, 'commands')
+            self._spawn(self._in_loop, 'in')
+        if value == 1:
+            _ioctl(self.fd, USB_RAW_IOCTL_VBUS_DRAW, 0)    # MaxPower 0
+            _ioctl(self.fd, USB_RAW_IOCTL_CONFIGURE)
+        self._config = value
+        if value:
+            self.times_configured += 1
+            self.configured.set()
+            self.log('configured')
+        else:
+            self.configured.clear()
+            self.log('unconfigured')
+
+    # ---- the command loop (the firmware's comm module) ----
+
+    def _command_loop(self):
+        while not self._stopping.is_set():
+            if not self.configured.wait(0.1):
+                continue
+            try:
+                packet = self._io(USB_RAW_IOCTL_EP_READ, self._ep_out, length=64)
+            except OSError as e:
+                if e.errno != errno.EINTR and not self._stopping.is_set():
+                    # Reset or disconnect: the request was flushed.
+                    self._stopping.wait(0.01)
+                continue
+            self.commands += 1
+            self.log('command %s' % packet.hex())
+            if self.hostile == 'disconnect':
+                self._unplug_soon('unplugging instead of replying')
+                return
+            reply = self.fw.handle(packet)
+            if self.fw.busy:
+                self._stopping.wait(self.fw.busy)
+            if reply is not None:
+                self._send(reply)
+            if self.fw.rebooting:
+                self._unplug_soon('rebooting into SAM-BA (not emulated)')
+                return
+
+    def _spoil(self, reply):
+        """What a hostile brick sends instead of `reply` (None: nothing)."""
+        h = self.hostile
+        if h == 'short':
+            return reply[:max(1, len(reply) // 2)]
+        if h == 'long':
+            return reply + b'\xa5' * (64 - len(reply))
+        if h == 'opcode':
+            return reply[:1] + bytes([(reply[1] + 1) & 0xFF]) + reply[2:]
+        if h == 'garbage':
+            junk = bytes(self.rng.randrange(256) for _ in range(self.rng.randrange(1, 65)))
+            return bytes([self.rng.choice([b for b in range(256) if b != REPLY])]) + junk[1:]
+        if h in ('noreply', 'stall'):
+            return None
+        return reply
+
+    def _send(self, reply):
+        reply = self._spoil(reply)
+        if self.hostile == 'stall':
+            try:
+                _ioctl(self.fd, USB_RAW_IOCTL_EP_SET_HALT, self._ep_in)
+                self.log('halted the IN endpoint')
+            except OSError as e:
+                self.log('set halt failed: %s' % e)
+            return
+        if reply is None:
+            return
+        item = _Reply(reply)
+        with self._cond:
+            if len(self._banks) >= IN_BANKS:
+                self.replies_lost += 1
+                self.log('reply lost, both IN banks full: %s' % reply.hex())
+                item = None
+            else:
+                self._banks.append(item)
+                self._cond.notify_all()
+        # The firmware busy-waits for the host to take the reply, then goes on.
+        deadline = time.monotonic() + self.reply_timeout
+        while not self._stopping.is_set():
+            left = deadline - time.monotonic()
+            if left <= 0 or (item is not None and item.collected.wait(min(left, 0.05))):
+                break
+            if item is None:
+                self._stopping.wait(min(left, 0.05))
+        if item is not None and not item.collected.is_set():
+            self.log('reply not collected in time, left queued')
+
+    def _park_loop(self):
+        """Keep a packet in dummy_hcd's IN FIFO, on the endpoint nobody reads.
+
+        The first write takes the FIFO and completes at once; the next one
+        waits for ever, until a reset or disconnect flushes both.
+        """
+        while not self._stopping.is_set():
+            try:
+                self._io(USB_RAW_IOCTL_EP_WRITE, self._ep_hidden, b'\0')
+                self._parked.set()
+            except OSError as e:
+                self._parked.clear()
+                if e.errno != errno.EINTR and not self._stopping.is_set():
+                    self._stopping.wait(0.01)
+
+    def _in_loop(self):
+        while not self._stopping.is_set():
+            with self._cond:
+                while not self._banks and not self._stopping.is_set():
+                    self._cond.wait(0.1)
+                if self._stopping.is_set():
+                    return
+                item = self._banks[0]
+            self._parked.wait(USB_REPLY_TIMEOUT)
+            try:
+                self._io(USB_RAW_IOCTL_EP_WRITE, self._ep_in, item.data)
+            except OSError as e:
+                if self._stopping.is_set():
+                    return
+                if e.errno != errno.EINTR:
+                    # A bus reset or disconnect flushed the endpoint.
+                    with self._cond:
+                        dropped = len(self._banks)
+                        self._banks.clear()
+                    self.log('IN endpoint flushed (%s), %d replies dropped' % (e, dropped))
+                    self._stopping.wait(0.01)
+                continue
+            with self._cond:
+                if self._banks and self._banks[0] is item:
+                    self._banks.popleft()
+            item.collected.set()
+            self.log('reply collected %s' % item.data.hex())
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
+    ap.add_argument('--udc', default='dummy_udc.0', help='UDC device (default dummy_udc.0)')
+    ap.add_argument('--driver', default='dummy_udc', help='UDC driver (default dummy_udc)')
+    ap.add_argument('--serial', default='001653A0B1C2',
+                    help='USB serial = Bluetooth address, 12 upper-case hex digits')
+    ap.add_argument('--name', default='NXT', help='brick name (GetDeviceInfo)')
+    ap.add_argument('--hostile', choices=HOSTILE_MODES)
+    ap.add_argument('--verbose', action='store_true', help='log every event and command')
+    args = ap.parse_args()
+
+    done = threading.Event()
+    for sig in (signal.SIGTERM, signal.SIGINT):
+        signal.signal(sig, lambda signum, frame: done.set())
+    brick = RawGadgetBrick(udc=args.udc, driver=args.driver, serial=args.serial,
+                           name=args.name, hostile=args.hostile, verbose=args.verbose)
+    try:
+        brick.start()
+    except OSError as e:
+        sys.exit('nxt_brick: cannot start on %s: %s' % (args.udc, e))
+    announced = False
+    while not done.wait(0.1):
+        if not announced and brick.configured.is_set():
+            print('nxt_brick: configured on %s, serial %s' % (args.udc, args.serial), flush=True)
+            announced = True
+    brick.stop()
+
+
+if __name__ == '__main__':
+    main()
