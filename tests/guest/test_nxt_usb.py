@@ -1,19 +1,638 @@
-"""The NXT USB driver registers and matches only the brick's interface 0."""
+"""lego_nxt_usb against the emulated brick (tests/emulator/nxt_brick.py).
+
+The brick is a raw-gadget device on dummy_hcd, so the driver binds it as it
+binds a real one: the tests go through /dev/nxtN, its ioctls and sysfs.
+"""
+import ctypes
+import errno
 import os
 import re
+import select
+import struct
 import subprocess
+import threading
+import time
 
+import pytest
+
+import nxt
 from conftest import module_path
 
+SERIAL = '001653A0B1C2'
+SERIAL2 = '0016530D0E0F'
 
-def test_driver_registered():
-    assert os.path.isdir('/sys/bus/usb/drivers/lego_nxt_usb')
+
+@pytest.fixture(scope='module')
+def brick():
+    b = nxt.Brick('dummy_udc.0', SERIAL)
+    b.plug()
+    yield b
+    b.unplug()
+    assert b.wait_gone(), 'the node outlived the brick'
+
+
+@pytest.fixture
+def fd(brick):
+    f = brick.open()
+    yield f
+    os.close(f)
 
 
 def test_alias_matches_only_interface_0():
     out = subprocess.run(['modinfo', '-F', 'alias', module_path('lego_nxt_usb')],
                          capture_output=True, text=True, check=True).stdout.split()
     assert len(out) == 1
-    alias = out[0]
-    assert alias.startswith('usb:v0694p0002d')
-    assert re.search(r'in00\*?$', alias), alias
+    assert out[0].startswith('usb:v0694p0002d')
+    assert re.search(r'in00\*?$', out[0]), out[0]
+
+
+def test_uapi_layout_matches_the_header():
+    c = nxt.uapi_layout()
+    for name in nxt.STRUCTS:
+        assert c[name] == nxt.struct_size(name), name
+    assert c['output_state.tacho_limit'] == 8
+    assert c['input_values.raw'] == 6
+    assert c['message.status'] == 63
+    assert c['ls_write.tx_data'] == 4
+    for name in list(nxt.IOCTLS) + ['TRANSACT', 'SET_TIMEOUT', 'GET_TIMEOUT']:
+        assert c[name] == nxt.ioctl_number(name), name
+
+
+def test_binds_interface_0_with_node_and_serial(brick):
+    intf = brick.interface()
+    assert intf.endswith(':1.0')
+    assert nxt.attr(intf + '/..', 'serial') == SERIAL
+    assert os.path.basename(brick.node).startswith('nxt')
+    st = os.stat(brick.node)
+    assert os.major(st.st_rdev) == 180       # the USB major
+
+
+def test_sysfs_attributes(brick):
+    intf = brick.interface()
+    assert nxt.attr(intf, 'firmware_version') == '1.29'
+    assert nxt.attr(intf, 'protocol_version') == '1.124'
+    assert nxt.attr(intf, 'brick_name') == 'NXT'
+    assert nxt.attr(intf, 'bt_address') == '00:16:53:a0:b1:c2'
+    assert int(nxt.attr(intf, 'battery_mv')) == brick.fw.battery_mv
+    assert int(nxt.attr(intf, 'free_flash')) == brick.fw.free_flash
+    # Cached for a second: a new battery reading shows after that.
+    old = brick.fw.battery_mv
+    brick.fw.battery_mv = old - 100
+    assert int(nxt.attr(intf, 'battery_mv')) == old
+    time.sleep(1.1)
+    assert int(nxt.attr(intf, 'battery_mv')) == old - 100
+
+
+def test_sysfs_name_follows_set_brick_name(brick, fd):
+    intf = brick.interface()
+    assert nxt.attr(intf, 'brick_name') == 'NXT'
+    err, reply = nxt.transact(fd, b'\x01\x98' + b'Robby'.ljust(16, b'\0'))
+    assert (err, reply) == (0, b'\x02\x98\x00')
+    try:
+        assert nxt.attr(intf, 'brick_name') == 'Robby'
+    finally:
+        nxt.transact(fd, b'\x01\x98' + b'NXT'.ljust(16, b'\0'))
+    assert nxt.attr(intf, 'brick_name') == 'NXT'
+
+
+def test_raw_write_read(fd):
+    assert os.write(fd, b'\x00\x0b') == 2
+    reply = os.read(fd, 64)
+    assert reply[:3] == b'\x02\x0b\x00' and len(reply) == 5
+    # No reply is asked for: nothing to read.
+    assert os.write(fd, b'\x80\x03\xb8\x01\x10\x00') == 6
+    with pytest.raises(OSError) as e:
+        os.read(fd, 64)
+    assert e.value.errno == errno.ENODATA
+
+
+def test_raw_lengths_and_types(fd):
+    for bad, err in ((b'\x00', errno.EINVAL), (b'\x00\x0b' + bytes(63), errno.EMSGSIZE),
+                     (b'\x02\x0b', errno.EINVAL), (b'\x42\x0b', errno.EINVAL)):
+        with pytest.raises(OSError) as e:
+            os.write(fd, bad)
+        assert e.value.errno == err, bad.hex()
+    # 64 bytes is one packet: fine (MessageWrite of 59 bytes with its NUL).
+    msg = b'\x80\x09\x00\x3b' + b'm' * 58 + b'\0'
+    assert len(msg) == 63
+    assert os.write(fd, msg + b'') == 63
+
+
+def test_short_read_buffer_keeps_the_reply(fd):
+    os.write(fd, b'\x01\x88')
+    with pytest.raises(OSError) as e:
+        os.read(fd, 4)
+    assert e.value.errno == errno.EMSGSIZE
+    assert os.read(fd, 64) == b'\x02\x88\x00\x7c\x01\x1d\x01'
+
+
+def test_unknown_opcode_reply(fd):
+    os.write(fd, b'\x00\x30')
+    assert os.read(fd, 64) == b'\x02\x30\xbe'
+
+
+def test_poll_and_nonblock(brick):
+    f = brick.open(os.O_RDWR | os.O_NONBLOCK)
+    try:
+        p = select.poll()
+        p.register(f, select.POLLIN | select.POLLOUT)
+        assert dict(p.poll(0)).get(f, 0) & select.POLLOUT
+        with pytest.raises(OSError) as e:
+            os.read(f, 64)
+        assert e.value.errno == errno.ENODATA
+        os.write(f, b'\x00\x0b')
+        ready = dict(p.poll(2000)).get(f, 0)
+        assert ready & select.POLLIN
+        assert os.read(f, 64)[:3] == b'\x02\x0b\x00'
+    finally:
+        os.close(f)
+
+
+def test_replies_stay_with_their_file(brick):
+    a, b = brick.open(), brick.open()
+    try:
+        os.write(a, b'\x01\x88')
+        os.write(b, b'\x00\x0b')
+        assert os.read(b, 64)[:2] == b'\x02\x0b'
+        assert os.read(a, 64)[:2] == b'\x02\x88'
+    finally:
+        os.close(a)
+        os.close(b)
+
+
+def test_timeout_ioctls(fd):
+    assert nxt.get_timeout(fd) == 1000
+    assert nxt.set_timeout(fd, 250) == 0
+    assert nxt.get_timeout(fd) == 250
+    assert nxt.set_timeout(fd, 0) == errno.EINVAL
+    assert nxt.set_timeout(fd, 60001) == errno.EINVAL
+    assert nxt.get_timeout(fd) == 250
+
+
+def test_unknown_ioctl_is_enotty(fd):
+    _, err, _ = nxt.raw_ioctl(fd, nxt.iowr(0x7f, 4), bytes(4))
+    assert err == errno.ENOTTY
+    # A typed command's number with the wrong size is not that command.
+    _, err, _ = nxt.raw_ioctl(fd, nxt.iowr(0x1b, 8), bytes(8))
+    assert err == errno.ENOTTY
+
+
+def test_transact_system_commands_and_file_upload(brick, fd):
+    err, reply = nxt.transact(fd, b'\x01\x88')
+    assert (err, reply) == (0, b'\x02\x88\x00\x7c\x01\x1d\x01')
+    # A reply-less telegram gives an empty reply.
+    assert nxt.transact(fd, b'\x80\x0d') == (0, b'')
+
+    program = bytes(range(256)) * 2 + b'end'
+    name = nxt.name20('upload.rxe')
+    err, reply = nxt.transact(fd, b'\x01\x81' + name + struct.pack('<I', len(program)))
+    assert err == 0 and reply[:3] == b'\x02\x81\x00', reply.hex()
+    handle = reply[3]
+    for i in range(0, len(program), 61):
+        chunk = program[i:i + 61]
+        err, reply = nxt.transact(fd, b'\x01\x83' + bytes([handle]) + chunk)
+        assert err == 0 and reply[2] == 0 and struct.unpack_from('<H', reply, 4)[0] == len(chunk)
+    assert nxt.transact(fd, b'\x01\x84' + bytes([handle]))[1][:3] == b'\x02\x84\x00'
+    assert bytes(brick.fw.files['upload.rxe'].data) == program
+
+    err, reply = nxt.transact(fd, b'\x01\x86' + nxt.name20('*.rxe'))
+    assert err == 0 and reply[2] == 0
+    found = {nxt.cstr(reply[4:24])}
+    while True:
+        err, reply = nxt.transact(fd, b'\x01\x87' + bytes([reply[3]]))
+        if reply[2] != 0:
+            assert reply[2] == 0x87     # the firmware's end of the search
+            break
+        found.add(nxt.cstr(reply[4:24]))
+    assert 'upload.rxe' in found
+
+    # Read it back, 58 bytes at a time (what fits a USB reply).
+    err, reply = nxt.transact(fd, b'\x01\x80' + name)
+    assert err == 0 and reply[2] == 0
+    handle, size = reply[3], struct.unpack_from('<I', reply, 4)[0]
+    assert size == len(program)
+    data = b''
+    while len(data) < size:
+        n = min(58, size - len(data))
+        err, reply = nxt.transact(fd, b'\x01\x82' + bytes([handle]) + struct.pack('<H', n))
+        assert err == 0 and reply[2] == 0 and len(reply) == 6 + n
+        data += reply[6:]
+    nxt.transact(fd, b'\x01\x84' + bytes([handle]))
+    assert data == program
+
+    # Start it, see it run, stop it; then delete it.
+    assert nxt.ok(fd, 'START_PROGRAM', name=name)['status'] == 0
+    deadline = time.monotonic() + 3
+    while time.monotonic() < deadline:
+        err, out = nxt.command(fd, 'GET_CURRENT_PROGRAM_NAME')
+        if err == 0:
+            break
+        time.sleep(0.05)
+    assert err == 0 and nxt.cstr(out['name']) == 'upload.rxe'
+    nxt.ok(fd, 'STOP_PROGRAM')
+    err, reply = nxt.transact(fd, b'\x01\x85' + name)
+    assert err == 0 and reply[2] == 0
+    assert 'upload.rxe' not in brick.fw.files
+
+
+def wait_program(fd, running, timeout=3.0):
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        err, out = nxt.command(fd, 'GET_CURRENT_PROGRAM_NAME')
+        if (err == 0) == running:
+            return out
+        time.sleep(0.05)
+    raise AssertionError('program %s' % ('never started' if running else 'still running'))
+
+
+def test_typed_program_and_sound_commands(brick, fd):
+    # No program: StopProgram, GetCurrentProgramName, MessageWrite/Read fail ESRCH.
+    err, out = nxt.command(fd, 'STOP_PROGRAM')
+    assert (err, out['status']) == (errno.ESRCH, 0xec)
+    err, out = nxt.command(fd, 'GET_CURRENT_PROGRAM_NAME')
+    assert (err, out['status'], out['name']) == (errno.ESRCH, 0xec, bytes(20))
+    # A missing program is the firmware's out-of-range status.
+    err, out = nxt.command(fd, 'START_PROGRAM', name=nxt.name20('nothere.rxe'))
+    assert (err, out['status']) == (errno.ERANGE, 0xc0)
+
+    nxt.ok(fd, 'START_PROGRAM', name=nxt.name20('Demo.rxe'))
+    assert nxt.cstr(wait_program(fd, True)['name']) == 'Demo.rxe'
+
+    nxt.ok(fd, 'PLAY_TONE', frequency=440, duration=200)
+    assert brick.fw.sound[:2] == ('tone', 440)
+    nxt.ok(fd, 'PLAY_SOUND_FILE', name=nxt.name20('Woops.rso'), loop=1)
+    assert brick.fw.sound == ('file', 'Woops.rso', 1)
+    nxt.ok(fd, 'STOP_SOUND_PLAYBACK')
+    assert brick.fw.sound is None
+    err, out = nxt.command(fd, 'PLAY_SOUND_FILE', name=nxt.name20('none.rso'))
+    assert (err, out['status']) == (errno.ERANGE, 0xc0)
+
+    # Mailboxes, both ways.
+    msg = b'hello brick\0'
+    nxt.ok(fd, 'MESSAGE_WRITE', inbox=3, size=len(msg), data=msg)
+    assert brick.fw.program_receive(3) == msg
+    err, out = nxt.command(fd, 'MESSAGE_READ', inbox=12, local_inbox=2, remove=1)
+    assert (err, out['status']) == (errno.ENOMSG, 0x40)
+    brick.fw.program_send(12, b'from the program')
+    out = nxt.ok(fd, 'MESSAGE_READ', inbox=12, local_inbox=2, remove=1)
+    assert out['data'][:out['size']] == b'from the program\0'
+    assert out['data'][out['size']:] == bytes(59 - out['size'])
+
+    nxt.ok(fd, 'STOP_PROGRAM')
+    wait_program(fd, False)
+
+
+def test_typed_motor_commands(brick, fd):
+    out = nxt.ok(fd, 'SET_OUTPUT_STATE', port=1, power=50, mode=0x05, regulation_mode=1,
+                 run_state=0x20, tacho_limit=0)
+    assert out['status'] == 0
+    t0 = nxt.ok(fd, 'GET_OUTPUT_STATE', port=1)
+    assert (t0['power'], t0['mode'], t0['regulation_mode'], t0['run_state']) == (50, 5, 1, 0x20)
+    time.sleep(0.3)
+    t1 = nxt.ok(fd, 'GET_OUTPUT_STATE', port=1)
+    assert t1['tacho_count'] > t0['tacho_count']
+    assert t1['rotation_count'] > t0['rotation_count']
+    nxt.ok(fd, 'RESET_MOTOR_POSITION', port=1, relative=0)
+    nxt.ok(fd, 'SET_OUTPUT_STATE', port=1, power=0, mode=0, run_state=0)
+    t2 = nxt.ok(fd, 'GET_OUTPUT_STATE', port=1)
+    assert abs(t2['rotation_count']) < t1['rotation_count']
+    # A limited run stops at its limit.
+    nxt.ok(fd, 'SET_OUTPUT_STATE', port=0, power=-100, mode=1, run_state=0x20, tacho_limit=90)
+    time.sleep(0.3)
+    t3 = nxt.ok(fd, 'GET_OUTPUT_STATE', port=0)
+    assert t3['tacho_count'] == -90 and t3['run_state'] == 0
+
+
+def test_typed_sensor_commands(brick, fd):
+    nxt.ok(fd, 'SET_INPUT_MODE', port=0, type=0x01, mode=0x20)
+    brick.fw.set_touch(0, True)
+    deadline = time.monotonic() + 2
+    while True:
+        v = nxt.ok(fd, 'GET_INPUT_VALUES', port=0)
+        if v['valid'] or time.monotonic() > deadline:
+            break
+        time.sleep(0.05)
+    assert (v['valid'], v['type'], v['mode'], v['scaled']) == (1, 0x01, 0x20, 1)
+    brick.fw.set_touch(0, False)
+    assert nxt.ok(fd, 'GET_INPUT_VALUES', port=0)['scaled'] == 0
+    nxt.ok(fd, 'RESET_INPUT_SCALED_VALUE', port=0)
+    assert nxt.ok(fd, 'KEEP_ALIVE')['sleep_limit'] == 600000
+    assert nxt.ok(fd, 'GET_BATTERY_LEVEL')['millivolts'] == brick.fw.battery_mv
+
+
+def test_typed_ultrasonic_over_i2c(brick, fd):
+    brick.fw.ultrasonic.distance = 42
+    nxt.ok(fd, 'SET_INPUT_MODE', port=3, type=0x0b, mode=0x00)
+    time.sleep(0.2)
+    nxt.ok(fd, 'LS_WRITE', port=3, tx_length=2, rx_length=1, tx_data=b'\x02\x42')
+    deadline = time.monotonic() + 2
+    pending = 0
+    while True:
+        err, st = nxt.command(fd, 'LS_GET_STATUS', port=3)
+        if err != errno.EAGAIN or time.monotonic() > deadline:
+            break
+        pending += 1
+        time.sleep(0.002)
+    assert err == 0 and st['bytes_ready'] == 1
+    r = nxt.ok(fd, 'LS_READ', port=3)
+    assert (r['length'], r['data'][0]) == (1, 42)
+    assert r['data'][1:] == bytes(15)
+    # The product string, eight bytes from register 0x08.
+    nxt.ok(fd, 'LS_WRITE', port=3, tx_length=2, rx_length=8, tx_data=b'\x02\x08')
+    time.sleep(0.05)
+    r = nxt.ok(fd, 'LS_READ', port=3)
+    assert r['data'][:r['length']].rstrip(b'\0') == b'LEGO'
+    # A port that is not low-speed: the firmware's "channel busy".
+    err, r = nxt.command(fd, 'LS_READ', port=1)
+    assert (err, r['status'], r['length']) == (errno.EBUSY, 0xe0, 0)
+
+
+def test_typed_arguments_are_checked_before_sending(brick, fd):
+    before = brick.emu.commands
+    cases = [
+        ('PLAY_TONE', dict(frequency=100, duration=10)),
+        ('SET_OUTPUT_STATE', dict(port=3, power=10, mode=1, run_state=0x20)),
+        ('SET_OUTPUT_STATE', dict(port=0, power=101, mode=1, run_state=0x20)),
+        ('SET_OUTPUT_STATE', dict(port=0, power=10, mode=1, run_state=0x30)),
+        ('SET_INPUT_MODE', dict(port=4, type=1)),
+        ('GET_OUTPUT_STATE', dict(port=3)),
+        ('GET_INPUT_VALUES', dict(port=4)),
+        ('START_PROGRAM', dict(name=b'x' * 20)),
+        ('START_PROGRAM', dict(name=b'')),
+        ('MESSAGE_WRITE', dict(inbox=10, size=2, data=b'a\0')),
+        ('MESSAGE_WRITE', dict(inbox=0, size=2, data=b'ab')),
+        ('MESSAGE_READ', dict(inbox=20)),
+        ('LS_WRITE', dict(port=0, tx_length=17, rx_length=1)),
+        ('LS_READ', dict(port=4)),
+        ('RESET_MOTOR_POSITION', dict(port=0, relative=2)),
+    ]
+    for name, fields in cases:
+        err, _ = nxt.command(fd, name, **fields)
+        assert err == errno.EINVAL, (name, fields)
+    assert brick.emu.commands == before, 'a bad command reached the brick'
+
+
+def test_stale_reply_after_timeout_is_drained(brick, fd):
+    # DeleteUserFlash takes the brick about a second; with a 200 ms
+    # timeout its reply comes late, and must not answer the next command.
+    assert nxt.set_timeout(fd, 200) == 0
+    t0 = time.monotonic()
+    err, _ = nxt.transact(fd, b'\x01\xa0')
+    assert err == errno.ETIMEDOUT
+    assert time.monotonic() - t0 < 0.6
+    assert nxt.set_timeout(fd, 3000) == 0
+    for _ in range(3):
+        err, reply = nxt.transact(fd, b'\x01\x88')
+        assert (err, reply) == (0, b'\x02\x88\x00\x7c\x01\x1d\x01')
+    assert nxt.ok(fd, 'GET_BATTERY_LEVEL')['millivolts'] == brick.fw.battery_mv
+
+
+def worker(node, index, count, start, out):
+    """Transactions whose replies depend on what was asked; counts mismatches.
+
+    Runs at a lower priority than the emulated brick, which shares the
+    guest's CPUs with it (a real brick does not), and with a long timeout:
+    this is about replies never crossing, not about latency under TCG.
+    """
+    os.nice(5)
+    f = os.open(node, os.O_RDWR)
+    bad = 0
+    start.wait()
+    try:
+        assert nxt.set_timeout(f, 5000) == 0
+        for i in range(count):
+            kind = (index + i) % 3
+            if kind == 0:
+                offset = (index * 7 + i) % 80
+                tg = b'\x01\x94' + struct.pack('<IHH', 0x00030001, offset, 4)
+                if i % 2:
+                    err, reply = nxt.transact(f, tg)
+                else:
+                    os.write(f, tg)
+                    reply, err = os.read(f, 64), 0
+                want = bytes((offset + k + 37 * 3 + 1) & 0xff for k in range(4))
+                if err or reply[:9] != b'\x02\x94\x00' + struct.pack('<IH', 0x00030001, 4) \
+                        or reply[9:13] != want:
+                    bad += 1
+            elif kind == 1:
+                port = (index + i) % 4
+                err, v = nxt.command(f, 'GET_INPUT_VALUES', port=port)
+                if err or v['port'] != port:
+                    bad += 1
+            else:
+                port = (index + i) % 3
+                os.write(f, bytes([0x00, 0x06, port]))
+                reply = os.read(f, 64)
+                if len(reply) != 25 or reply[:4] != bytes([0x02, 0x06, 0x00, port]):
+                    bad += 1
+    except Exception as e:          # reported, not lost with the process
+        bad = repr(e)
+    finally:
+        os.close(f)
+    out.put((index, bad))
+
+
+def test_eight_processes_thousand_transactions_each(brick):
+    import multiprocessing
+    ctx = multiprocessing.get_context('fork')
+    q = ctx.Queue()
+    start = ctx.Event()
+    n = int(os.environ.get('LEGO_NXT_TRANSACTIONS', '1000'))
+    procs = [ctx.Process(target=worker, args=(brick.node, i, n, start, q)) for i in range(8)]
+    for p in procs:
+        p.start()
+    # Let the children settle (copy-on-write faults are slow under TCG).
+    time.sleep(2)
+    before = brick.emu.commands
+    t0 = time.monotonic()
+    start.set()
+    results = [q.get(timeout=1200) for _ in procs]
+    for p in procs:
+        p.join(30)
+        assert p.exitcode == 0
+    elapsed = time.monotonic() - t0
+    print('8 x %d transactions in %.1f s (%.0f/s)' % (n, elapsed, 8 * n / elapsed))
+    assert sorted(i for i, _ in results) == list(range(8))
+    assert all(b == 0 for _, b in results), results
+    assert brick.emu.commands - before == 8 * n
+
+
+def usbfs_path(intf):
+    dev = os.path.dirname(intf)
+    with open(os.path.join(dev, 'busnum')) as f:
+        bus = int(f.read())
+    with open(os.path.join(dev, 'devnum')) as f:
+        num = int(f.read())
+    return '/dev/bus/usb/%03d/%03d' % (bus, num)
+
+
+def test_stale_reply_drained_on_open(brick):
+    """A libusb program left a reply in the brick; the driver must not take it."""
+    import fcntl
+    intf = brick.interface()
+    name = os.path.basename(intf)
+    with open(nxt.DRIVER + '/unbind', 'w') as f:
+        f.write(name)
+    try:
+        usbfs = os.open(usbfs_path(intf), os.O_RDWR)
+        try:
+            USBDEVFS_CLAIMINTERFACE = (2 << 30) | (4 << 16) | (ord('U') << 8) | 15
+            fcntl.ioctl(usbfs, USBDEVFS_CLAIMINTERFACE, struct.pack('I', 0))
+            before = brick.emu.commands
+            data = ctypes.create_string_buffer(b'\x00\x0d', 2)
+            bulk = struct.pack('IIIxxxxQ', 0x01, 2, 1000, ctypes.addressof(data))
+            USBDEVFS_BULK = (3 << 30) | (len(bulk) << 16) | (ord('U') << 8) | 2
+            fcntl.ioctl(usbfs, USBDEVFS_BULK, bulk)
+            deadline = time.monotonic() + 5
+            while brick.emu.commands == before and time.monotonic() < deadline:
+                time.sleep(0.01)
+        finally:
+            os.close(usbfs)
+        # The queued reply says 600000 ms; from now on the brick says 300000.
+        brick.fw.sleep_minutes = 5
+    finally:
+        with open(nxt.DRIVER + '/bind', 'w') as f:
+            f.write(name)
+    try:
+        brick.node = nxt.node_of(brick.serial)
+        f = brick.open()
+        try:
+            assert nxt.ok(f, 'KEEP_ALIVE')['sleep_limit'] == 300000
+        finally:
+            os.close(f)
+    finally:
+        brick.fw.sleep_minutes = 10
+
+
+def test_system_suspend_and_resume(brick, fd):
+    """The PM core suspends and resumes every device (pm_test=devices)."""
+    with open('/sys/power/pm_test', 'w') as f:
+        f.write('devices')
+    try:
+        with open('/sys/power/state', 'w') as f:
+            f.write('freeze')
+    finally:
+        with open('/sys/power/pm_test', 'w') as f:
+            f.write('none')
+    deadline = time.monotonic() + 10
+    while True:
+        err, reply = nxt.transact(fd, b'\x01\x88')
+        if err == 0 or time.monotonic() > deadline:
+            break
+        time.sleep(0.1)
+    assert (err, reply) == (0, b'\x02\x88\x00\x7c\x01\x1d\x01')
+
+
+def test_usb_reset_keeps_the_driver_bound(brick, fd):
+    intf = brick.interface()
+    usbfs = os.open(usbfs_path(intf), os.O_RDWR)
+    try:
+        USBDEVFS_RESET = (0 << 30) | (ord('U') << 8) | 20
+        import fcntl
+        fcntl.ioctl(usbfs, USBDEVFS_RESET, 0)
+    finally:
+        os.close(usbfs)
+    assert brick.emu.wait_configured(10)
+    assert brick.interface() == intf
+    deadline = time.monotonic() + 5
+    while True:
+        err, reply = nxt.transact(fd, b'\x01\x88')
+        if err == 0 or time.monotonic() > deadline:
+            break
+        time.sleep(0.1)
+    assert (err, reply) == (0, b'\x02\x88\x00\x7c\x01\x1d\x01')
+
+
+def test_two_bricks_at_once(brick):
+    other = nxt.Brick('dummy_udc.1', SERIAL2, name='Second')
+    other.plug()
+    try:
+        assert other.node != brick.node
+        assert nxt.attr(other.interface(), 'bt_address') == '00:16:53:0d:0e:0f'
+        assert nxt.attr(other.interface(), 'brick_name') == 'Second'
+        a, b = brick.open(), other.open()
+        try:
+            for _ in range(50):
+                assert nxt.ok(a, 'GET_BATTERY_LEVEL')['millivolts'] == brick.fw.battery_mv
+                nxt.ok(b, 'SET_OUTPUT_STATE', port=2, power=20, mode=1, run_state=0x20)
+            assert other.fw.motors[2].power == 20
+            assert brick.fw.motors[2].power == 0
+        finally:
+            os.close(a)
+            os.close(b)
+    finally:
+        other.unplug()
+        assert other.wait_gone()
+
+
+def test_unplug_during_io():
+    b = nxt.Brick('dummy_udc.1', SERIAL2)
+    b.plug()
+    f = b.open()
+    errors = []
+    stop = threading.Event()
+
+    def hammer():
+        g = b.open()
+        try:
+            while not stop.is_set():
+                err, _ = nxt.transact(g, b'\x01\x9b')
+                if err:
+                    errors.append(err)
+                    if err == errno.ENODEV:
+                        break
+        finally:
+            os.close(g)
+
+    threads = [threading.Thread(target=hammer) for _ in range(3)]
+    for t in threads:
+        t.start()
+    time.sleep(0.5)
+    b.unplug()
+    for t in threads:
+        t.join(10)
+    stop.set()
+    assert not any(t.is_alive() for t in threads)
+    assert errors and errors[-1] == errno.ENODEV, errors
+    # The open file outlives the brick: everything fails with ENODEV.
+    p = select.poll()
+    p.register(f, select.POLLIN)
+    assert dict(p.poll(1000)).get(f, 0) & select.POLLHUP
+    with pytest.raises(OSError) as e:
+        os.write(f, b'\x00\x0b')
+    assert e.value.errno == errno.ENODEV
+    assert nxt.command(f, 'GET_BATTERY_LEVEL')[0] == errno.ENODEV
+    os.close(f)
+    assert b.wait_gone()
+    # Plugged in again, it works again.
+    b.plug()
+    g = b.open()
+    assert nxt.ok(g, 'KEEP_ALIVE')['sleep_limit'] == 600000
+    os.close(g)
+    b.unplug()
+    assert b.wait_gone()
+
+
+@pytest.mark.parametrize('mode,want', [
+    ('short', errno.EPROTO),
+    ('long', errno.EPROTO),
+    ('opcode', errno.EPROTO),
+    ('garbage', errno.EPROTO),
+    ('noreply', errno.ETIMEDOUT),
+    ('stall', errno.EPIPE),
+    ('disconnect', errno.ENODEV),
+])
+def test_hostile_brick(mode, want):
+    b = nxt.Brick('dummy_udc.1', SERIAL2, hostile=mode)
+    b.plug()
+    f = b.open()
+    try:
+        assert nxt.set_timeout(f, 300) == 0
+        err, _ = nxt.transact(f, b'\x00\x0b')
+        assert err == want, errno.errorcode.get(err, err)
+        err, _ = nxt.command(f, 'GET_OUTPUT_STATE', port=0)
+        assert err in (want, errno.ENODEV), errno.errorcode.get(err, err)
+    finally:
+        os.close(f)
+        b.unplug()
+        assert b.wait_gone()

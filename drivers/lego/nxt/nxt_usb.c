@@ -112,7 +112,7 @@ static void nxt_take_packet(struct nxt_usb *nxt, const u8 *buf, unsigned int len
 static void nxt_in_complete(struct urb *urb)
 {
 	struct nxt_usb *nxt = urb->context;
-	bool resubmit = false, recover = false;
+	bool resubmit = false, recover = false, halted;
 	unsigned long flags;
 	int ret;
 
@@ -145,6 +145,7 @@ static void nxt_in_complete(struct urb *urb)
 	}
 	if (!resubmit)
 		nxt->reader_running = false;
+	halted = nxt->halted_in;
 	spin_unlock_irqrestore(&nxt->lock, flags);
 
 	if (resubmit) {
@@ -163,7 +164,7 @@ static void nxt_in_complete(struct urb *urb)
 	}
 	if (recover)
 		schedule_delayed_work(&nxt->recover_work,
-				      nxt->halted_in ? 0 : msecs_to_jiffies(NXT_RECOVER_MS));
+				      halted ? 0 : msecs_to_jiffies(NXT_RECOVER_MS));
 }
 
 static void nxt_out_complete(struct urb *urb)
@@ -174,15 +175,18 @@ static void nxt_out_complete(struct urb *urb)
 
 	spin_lock_irqsave(&nxt->lock, flags);
 	if (x->status == -EINPROGRESS) {
-		if (urb->status) {
-			if (!x->timed_out && urb->status != -ENOENT)
-				dev_warn_ratelimited(&nxt->udev->dev,
-						     "sending opcode 0x%02x failed: %d\n",
-						     x->tg[1], urb->status);
+		if (urb->status && !x->timed_out && urb->status != -ENOENT)
+			dev_warn_ratelimited(&nxt->udev->dev,
+					     "sending opcode 0x%02x failed: %d\n",
+					     x->tg[1], urb->status);
+		/*
+		 * Timed out: even if the unlink came too late to stop the
+		 * transfer, the deadline has passed and the timer is done.
+		 */
+		if (urb->status || x->timed_out)
 			nxt_finish(nxt, x, nxt_urb_errno(urb->status, x->timed_out));
-		} else if (!x->want_reply) {
+		else if (!x->want_reply)
 			nxt_finish(nxt, x, 0);
-		}
 	}
 	if (urb->status == -EPIPE) {
 		nxt->halted_out = true;
@@ -251,7 +255,10 @@ static int nxt_reader_start_locked(struct nxt_usb *nxt)
 		spin_lock_irq(&nxt->lock);
 		nxt->reader_running = false;
 		spin_unlock_irq(&nxt->lock);
-		dev_err_ratelimited(&nxt->udev->dev, "cannot start the IN transfer: %d\n", ret);
+		/* -ENODEV: unplugged, disconnect() is on its way. */
+		if (ret != -ENODEV)
+			dev_err_ratelimited(&nxt->udev->dev,
+					    "cannot start the IN transfer: %d\n", ret);
 	}
 	return ret;
 }
@@ -666,6 +673,8 @@ static int nxt_usb_probe(struct usb_interface *intf,
 	nxt_info_init(&nxt->info);
 	nxt->udev = usb_get_dev(interface_to_usbdev(intf));
 	nxt->intf = intf;
+	/* Not 0: jiffies starts 5 minutes before wrapping on 32-bit machines. */
+	nxt->drain_until = jiffies;
 	nxt->out_pipe = usb_sndbulkpipe(nxt->udev, usb_endpoint_num(out));
 	nxt->in_pipe = usb_rcvbulkpipe(nxt->udev, usb_endpoint_num(in));
 

@@ -1,0 +1,269 @@
+"""Helpers for the NXT guest tests: the uapi of /dev/nxtN in Python.
+
+The ioctl numbers and structure layouts are written out here by hand and
+checked against include/uapi/linux/lego_nxt.h by uapi_layout(), which
+compiles a small C program against the header.
+"""
+import ctypes
+import errno
+import glob
+import os
+import struct
+import subprocess
+import sys
+import tempfile
+import time
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), '..', 'emulator'))
+import nxt_brick  # noqa: E402
+
+TOP = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
+DRIVER = '/sys/bus/usb/drivers/lego_nxt_usb'
+
+MAGIC = 0xE4
+_IOC_WRITE, _IOC_READ = 1, 2
+
+
+def _ioc(direction, nr, size):
+    return direction << 30 | size << 16 | MAGIC << 8 | nr
+
+
+def iowr(nr, size):
+    return _ioc(_IOC_READ | _IOC_WRITE, nr, size)
+
+
+# name -> (struct format, field names, opcode); formats use native x86 order.
+STRUCTS = {
+    'transaction': ('<64s64sII', 'telegram reply length reply_length'),
+    'status_only': ('<B3x', 'status'),
+    'program': ('<20sB3x', 'name status'),
+    'sound_file': ('<20sBB2x', 'name loop status'),
+    'tone': ('<HHB3x', 'frequency duration status'),
+    'output_state': ('<BbBBbBBxIiii', 'port power mode regulation_mode turn_ratio run_state '
+                     'status tacho_limit tacho_count block_tacho_count rotation_count'),
+    'input_mode': ('<BBBB', 'port type mode status'),
+    'input_values': ('<BBBBBBHHhhxx', 'port valid calibrated type mode status raw normalized '
+                     'scaled calibrated_value'),
+    'input_port': ('<BB2x', 'port status'),
+    'motor_position': ('<BBBx', 'port relative status'),
+    'message': ('<BBBB59sB', 'inbox local_inbox remove size data status'),
+    'battery': ('<HBx', 'millivolts status'),
+    'keep_alive': ('<IB3x', 'sleep_limit status'),
+    'ls_status': ('<BBBx', 'port bytes_ready status'),
+    'ls_write': ('<BBBB16s', 'port tx_length rx_length status tx_data'),
+    'ls_read': ('<BBBx16s', 'port length status data'),
+}
+
+# ioctl name -> (opcode or None, struct)
+IOCTLS = {
+    'START_PROGRAM': (0x00, 'program'),
+    'STOP_PROGRAM': (0x01, 'status_only'),
+    'PLAY_SOUND_FILE': (0x02, 'sound_file'),
+    'PLAY_TONE': (0x03, 'tone'),
+    'SET_OUTPUT_STATE': (0x04, 'output_state'),
+    'SET_INPUT_MODE': (0x05, 'input_mode'),
+    'GET_OUTPUT_STATE': (0x06, 'output_state'),
+    'GET_INPUT_VALUES': (0x07, 'input_values'),
+    'RESET_INPUT_SCALED_VALUE': (0x08, 'input_port'),
+    'MESSAGE_WRITE': (0x09, 'message'),
+    'RESET_MOTOR_POSITION': (0x0a, 'motor_position'),
+    'GET_BATTERY_LEVEL': (0x0b, 'battery'),
+    'STOP_SOUND_PLAYBACK': (0x0c, 'status_only'),
+    'KEEP_ALIVE': (0x0d, 'keep_alive'),
+    'LS_GET_STATUS': (0x0e, 'ls_status'),
+    'LS_WRITE': (0x0f, 'ls_write'),
+    'LS_READ': (0x10, 'ls_read'),
+    'GET_CURRENT_PROGRAM_NAME': (0x11, 'program'),
+    'MESSAGE_READ': (0x13, 'message'),
+}
+
+
+def struct_size(name):
+    return struct.calcsize(STRUCTS[name][0])
+
+
+def ioctl_number(name):
+    if name == 'TRANSACT':
+        return iowr(0x00, struct_size('transaction'))
+    if name == 'SET_TIMEOUT':
+        return _ioc(_IOC_WRITE, 0x01, 4)
+    if name == 'GET_TIMEOUT':
+        return _ioc(_IOC_READ, 0x02, 4)
+    op, sname = IOCTLS[name]
+    return iowr(0x10 + op, struct_size(sname))
+
+
+def pack(sname, **fields):
+    fmt, names = STRUCTS[sname]
+    names = names.split()
+    unknown = set(fields) - set(names)
+    assert not unknown, unknown
+    values = []
+    for n, code in zip(names, _codes(fmt)):
+        values.append(fields.get(n, b'' if code == 's' else 0))
+    return struct.pack(fmt, *values)
+
+
+def unpack(sname, data):
+    fmt, names = STRUCTS[sname]
+    return dict(zip(names.split(), struct.unpack(fmt, data)))
+
+
+def _codes(fmt):
+    """The value codes of a struct format, in order (padding skipped)."""
+    out, digits = [], ''
+    for c in fmt[1:]:
+        if c.isdigit():
+            digits += c
+            continue
+        if c == 'x':
+            digits = ''
+            continue
+        out.extend([c] if c == 's' else [c] * int(digits or 1))
+        digits = ''
+    return out
+
+
+_libc = ctypes.CDLL(None, use_errno=True)
+
+
+def raw_ioctl(fd, request, data):
+    """ioctl() with a buffer: (return value, errno, the buffer afterwards)."""
+    buf = ctypes.create_string_buffer(bytes(data), len(data))
+    ret = _libc.ioctl(fd, ctypes.c_ulong(request), buf)
+    err = ctypes.get_errno() if ret < 0 else 0
+    return ret, err, buf.raw
+
+
+def command(fd, which, /, **fields):
+    """A typed ioctl: (errno, the decoded structure as copied back)."""
+    sname = IOCTLS[which][1]
+    _, err, out = raw_ioctl(fd, ioctl_number(which), pack(sname, **fields))
+    return err, unpack(sname, out)
+
+
+def ok(fd, which, /, **fields):
+    err, out = command(fd, which, **fields)
+    assert err == 0, '%s: %s (status 0x%02x)' % (which, errno.errorcode.get(err, err),
+                                                   out.get('status', 0))
+    return out
+
+
+def transact(fd, telegram):
+    """NXT_IOC_TRANSACT: (errno, reply bytes)."""
+    data = pack('transaction', telegram=bytes(telegram), length=len(telegram))
+    _, err, out = raw_ioctl(fd, ioctl_number('TRANSACT'), data)
+    t = unpack('transaction', out)
+    return err, t['reply'][:t['reply_length']] if not err else b''
+
+
+def set_timeout(fd, ms):
+    _, err, _ = raw_ioctl(fd, ioctl_number('SET_TIMEOUT'), struct.pack('<I', ms))
+    return err
+
+
+def get_timeout(fd):
+    _, err, out = raw_ioctl(fd, ioctl_number('GET_TIMEOUT'), bytes(4))
+    assert err == 0
+    return struct.unpack('<I', out)[0]
+
+
+def cstr(b):
+    return b.split(b'\0', 1)[0].decode()
+
+
+def name20(s):
+    return s.encode().ljust(20, b'\0')
+
+
+UAPI_CHECK = os.path.join(os.path.dirname(__file__), 'nxt_uapi_check.c')
+
+
+def uapi_layout():
+    """Sizes, offsets and ioctl numbers as the C compiler sees the header.
+
+    tests/build-modules.sh builds the program on the host, beside the
+    modules (a compiler in the emulated guest is slow); it is built here
+    only when that did not happen.
+    """
+    built = os.path.join(os.environ.get('LEGO_BUILD', ''), 'uapi-check')
+    if os.access(built, os.X_OK):
+        out = subprocess.run([built], check=True, capture_output=True, text=True).stdout
+        return {k: int(v) for k, v in (line.split() for line in out.splitlines())}
+    with tempfile.TemporaryDirectory() as d:
+        exe = os.path.join(d, 'check')
+        subprocess.run(['gcc', '-Wall', '-Werror', '-I', os.path.join(TOP, 'include/uapi'),
+                        '-o', exe, UAPI_CHECK], check=True)
+        out = subprocess.run([exe], check=True, capture_output=True, text=True).stdout
+    return {k: int(v) for k, v in (line.split() for line in out.splitlines())}
+
+
+def load_driver():
+    if not os.path.isdir('/sys/module/lego_nxt_usb'):
+        from conftest import module_path
+        subprocess.run(['insmod', module_path('lego_nxt_usb')], check=True)
+
+
+def interface_of(serial):
+    """The bound interface directory of the brick with this USB serial."""
+    for intf in glob.glob(DRIVER + '/*:1.0'):
+        try:
+            with open(os.path.join(intf, '..', 'serial')) as f:
+                if f.read().strip() == serial:
+                    return os.path.realpath(intf)
+        except OSError:
+            pass
+    return None
+
+
+def node_of(serial, timeout=10.0):
+    """/dev/nxtN of the brick with this serial, waiting for it to appear."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        intf = interface_of(serial)
+        if intf:
+            names = glob.glob(os.path.join(intf, 'usbmisc', 'nxt*'))
+            if names and os.path.exists('/dev/' + os.path.basename(names[0])):
+                return '/dev/' + os.path.basename(names[0])
+        time.sleep(0.05)
+    return None
+
+
+def attr(intf, name):
+    with open(os.path.join(intf, name)) as f:
+        return f.read().strip()
+
+
+class Brick:
+    """An emulated brick plugged in on a dummy_hcd port, with its node."""
+
+    def __init__(self, udc='dummy_udc.0', serial='001653A0B1C2', **kw):
+        load_driver()
+        self.serial = serial
+        self.emu = nxt_brick.RawGadgetBrick(udc=udc, serial=serial, **kw)
+        self.fw = self.emu.fw
+        self.node = None
+
+    def plug(self, timeout=15.0):
+        self.emu.start()
+        assert self.emu.wait_configured(timeout), 'brick %s not configured' % self.serial
+        self.node = node_of(self.serial, timeout)
+        assert self.node, 'no /dev/nxtN for %s' % self.serial
+        return self.node
+
+    def interface(self):
+        return interface_of(self.serial)
+
+    def open(self, flags=os.O_RDWR):
+        return os.open(self.node, flags)
+
+    def unplug(self):
+        self.emu.unplug()
+
+    def wait_gone(self, timeout=5.0):
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            if not os.path.exists(self.node) and not interface_of(self.serial):
+                return True
+            time.sleep(0.02)
+        return False
