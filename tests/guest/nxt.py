@@ -157,6 +157,16 @@ def transact(fd, telegram):
     return err, t['reply'][:t['reply_length']] if not err else b''
 
 
+def wait_versions(fd, timeout):
+    """GetVersions until the brick answers (after a reset, say): (errno, reply)."""
+    deadline = time.monotonic() + timeout
+    while True:
+        err, reply = transact(fd, b'\x01\x88')
+        if err == 0 or time.monotonic() > deadline:
+            return err, reply
+        time.sleep(0.1)
+
+
 def set_timeout(fd, ms):
     _, err, _ = raw_ioctl(fd, ioctl_number('SET_TIMEOUT'), struct.pack('<I', ms))
     return err

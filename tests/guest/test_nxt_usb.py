@@ -20,6 +20,7 @@ from conftest import module_path
 
 SERIAL = '001653A0B1C2'
 SERIAL2 = '0016530D0E0F'
+VERSIONS_REPLY = b'\x02\x88\x00\x7c\x01\x1d\x01'     # firmware 1.29
 
 
 @pytest.fixture(scope='module')
@@ -123,7 +124,7 @@ def test_short_read_buffer_keeps_the_reply(fd):
     with pytest.raises(OSError) as e:
         os.read(fd, 4)
     assert e.value.errno == errno.EMSGSIZE
-    assert os.read(fd, 64) == b'\x02\x88\x00\x7c\x01\x1d\x01'
+    assert os.read(fd, 64) == VERSIONS_REPLY
 
 
 def test_unknown_opcode_reply(fd):
@@ -179,7 +180,7 @@ def test_unknown_ioctl_is_enotty(fd):
 
 def test_transact_system_commands_and_file_upload(brick, fd):
     err, reply = nxt.transact(fd, b'\x01\x88')
-    assert (err, reply) == (0, b'\x02\x88\x00\x7c\x01\x1d\x01')
+    assert (err, reply) == (0, VERSIONS_REPLY)
     # A reply-less telegram gives an empty reply.
     assert nxt.transact(fd, b'\x80\x0d') == (0, b'')
 
@@ -383,7 +384,7 @@ def test_stale_reply_after_timeout_is_drained(brick, fd):
     assert nxt.set_timeout(fd, 3000) == 0
     for _ in range(3):
         err, reply = nxt.transact(fd, b'\x01\x88')
-        assert (err, reply) == (0, b'\x02\x88\x00\x7c\x01\x1d\x01')
+        assert (err, reply) == (0, VERSIONS_REPLY)
     assert nxt.ok(fd, 'GET_BATTERY_LEVEL')['millivolts'] == brick.fw.battery_mv
 
 
@@ -514,13 +515,7 @@ def test_system_suspend_and_resume(brick, fd):
     finally:
         with open('/sys/power/pm_test', 'w') as f:
             f.write('none')
-    deadline = time.monotonic() + 10
-    while True:
-        err, reply = nxt.transact(fd, b'\x01\x88')
-        if err == 0 or time.monotonic() > deadline:
-            break
-        time.sleep(0.1)
-    assert (err, reply) == (0, b'\x02\x88\x00\x7c\x01\x1d\x01')
+    assert nxt.wait_versions(fd, 10) == (0, VERSIONS_REPLY)
 
 
 def test_usb_reset_keeps_the_driver_bound(brick, fd):
@@ -534,13 +529,7 @@ def test_usb_reset_keeps_the_driver_bound(brick, fd):
         os.close(usbfs)
     assert brick.emu.wait_configured(10)
     assert brick.interface() == intf
-    deadline = time.monotonic() + 5
-    while True:
-        err, reply = nxt.transact(fd, b'\x01\x88')
-        if err == 0 or time.monotonic() > deadline:
-            break
-        time.sleep(0.1)
-    assert (err, reply) == (0, b'\x02\x88\x00\x7c\x01\x1d\x01')
+    assert nxt.wait_versions(fd, 5) == (0, VERSIONS_REPLY)
 
 
 def test_two_bricks_at_once(brick):
