@@ -146,6 +146,6 @@ void ev3_uart_sensor_destroy(struct ev3_uart_sensor_dev *sd);
 int ev3_uart_iio_register(struct ev3_uart_sensor_dev *sd);
 void ev3_uart_iio_unregister(struct ev3_uart_sensor_dev *sd);
 void ev3_uart_iio_push(struct ev3_uart_sensor_dev *sd, u8 mode,
-		       const u8 *data, unsigned int len);
+		       const u8 *data, unsigned int len, size_t rest);
 
 #endif /* _EV3_UART_H */

@@ -132,9 +132,12 @@ static void ev3_uart_queue(struct ev3_uart_port *port, struct work_struct *work)
 		queue_work(port->wq, work);
 }
 
-/* Called under port->lock, in the receive path. */
+/*
+ * Called under port->lock, in the receive path (and from keepalive_work).
+ * @rest: bytes received after the message that caused @ev, in the same batch.
+ */
 static void ev3_uart_event(struct ev3_uart_port *port,
-			   const struct ev3_uart_event *ev)
+			   const struct ev3_uart_event *ev, size_t rest)
 {
 	struct ev3_uart_sensor_dev *sd = port->sensor;
 
@@ -160,7 +163,7 @@ static void ev3_uart_event(struct ev3_uart_port *port,
 		memcpy(sd->data, port->parser.data, ev->len);
 		memset(sd->data + ev->len, 0, sizeof(sd->data) - ev->len);
 		sd->data_len = ev->len;
-		ev3_uart_iio_push(sd, ev->mode, sd->data, ev->len);
+		ev3_uart_iio_push(sd, ev->mode, sd->data, ev->len, rest);
 		if (port->select_mode == ev->mode &&
 		    port->parser.pending_mode == EV3_UART_NO_MODE) {
 			port->select_mode = EV3_UART_NO_MODE;
@@ -190,21 +193,22 @@ static void ev3_uart_receive_buf(struct tty_struct *tty, const u8 *cp,
 	while (count > 0) {
 		if (fp && *fp != TTY_NORMAL) {
 			ev3_uart_parser_line_error(&port->parser, &ev);
-			ev3_uart_event(port, &ev);
 			cp++;
 			fp++;
 			count--;
+			ev3_uart_event(port, &ev, count);
 			continue;
 		}
 		/* Feed the run of bytes received without error. */
 		for (run = 1; run < count && (!fp || fp[run] == TTY_NORMAL); run++)
 			;
 		used = ev3_uart_parser_feed(&port->parser, cp, run, &ev);
-		ev3_uart_event(port, &ev);
 		cp += used;
 		if (fp)
 			fp += used;
 		count -= used;
+		/* The event's message ended @count bytes before the batch did. */
+		ev3_uart_event(port, &ev, count);
 	}
 	spin_unlock(&port->lock);
 }
@@ -289,7 +293,7 @@ static void ev3_uart_keepalive_work(struct work_struct *work)
 
 	spin_lock(&port->lock);
 	if (ev3_uart_parser_tick(&port->parser, &ev))
-		ev3_uart_event(port, &ev);
+		ev3_uart_event(port, &ev, 0);
 	alive = port->parser.state == EV3_UART_STATE_DATA;
 	/*
 	 * The SELECT restoring the user's mode after a reconnect can arrive
