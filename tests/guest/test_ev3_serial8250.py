@@ -39,6 +39,15 @@ def connect(ln, kind):
     return emu, path
 
 
+def wait_handshakes(emu, n, timeout=2.0):
+    """The host registers the sensor as soon as it has sent its ACK; the
+    emulator counts the handshake once it has read that ACK."""
+    deadline = time.monotonic() + timeout
+    while emu.handshakes < n and time.monotonic() < deadline:
+        time.sleep(0.02)
+    return emu.handshakes
+
+
 def wait_speed(ln, baud, timeout=3.0):
     deadline = time.monotonic() + timeout
     while ln.speed() != baud and time.monotonic() < deadline:
@@ -86,7 +95,7 @@ def test_sensor_on_8250(sline, kind):
     emu.plug()
     again = find_sensor(sline.address, timeout=15)
     assert again, emu.events
-    assert emu.handshakes == 2
+    assert wait_handshakes(emu, 2) == 2
     assert wait_speed(sline, 57600) == 57600
     deadline = time.monotonic() + 3
     while read_attr(again, 'mode') != m.name and time.monotonic() < deadline:
@@ -111,7 +120,7 @@ def test_speed_mismatch_garbles_the_line(sline):
     assert emu.garbled > 0
     again = find_sensor(sline.address, timeout=15)
     assert again, emu.events
-    assert emu.handshakes == 2
+    assert wait_handshakes(emu, 2) == 2
     assert wait_speed(sline, 57600) == 57600
     emu.set_values(0, [-17])
     assert wait_value(again, 0, -17) == -17
