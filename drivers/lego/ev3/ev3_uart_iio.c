@@ -310,27 +310,17 @@ static const struct iio_buffer_setup_ops ev3_iio_buffer_ops = {
 };
 
 /*
- * When the last byte of a DATA message arrived. The tty hands over received
- * bytes in batches, late and several messages at once, so "now" is only
- * right for the batch's last byte: the bytes after the message came in at
- * the line speed, so it ended that much earlier. Two messages cannot end
- * closer together than the second one's time on the wire, which also keeps
- * the timestamps strictly increasing where the clock is coarse (a jiffies
- * clocksource); a clock set back by more than a second is followed.
+ * When the last byte of a DATA message of @len payload bytes arrived, @rest
+ * bytes before the end of the batch being received (see ev3_uart_msg_time()).
  */
 static s64 ev3_iio_timestamp(struct ev3_uart_iio *iio, unsigned int len,
 			     size_t rest)
 {
-	u32 speed = iio->sd->desc.speed ?: EV3_UART_SPEED_MIN;
-	s64 byte_ns = div_u64(10ULL * NSEC_PER_SEC, speed);	/* 8N1 */
-	s64 ts = iio_get_time_ns(iio->indio) - (s64)rest * byte_ns;
-	s64 wire_ns = (len + 2) * byte_ns;	/* header, payload, checksum */
-
-	if (iio->last_ts && ts < iio->last_ts + wire_ns &&
-	    ts > iio->last_ts - NSEC_PER_SEC)
-		ts = iio->last_ts + wire_ns;
-	iio->last_ts = ts;
-	return ts;
+	/* On the wire: header, payload, checksum. */
+	iio->last_ts = ev3_uart_msg_time(iio_get_time_ns(iio->indio), rest,
+					 len + 2, iio->sd->desc.speed,
+					 iio->last_ts);
+	return iio->last_ts;
 }
 
 /**
