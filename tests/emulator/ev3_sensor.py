@@ -24,6 +24,19 @@ ev3dev.md):
 
 The `hostile` option sends garbage, truncated and oversized messages, bad
 checksums and absurd handshake values before a valid handshake.
+
+Two test aids go beyond a real sensor:
+
+- stream(): in the data phase, one write of a long run of DATA frames of the
+  current mode whose first value counts up by one per frame. The tty driver
+  underneath paces them (the null modem at the baud rate: 4-byte frames at
+  57600 baud are 1440 a second), however slowly Python runs, so the host's
+  every-sample path can be tested at the sensor's real rate.
+- host_tty: on a line that carries no baud rate (two QEMU UARTs joined by a
+  socket), the emulator watches the speed of the host's end with tcgetattr
+  and garbles what it sends while the two speeds differ, as a wire would.
+  A socket cannot carry framing errors, so the garbage is made of 0x00 and
+  0xff bytes only, which can never form a message.
 """
 import math
 import os
@@ -42,6 +55,7 @@ S8, S16, S32, FLOAT = 0, 1, 2, 3
 BAUD = {2400: termios.B2400, 9600: termios.B9600, 19200: termios.B19200,
         38400: termios.B38400, 57600: termios.B57600, 115200: termios.B115200,
         230400: termios.B230400, 460800: termios.B460800}
+SPEED_OF = {v: k for k, v in BAUD.items()}
 
 
 def checksum(data):
@@ -201,15 +215,53 @@ def pack_values(mode, values):
     return struct.pack('<%d%s' % (len(values), fmt), *values)
 
 
-class EmulatedSensor(threading.Thread):
-    """Plays one sensor on the tty at `path` until stop() is called."""
+def wrap_value(mode, v):
+    """v as the mode's data type holds it (counters wrap around)."""
+    if mode.t == FLOAT:
+        return float(v)
+    bits = {S8: 8, S16: 16, S32: 32}[mode.t]
+    v &= (1 << bits) - 1
+    return v - (1 << bits) if v >> (bits - 1) else v
 
-    def __init__(self, path, kind, hostile=False, seed=1, boot_delay=0.5, period_scale=1.0):
+
+def garble(data, wbaud, rbaud, rng):
+    """What a reader at `rbaud` makes of `data` sent at `wbaud`: a faster
+    writer's bytes mostly vanish into the reader's longer bit times (about
+    one 0xff per `wbaud / rbaud` bytes); a slower writer's zero bits each
+    read as a 0x00 frame. Only 0x00 and 0xff, so never a valid message."""
+    out = bytearray()
+    if wbaud > rbaud:
+        ratio = -(-wbaud // rbaud)
+        for _ in data:
+            if rng.randrange(ratio) == 0:
+                out.append(0xff)
+    else:
+        for b in data:
+            bits = [0] + [(b >> k) & 1 for k in range(8)]   # start bit, LSB first
+            out += bytes(sum(1 for k, x in enumerate(bits) if not x and (k == 0 or bits[k - 1])))
+    return bytes(out)
+
+
+class EmulatedSensor(threading.Thread):
+    """Plays one sensor on the tty at `path` (or an open tty's fd) until
+    stop() is called."""
+
+    def __init__(self, path, kind, hostile=False, seed=1, boot_delay=0.5, period_scale=1.0,
+                 host_tty=None):
         """period_scale > 1 slows the spontaneous cadence of continuous modes
         (NACK replies stay immediate): several emulators in one Python
         process inside an emulated machine cannot all keep real cadences
-        and still answer every keep-alive in time."""
+        and still answer every keep-alive in time.
+
+        host_tty: the host's end of a line that carries no baud rate (a
+        socket between two UARTs); what is sent is garbled while the host
+        end's speed differs from ours."""
         super().__init__(daemon=True)
+        self.host_tty = host_tty
+        self.host_fd = None
+        self.speed = 0
+        self.garbled = 0            # bytes sent while the speeds differed
+        self.stream_req = None
         self.period_scale = period_scale
         self.sdef = SENSORS[kind] if isinstance(kind, str) else kind
         self.path, self.hostile, self.boot_delay = path, hostile, boot_delay
@@ -240,6 +292,28 @@ class EmulatedSensor(threading.Thread):
         self.stopping.set()
         self.join(5)
 
+    def stream(self, count, start=0, timeout=10.0):
+        """Send `count` DATA frames of the current mode in one write, the
+        first value counting from `start` (wrapping at the data type's
+        range), the others 0. Waits until the tty driver has taken them all
+        (the last few kilobytes may still be on their way) and returns
+        (mode, first value, monotonic time the write started, time it
+        ended), or None if the sensor was not in its data phase in
+        `timeout` seconds."""
+        mode = self.mode
+        m = self.sdef.modes[mode]
+        rest = pack_values(m, [0] * (len(self.values[mode]) - 1))
+        # Built here, not in the sensor's thread, which must keep answering.
+        frames = b''.join(data_msg(mode, pack_values(m, [wrap_value(m, start + i)]) + rest)
+                          for i in range(count))
+        req = {'count': count, 'start': start, 'mode': mode, 'frames': frames,
+               'done': threading.Event()}
+        self.stream_req = req
+        if not req['done'].wait(timeout) and 'result' not in req:
+            self.stream_req = None
+            return None
+        return req.get('result')
+
     def unplug(self):
         """Go silent, as if the cable were pulled (the thread keeps running)."""
         self.unplugged.set()
@@ -256,10 +330,24 @@ class EmulatedSensor(threading.Thread):
         attrs = termios.tcgetattr(self.fd)
         attrs[4] = attrs[5] = BAUD[baud]
         termios.tcsetattr(self.fd, termios.TCSANOW, attrs)
+        self.speed = baud
+
+    def host_speed(self):
+        """The host end's speed, if we watch it (else ours)."""
+        if self.host_fd is None:
+            return self.speed
+        return SPEED_OF.get(termios.tcgetattr(self.host_fd)[5], 0)
 
     def send(self, data):
-        if not self.unplugged.is_set():
-            os.write(self.fd, data)
+        if self.unplugged.is_set():
+            return
+        host = self.host_speed()
+        if host != self.speed:
+            self.garbled += len(data)
+            data = garble(data, self.speed, host, self.rng)
+        view = memoryview(data)
+        while view:
+            view = view[os.write(self.fd, view):]
 
     def read(self, timeout):
         r, _, _ = select.select([self.fd], [], [], max(timeout, 0))
@@ -271,7 +359,13 @@ class EmulatedSensor(threading.Thread):
     # ---- behaviour ----
 
     def run(self):
-        self.fd = os.open(self.path, os.O_RDWR | os.O_NOCTTY)
+        if isinstance(self.path, int):      # an open tty, e.g. a pty master
+            self.fd = os.dup(self.path)
+        else:
+            self.fd = os.open(self.path, os.O_RDWR | os.O_NOCTTY)
+        if self.host_tty:
+            # Only for tcgetattr; works with the discipline attached.
+            self.host_fd = os.open(self.host_tty, os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK)
         attrs = termios.tcgetattr(self.fd)
         attrs[0] = 0                                   # iflag: raw
         attrs[1] = 0                                   # oflag
@@ -289,6 +383,8 @@ class EmulatedSensor(threading.Thread):
                     self.data_phase()
         finally:
             os.close(self.fd)
+            if self.host_fd is not None:
+                os.close(self.host_fd)
 
     def connect(self):
         """Reset, handshake at 2400 baud; True once the host ACKed."""
@@ -338,6 +434,7 @@ class EmulatedSensor(threading.Thread):
         pending = None              # (time, mode) of a SELECT being carried out
         deaf = False
         buf = b''
+        quiet = False
         self.changed = True
         while not self.stopping.is_set():
             now = time.monotonic()
@@ -360,6 +457,8 @@ class EmulatedSensor(threading.Thread):
                 self.frame(mode, False)
                 self.log('mode %d' % mode)
                 next_spont = now + m.period * self.period_scale
+            elif self.stream_req is not None and not deaf and not pending:
+                quiet = self.send_stream(self.stream_req)
             elif not deaf and not pending:
                 if m.cadence == 'continuous' and now >= next_spont:
                     self.frame(mode, True)
@@ -368,7 +467,9 @@ class EmulatedSensor(threading.Thread):
                     self.changed = False
                     self.frame(mode, True)
             wait = 0.05
-            if pending:
+            if quiet:
+                wait = 0
+            elif pending:
                 wait = pending[0] - now
             elif m.cadence == 'continuous' and not deaf:
                 wait = next_spont - now
@@ -378,7 +479,7 @@ class EmulatedSensor(threading.Thread):
                 if b == SYS_NACK:
                     buf = buf[1:]
                     last_nack = time.monotonic()
-                    if not deaf and not pending:
+                    if not deaf and not pending and not quiet:
                         self.frame(self.mode, False)
                 elif b == 0x43:             # SELECT
                     if len(buf) < 3:
@@ -396,6 +497,23 @@ class EmulatedSensor(threading.Thread):
                     buf = buf[size + 2:]
                 else:
                     buf = buf[1:]           # garbage, or an ACK repeated
+            quiet = False
+
+    def send_stream(self, req):
+        """Serve a stream() request; True if it was sent. The keep-alives
+        that came meanwhile count as answered by the stream."""
+        self.stream_req = None
+        if req['mode'] != self.mode:
+            req['done'].set()           # the mode changed since: no stream
+            return False
+        t0 = time.monotonic()
+        self.send(req['frames'])
+        t1 = time.monotonic()
+        self.frames_sent += req['count']
+        self.log('streamed %d frames' % req['count'])
+        req['result'] = (req['mode'], req['start'], t0, t1)
+        req['done'].set()
+        return True
 
     def on_write(self, payload):
         self.writes.append(bytes(payload))
@@ -435,11 +553,22 @@ def main():
     ap.add_argument('sensor', choices=sorted(SENSORS))
     ap.add_argument('--hostile', action='store_true')
     ap.add_argument('--seconds', type=float, default=0, help='run this long (0: forever)')
+    ap.add_argument('--host-tty', metavar='TTY',
+                    help='the host end of a line with no baud rate (e.g. /dev/ttyS1 when two '
+                    'QEMU UARTs share a socket): garble what is sent while its speed differs')
+    ap.add_argument('--stream', type=int, default=0, metavar='N',
+                    help='once connected, send N DATA frames of mode 0 back to back in one '
+                    'write, the value counting 0, 1, 2...')
     args = ap.parse_args()
-    s = EmulatedSensor(args.tty, args.sensor, hostile=args.hostile)
+    s = EmulatedSensor(args.tty, args.sensor, hostile=args.hostile, host_tty=args.host_tty)
     s.start()
     try:
         t0 = time.monotonic()
+        if args.stream:
+            while s.is_alive() and not s.handshakes:
+                time.sleep(0.05)
+            time.sleep(0.2)
+            print('stream:', s.stream(args.stream, timeout=args.stream / 100 + 10), flush=True)
         while s.is_alive() and (not args.seconds or time.monotonic() - t0 < args.seconds):
             if s.sdef.type in (32, 30):
                 s.set_values(0, [int(50 * math.sin(time.monotonic()))])

@@ -76,6 +76,9 @@ def wait_value(path, index, want, timeout=3.0):
 class Line:
     """ttyNM<2n> with the discipline attached, ttyNM<2n+1> played by an emulator."""
 
+    # The line itself garbles bytes sent at the wrong speed.
+    watch_speed = False
+
     def __init__(self, pair=0):
         load_nullmodem()
         self.host = '/dev/ttyNM%d' % (2 * pair)
@@ -94,6 +97,8 @@ class Line:
             self.fd = None
 
     def plug(self, kind, **kw):
+        if self.watch_speed:
+            kw.setdefault('host_tty', self.host)
         self.emu = ev3_sensor.EmulatedSensor(self.far, kind, **kw)
         self.emu.start()
         return self.emu
@@ -102,3 +107,28 @@ class Line:
         if self.emu:
             self.emu.stop()
         self.detach()
+
+
+def serial_pair():
+    """The two 16550A ports tests/vm-run wires to each other, e.g.
+    ['ttyS1', 'ttyS2'], or [] if the VM was started without them."""
+    return os.environ.get('LEGO_SERIAL_PAIR', '').split()
+
+
+class SerialLine(Line):
+    """Two 8250 UARTs joined by a socket in QEMU: the discipline on the first,
+    an emulator on the second. A socket carries no baud rate, so the emulator
+    garbles what it sends while the host end's speed differs from its own."""
+
+    watch_speed = True
+
+    def __init__(self, host, far):
+        self.host = '/dev/' + host
+        self.far = '/dev/' + far
+        self.address = host
+        self.fd = None
+        self.emu = None
+
+    def speed(self):
+        """The host end's speed in baud (tcgetattr with the discipline attached)."""
+        return ev3_sensor.SPEED_OF[termios.tcgetattr(self.fd)[5]]

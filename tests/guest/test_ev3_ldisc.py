@@ -45,6 +45,50 @@ def test_attach_to_pty_and_detach(ev3_module):
         os.close(master)
 
 
+def test_attach_to_pty_master_and_detach(ev3_module):
+    """The master side of a pty has no set_termios (nor break_ctl,
+    chars_in_buffer, wait_until_sent): the discipline must do without."""
+    master, slave = os.openpty()
+    try:
+        set_ldisc(master, N_LEGOEV3)
+        assert get_ldisc(master) == N_LEGOEV3
+        os.write(slave, bytes(range(256)) * 4)
+        set_ldisc(master, N_TTY)
+    finally:
+        os.close(slave)
+        os.close(master)
+
+
+@pytest.mark.parametrize('side', ['slave', 'master'])
+def test_sensor_on_a_pty(ev3_module, side):
+    """A whole connection over a pty (no speeds, no line errors): the
+    discipline on one side, an emulated colour sensor on the other."""
+    import ev3
+    master, slave = os.openpty()
+    host, far = (slave, master) if side == 'slave' else (master, slave)
+    name = os.ttyname(slave).split('/')[-1]
+    address = ('pts' if side == 'slave' else 'ptm') + name
+    emu = None
+    try:
+        set_ldisc(host, N_LEGOEV3)
+        emu = ev3.ev3_sensor.EmulatedSensor(far, 'color')
+        emu.start()
+        path = ev3.find_sensor(address, timeout=15)
+        assert path, 'no sensor at %s (%s)' % (address, emu.events)
+        assert ev3.read_attr(path, 'driver_name') == 'lego-ev3-color'
+        emu.set_values(0, [61])
+        assert ev3.wait_value(path, 0, 61) == 61
+        ev3.write_attr(path, 'mode', 'COL-AMBIENT')
+        emu.set_values(1, [7])
+        assert ev3.wait_value(path, 0, 7) == 7
+    finally:
+        if emu:
+            emu.stop()
+        os.close(host)
+        os.close(far)
+    assert ev3.wait_gone(path, 2.0)
+
+
 def test_attach_needs_privilege(ev3_module):
     pid = os.fork()
     if pid == 0:

@@ -5,10 +5,12 @@
  *
  * Locking
  * -------
- * ev3_uart_port.lock (spinlock) protects the parser, ev3_uart_port.sensor
- * and every ev3_uart_sensor's values (mode, data). It is taken by the
- * receive path (tty flip-buffer work), the work items and the sysfs/IIO
- * readers, never for longer than a copy; nothing sleeps under it.
+ * ev3_uart_port.lock (spinlock) protects the parser, ev3_uart_port.sensor,
+ * every ev3_uart_sensor's values (mode, data) and the IIO buffer state (the
+ * mode pushed, the last timestamp). It is taken by the receive path (tty
+ * flip-buffer work, which also pushes to the IIO buffer under it), the work
+ * items and the sysfs/IIO readers, never for longer than a copy or a push;
+ * nothing sleeps under it.
  *
  * ev3_uart_port.select_mutex serialises mode changes (one SELECT in flight).
  * ev3_uart_port.tx_mutex serialises writes to the tty (ACK, NACK, SELECT,
@@ -146,6 +148,6 @@ void ev3_uart_sensor_destroy(struct ev3_uart_sensor_dev *sd);
 int ev3_uart_iio_register(struct ev3_uart_sensor_dev *sd);
 void ev3_uart_iio_unregister(struct ev3_uart_sensor_dev *sd);
 void ev3_uart_iio_push(struct ev3_uart_sensor_dev *sd, u8 mode,
-		       const u8 *data, unsigned int len);
+		       const u8 *data, unsigned int len, size_t rest);
 
 #endif /* _EV3_UART_H */

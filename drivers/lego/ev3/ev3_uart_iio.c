@@ -37,6 +37,9 @@
  * @scale_nano: scale of each channel, in nano-units of the IIO unit
  * @offset_micro: offset of each channel, in micro raw units
  * @buffer_mode: mode whose DATA messages are pushed, or %EV3_UART_NO_MODE
+ *	(under the port lock)
+ * @last_ts: timestamp of the last message pushed, 0 for none yet (under the
+ *	port lock)
  * @scan: one scan: a value per channel, then the timestamp
  */
 struct ev3_uart_iio {
@@ -48,6 +51,7 @@ struct ev3_uart_iio {
 	s64 scale_nano[EV3_IIO_MAX_CHANNELS];
 	s64 offset_micro[EV3_IIO_MAX_CHANNELS];
 	u8 buffer_mode;
+	s64 last_ts;
 	struct {
 		s32 v[EV3_IIO_MAX_CHANNELS];
 		aligned_s64 ts;
@@ -284,6 +288,7 @@ static int ev3_iio_postenable(struct iio_dev *indio)
 		return ret;
 	spin_lock(&iio->sd->port->lock);
 	iio->buffer_mode = mode;
+	iio->last_ts = 0;
 	spin_unlock(&iio->sd->port->lock);
 	return 0;
 }
@@ -304,17 +309,32 @@ static const struct iio_buffer_setup_ops ev3_iio_buffer_ops = {
 	.validate_scan_mask = ev3_iio_validate_scan_mask,
 };
 
+/*
+ * When the last byte of a DATA message of @len payload bytes arrived, @rest
+ * bytes before the end of the batch being received (see ev3_uart_msg_time()).
+ */
+static s64 ev3_iio_timestamp(struct ev3_uart_iio *iio, unsigned int len,
+			     size_t rest)
+{
+	/* On the wire: header, payload, checksum. */
+	iio->last_ts = ev3_uart_msg_time(iio_get_time_ns(iio->indio), rest,
+					 len + 2, iio->sd->desc.speed,
+					 iio->last_ts);
+	return iio->last_ts;
+}
+
 /**
  * ev3_uart_iio_push() - push one DATA message to the buffer
  * @sd: the sensor
  * @mode: the mode of the message
  * @data: its payload
  * @len: its length
+ * @rest: bytes received after the message in the same batch
  *
  * Called from the receive path under the port lock; never sleeps.
  */
 void ev3_uart_iio_push(struct ev3_uart_sensor_dev *sd, u8 mode,
-		       const u8 *data, unsigned int len)
+		       const u8 *data, unsigned int len, size_t rest)
 {
 	struct ev3_uart_iio *iio = sd->iio;
 	struct iio_dev *indio;
@@ -328,7 +348,8 @@ void ev3_uart_iio_push(struct ev3_uart_sensor_dev *sd, u8 mode,
 		if (ev3_uart_read_value(&sd->desc.modes[mode], data, len,
 					iio->chan_index[ch], &iio->scan.v[i++]))
 			iio->scan.v[i - 1] = 0;
-	iio_push_to_buffers_with_timestamp(indio, &iio->scan, iio_get_time_ns(indio));
+	iio_push_to_buffers_with_timestamp(indio, &iio->scan,
+					   ev3_iio_timestamp(iio, len, rest));
 }
 
 static void ev3_iio_fill_channels(struct ev3_uart_iio *iio,

@@ -24,6 +24,8 @@
  * a pty could play a hostile "sensor" and make the kernel register devices of
  * its choosing.
  */
+#define pr_fmt(fmt) KBUILD_MODNAME ": " fmt
+
 #include <linux/capability.h>
 #include <linux/ctype.h>
 #include <linux/jiffies.h>
@@ -87,8 +89,8 @@ static int ev3_uart_tx(struct ev3_uart_port *port, const u8 *buf, size_t len)
 	n = tty->ops->write(tty, buf, len);
 	mutex_unlock(&port->tx_mutex);
 	if (n < 0 || (size_t)n != len) {
-		dev_warn_ratelimited(tty->dev, "%s: short write (%d of %zu bytes)\n",
-				     tty->name, n, len);
+		pr_warn_ratelimited("%s: short write (%d of %zu bytes)\n",
+				    tty->name, n, len);
 		return n < 0 ? n : -EIO;
 	}
 	return 0;
@@ -132,16 +134,19 @@ static void ev3_uart_queue(struct ev3_uart_port *port, struct work_struct *work)
 		queue_work(port->wq, work);
 }
 
-/* Called under port->lock, in the receive path. */
+/*
+ * Called under port->lock, in the receive path (and from keepalive_work).
+ * @rest: bytes received after the message that caused @ev, in the same batch.
+ */
 static void ev3_uart_event(struct ev3_uart_port *port,
-			   const struct ev3_uart_event *ev)
+			   const struct ev3_uart_event *ev, size_t rest)
 {
 	struct ev3_uart_sensor_dev *sd = port->sensor;
 
 	switch (ev->type) {
 	case EV3_UART_EV_SYNC:
-		dev_dbg(port->tty->dev, "%s: sensor type %u syncing\n",
-			port->tty->name, port->parser.sensor.type);
+		pr_debug("%s: sensor type %u syncing\n", port->tty->name,
+			 port->parser.sensor.type);
 		break;
 	case EV3_UART_EV_HANDSHAKE:
 		if (!port->closing)
@@ -160,7 +165,7 @@ static void ev3_uart_event(struct ev3_uart_port *port,
 		memcpy(sd->data, port->parser.data, ev->len);
 		memset(sd->data + ev->len, 0, sizeof(sd->data) - ev->len);
 		sd->data_len = ev->len;
-		ev3_uart_iio_push(sd, ev->mode, sd->data, ev->len);
+		ev3_uart_iio_push(sd, ev->mode, sd->data, ev->len, rest);
 		if (port->select_mode == ev->mode &&
 		    port->parser.pending_mode == EV3_UART_NO_MODE) {
 			port->select_mode = EV3_UART_NO_MODE;
@@ -169,8 +174,7 @@ static void ev3_uart_event(struct ev3_uart_port *port,
 		break;
 	case EV3_UART_EV_ERROR:
 		port->last_error = ev->reason;
-		dev_info_ratelimited(port->tty->dev, "%s: %s\n", port->tty->name,
-				     ev->reason);
+		pr_info_ratelimited("%s: %s\n", port->tty->name, ev->reason);
 		ev3_uart_queue(port, &port->reset_work);
 		break;
 	case EV3_UART_EV_NONE:
@@ -190,21 +194,22 @@ static void ev3_uart_receive_buf(struct tty_struct *tty, const u8 *cp,
 	while (count > 0) {
 		if (fp && *fp != TTY_NORMAL) {
 			ev3_uart_parser_line_error(&port->parser, &ev);
-			ev3_uart_event(port, &ev);
 			cp++;
 			fp++;
 			count--;
+			ev3_uart_event(port, &ev, count);
 			continue;
 		}
 		/* Feed the run of bytes received without error. */
 		for (run = 1; run < count && (!fp || fp[run] == TTY_NORMAL); run++)
 			;
 		used = ev3_uart_parser_feed(&port->parser, cp, run, &ev);
-		ev3_uart_event(port, &ev);
 		cp += used;
 		if (fp)
 			fp += used;
 		count -= used;
+		/* The event's message ended @count bytes before the batch did. */
+		ev3_uart_event(port, &ev, count);
 	}
 	spin_unlock(&port->lock);
 }
@@ -238,8 +243,8 @@ static void ev3_uart_ack_work(struct work_struct *work)
 
 	sd = ev3_uart_sensor_create(port, &desc);
 	if (IS_ERR(sd)) {
-		dev_err_ratelimited(tty->dev, "%s: cannot register sensor: %ld\n",
-				    tty->name, PTR_ERR(sd));
+		pr_err_ratelimited("%s: cannot register sensor: %ld\n",
+				   tty->name, PTR_ERR(sd));
 		goto fail;
 	}
 
@@ -256,11 +261,11 @@ static void ev3_uart_ack_work(struct work_struct *work)
 	}
 	spin_unlock(&port->lock);
 
-	dev_info(tty->dev, "%s: %s connected as %s at %u baud\n", tty->name,
-		 sd->driver_name, dev_name(&sd->dev), desc.speed);
+	pr_info("%s: %s connected as %s at %u baud\n", tty->name,
+		sd->driver_name, dev_name(&sd->dev), desc.speed);
 	if (port->last_error) {
-		dev_info(tty->dev, "%s: reconnected after: %s\n", tty->name,
-			 port->last_error);
+		pr_info("%s: reconnected after: %s\n", tty->name,
+			port->last_error);
 		port->last_error = NULL;
 	}
 
@@ -289,7 +294,7 @@ static void ev3_uart_keepalive_work(struct work_struct *work)
 
 	spin_lock(&port->lock);
 	if (ev3_uart_parser_tick(&port->parser, &ev))
-		ev3_uart_event(port, &ev);
+		ev3_uart_event(port, &ev, 0);
 	alive = port->parser.state == EV3_UART_STATE_DATA;
 	/*
 	 * The SELECT restoring the user's mode after a reconnect can arrive
@@ -345,8 +350,8 @@ static void ev3_uart_reset_work(struct work_struct *work)
 
 	ev3_uart_set_speed(port->tty, EV3_UART_SPEED_MIN);
 	if (sd) {
-		dev_info(port->tty->dev, "%s: %s disconnected\n",
-			 port->tty->name, sd->driver_name);
+		pr_info("%s: %s disconnected\n", port->tty->name,
+			sd->driver_name);
 		ev3_uart_sensor_destroy(sd);
 	}
 }
@@ -613,7 +618,12 @@ static int ev3_uart_open(struct tty_struct *tty)
 	if (!capable(CAP_SYS_ADMIN))
 		return -EPERM;
 
-	/* The protocol needs to send ACK, NACK and SELECT. */
+	/*
+	 * The protocol needs to send ACK, NACK and SELECT. The other tty
+	 * operations used are optional: set_termios is called only when
+	 * present (a pty master has none); flush_buffer, chars_in_buffer and
+	 * wait_until_sent only through the tty core's helpers, which check.
+	 */
 	if (!tty->ops->write)
 		return -EOPNOTSUPP;
 
@@ -688,8 +698,8 @@ static int __init ev3_uart_init(void)
 	int ret;
 
 	if (ldisc_num < 0 || ldisc_num >= NR_LDISCS) {
-		pr_err("lego-ev3-uart: ldisc_num %d out of range 0..%d\n",
-		       ldisc_num, NR_LDISCS - 1);
+		pr_err("ldisc_num %d out of range 0..%d\n", ldisc_num,
+		       NR_LDISCS - 1);
 		return -EINVAL;
 	}
 
@@ -700,8 +710,8 @@ static int __init ev3_uart_init(void)
 	ev3_uart_ldisc.num = ldisc_num;
 	ret = tty_register_ldisc(&ev3_uart_ldisc);
 	if (ret) {
-		pr_err("lego-ev3-uart: cannot register line discipline %d: %d\n",
-		       ldisc_num, ret);
+		pr_err("cannot register line discipline %d: %d\n", ldisc_num,
+		       ret);
 		ev3_uart_class_exit();
 	}
 	return ret;

@@ -25,6 +25,7 @@
 #include <linux/module.h>
 #include <linux/overflow.h>
 #include <linux/string.h>
+#include <linux/time64.h>
 
 #include "lego_compat.h"
 #include "ev3_uart_proto.h"
@@ -119,6 +120,38 @@ unsigned int ev3_uart_data_size(enum ev3_uart_data_type type)
 	return 0;
 }
 EXPORT_SYMBOL_IF_KUNIT(ev3_uart_data_size);
+
+/**
+ * ev3_uart_msg_time() - when the last byte of a received message arrived
+ * @now: the time the batch of received bytes holding it is handled, in ns
+ * @rest: bytes of that batch after the message
+ * @msg_len: the message's length on the wire, in bytes
+ * @speed: the line speed in baud (a lower one counts as %EV3_UART_SPEED_MIN)
+ * @last: what this returned for the previous message, 0 for none
+ *
+ * A tty hands received bytes over in batches, late and several messages at
+ * once, so @now is only right for the batch's last byte: the @rest bytes
+ * after the message came in at the line speed (8N1: 10 bit times a byte),
+ * so it ended that much earlier. And two messages cannot end closer together
+ * than the second one's time on the wire, which keeps the times strictly
+ * increasing where the clock is coarse. A clock set back by more than a
+ * second is followed.
+ *
+ * Return: the estimated time, in ns.
+ */
+s64 ev3_uart_msg_time(s64 now, size_t rest, unsigned int msg_len, u32 speed,
+		      s64 last)
+{
+	s64 byte_ns = div_u64(10ULL * NSEC_PER_SEC,
+			      max_t(u32, speed, EV3_UART_SPEED_MIN));
+	s64 t = now - (s64)rest * byte_ns;
+	s64 wire_ns = msg_len * byte_ns;
+
+	if (last && t < last + wire_ns && t > last - NSEC_PER_SEC)
+		t = last + wire_ns;
+	return t;
+}
+EXPORT_SYMBOL_IF_KUNIT(ev3_uart_msg_time);
 
 static const u32 ev3_pow10[EV3_UART_MAX_DECIMALS + 1] = {
 	1, 10, 100, 1000, 10000, 100000, 1000000, 10000000, 100000000,

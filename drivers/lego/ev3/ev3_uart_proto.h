@@ -246,6 +246,8 @@ u8 ev3_uart_checksum(const u8 *msg, size_t len);
 unsigned int ev3_uart_payload_len(u8 hdr);
 unsigned int ev3_uart_msg_len(u8 hdr);
 unsigned int ev3_uart_data_size(enum ev3_uart_data_type type);
+s64 ev3_uart_msg_time(s64 now, size_t rest, unsigned int msg_len, u32 speed,
+		      s64 last);
 
 void ev3_uart_parser_init(struct ev3_uart_parser *p);
 size_t ev3_uart_parser_feed(struct ev3_uart_parser *p, const u8 *buf,

@@ -321,6 +321,41 @@ static void test_msg_len(struct kunit *test)
 	KUNIT_EXPECT_EQ(test, ev3_uart_payload_len(0xf8), 128U);
 }
 
+static void test_msg_time(struct kunit *test)
+{
+	const s64 b = 173611;		/* ns a byte at 57600 baud, 8N1 */
+	const s64 now = 5000000000LL;
+	s64 t1, t2, t3, t;
+
+	/* Three 4-byte messages handled in one batch: dated back to the wire. */
+	t1 = ev3_uart_msg_time(now, 8, 4, 57600, 0);
+	KUNIT_EXPECT_EQ(test, t1, now - 8 * b);
+	t2 = ev3_uart_msg_time(now, 4, 4, 57600, t1);
+	KUNIT_EXPECT_EQ(test, t2, now - 4 * b);
+	t3 = ev3_uart_msg_time(now, 0, 4, 57600, t2);
+	KUNIT_EXPECT_EQ(test, t3, now);
+
+	/* A coarse clock that has not moved: one wire time after the last. */
+	t = ev3_uart_msg_time(now, 0, 4, 57600, t3);
+	KUNIT_EXPECT_EQ(test, t, now + 4 * b);
+	/* A batch handled late, the next one early: never out of order. */
+	t = ev3_uart_msg_time(now + 2 * b, 4, 4, 57600, t);
+	KUNIT_EXPECT_EQ(test, t, now + 8 * b);
+
+	/* After a pause the clock rules again. */
+	KUNIT_EXPECT_EQ(test, ev3_uart_msg_time(now + 1000000, 0, 4, 57600, now),
+			now + 1000000);
+	/* Set back by more than a second: followed; by less: not. */
+	KUNIT_EXPECT_EQ(test, ev3_uart_msg_time(now - 2000000000LL, 0, 4, 57600, now),
+			now - 2000000000LL);
+	KUNIT_EXPECT_EQ(test, ev3_uart_msg_time(now - 500000000, 0, 4, 57600, now),
+			now + 4 * b);
+
+	/* 2400 baud: 4.17 ms a byte; a bad speed counts as 2400. */
+	KUNIT_EXPECT_EQ(test, ev3_uart_msg_time(now, 3, 3, 2400, 0), now - 3 * 4166666LL);
+	KUNIT_EXPECT_EQ(test, ev3_uart_msg_time(now, 3, 3, 0, 0), now - 3 * 4166666LL);
+}
+
 static void test_encoder_matches_captures(struct kunit *test)
 {
 	/* Literal first bytes of the colour and gyro captures. */
@@ -1014,6 +1049,7 @@ static void test_build_messages(struct kunit *test)
 static struct kunit_case ev3_uart_proto_cases[] = {
 	KUNIT_CASE(test_checksum_real_messages),
 	KUNIT_CASE(test_msg_len),
+	KUNIT_CASE(test_msg_time),
 	KUNIT_CASE(test_encoder_matches_captures),
 	KUNIT_CASE(test_handshake_color),
 	KUNIT_CASE(test_handshake_us),
