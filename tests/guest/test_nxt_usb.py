@@ -505,19 +505,6 @@ def test_stale_reply_drained_on_open(brick):
         brick.fw.sleep_minutes = 10
 
 
-def test_system_suspend_and_resume(brick, fd):
-    """The PM core suspends and resumes every device (pm_test=devices)."""
-    with open('/sys/power/pm_test', 'w') as f:
-        f.write('devices')
-    try:
-        with open('/sys/power/state', 'w') as f:
-            f.write('freeze')
-    finally:
-        with open('/sys/power/pm_test', 'w') as f:
-            f.write('none')
-    assert nxt.wait_versions(fd, 10) == (0, VERSIONS_REPLY)
-
-
 def test_usb_reset_keeps_the_driver_bound(brick, fd):
     intf = brick.interface()
     usbfs = os.open(usbfs_path(intf), os.O_RDWR)
