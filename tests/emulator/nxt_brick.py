@@ -805,13 +805,23 @@ class Firmware:
             if f is not None and f.kind != 'data' and f.length < f.size:
                 f.data.extend(bytes(f.size - f.length))
 
-    def _s80(self, op, length):         # OpenRead
+    def _existing_file(self, op):
+        """(name, file, None) for the file named at rx[2:22], else (None, None, error reply).
+
+        The error replies of OpenRead and OpenAppendData: a handle and a u32.
+        """
         name = self._name(2)
         if name is None:
-            return self._r(op, ILLEGAL_FILE_NAME, bytes(5))
+            return None, None, self._r(op, ILLEGAL_FILE_NAME, bytes(5))
         f = self.files.get(name)
         if f is None:
-            return self._r(op, FILE_NOT_FOUND, bytes(5))
+            return None, None, self._r(op, FILE_NOT_FOUND, bytes(5))
+        return name, f, None
+
+    def _s80(self, op, length):         # OpenRead
+        name, f, error = self._existing_file(op)
+        if error:
+            return error
         if any(hd.kind == 'write' for hd in self._open_handles(name)):
             return self._r(op, FILE_BUSY, bytes(5))
         h = self._new_handle('read', name)
@@ -851,12 +861,9 @@ class Firmware:
         return self._open_write(op, 'data')
 
     def _s8c(self, op, length):         # OpenAppendData
-        name = self._name(2)
-        if name is None:
-            return self._r(op, ILLEGAL_FILE_NAME, bytes(5))
-        f = self.files.get(name)
-        if f is None:
-            return self._r(op, FILE_NOT_FOUND, bytes(5))
+        name, f, error = self._existing_file(op)
+        if error:
+            return error
         if f.kind != 'data':
             return self._r(op, APPEND_NOT_POSSIBLE, bytes(5))
         if self._open_handles(name):
