@@ -36,6 +36,12 @@
 #define NXT_USB_PRODUCT		0x0002
 /* Restart delay of the reader after a transfer error other than a stall. */
 #define NXT_RECOVER_MS		10
+/*
+ * An unplug shows as transfer errors before the hub reports it: after such
+ * an error a transaction waits this much past its deadline for disconnect(),
+ * so that it ends with -ENODEV rather than with a timeout.
+ */
+#define NXT_UNPLUG_GRACE_MS	1000
 
 static bool nxt_drains_after(const struct nxt_xfer *x, int status)
 {
@@ -139,7 +145,7 @@ static void nxt_in_complete(struct urb *urb)
 		/* -EPROTO, -EILSEQ, -EOVERFLOW...: often an unplug in progress. */
 		dev_dbg_ratelimited(&nxt->udev->dev, "IN transfer error %d\n", urb->status);
 		if (nxt->cur)
-			nxt->cur->saw_bad = true;
+			nxt->cur->link_error = true;
 		recover = true;
 		break;
 	}
@@ -215,10 +221,19 @@ static void nxt_timer_fn(struct timer_list *t)
 			/* The brick did not take the telegram: cancel it. */
 			x->timed_out = true;
 			unlink = usb_get_urb(x->urb);
+		} else if (READ_ONCE(nxt->udev->state) == USB_STATE_NOTATTACHED) {
+			/* Unplugged; disconnect() is on its way. */
+			nxt_finish(nxt, x, -ENODEV);
+		} else if (x->link_error && !x->grace_used) {
+			x->grace_used = true;
+			x->deadline = jiffies + msecs_to_jiffies(NXT_UNPLUG_GRACE_MS);
+			mod_timer(&nxt->timer, x->deadline);
 		} else {
 			dev_warn_ratelimited(&nxt->udev->dev, "%s reply to opcode 0x%02x\n",
+					     x->link_error ? "transfer errors, no" :
 					     x->saw_bad ? "malformed" : "no", x->tg[1]);
-			nxt_finish(nxt, x, x->saw_bad ? -EPROTO : -ETIMEDOUT);
+			nxt_finish(nxt, x, x->link_error ? -EIO :
+					   x->saw_bad ? -EPROTO : -ETIMEDOUT);
 		}
 	}
 	spin_unlock_irqrestore(&nxt->lock, flags);

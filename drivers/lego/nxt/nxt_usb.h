@@ -153,6 +153,8 @@ struct nxt_usb {
  * @timed_out: the timer unlinked the OUT URB (@lock)
  * @saw_bad: a packet that was not this telegram's reply came while its
  *	reply was awaited (@lock)
+ * @link_error: an IN transfer failed while the reply was awaited (@lock)
+ * @grace_used: the deadline was extended once after a link error (@lock)
  * @status: -%EINPROGRESS until finished; then 0 or a negative errno (@lock)
  * @reply: the reply, zero past @reply_len
  * @reply_len: its length; 0 if none
@@ -167,6 +169,8 @@ struct nxt_xfer {
 	bool out_done;
 	bool timed_out;
 	bool saw_bad;
+	bool link_error;
+	bool grace_used;
 	int status;
 	u8 reply[NXT_TELEGRAM_MAX];
 	unsigned int reply_len;
