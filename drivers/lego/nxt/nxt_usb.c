@@ -88,7 +88,6 @@ static void nxt_take_packet(struct nxt_usb *nxt, const u8 *buf, unsigned int len
 
 	if (!x || !x->want_reply || x->status != -EINPROGRESS ||
 	    time_before(jiffies, nxt->drain_until)) {
-		nxt->stale++;
 		dev_dbg_ratelimited(&nxt->udev->dev, "dropped a stale packet (%u bytes)\n", len);
 		return;
 	}
@@ -97,7 +96,6 @@ static void nxt_take_packet(struct nxt_usb *nxt, const u8 *buf, unsigned int len
 	if (ret == -ENOMSG) {
 		/* Not this reply: stale, or garbage. The timeout decides. */
 		x->saw_bad = true;
-		nxt->stale++;
 		dev_dbg_ratelimited(&nxt->udev->dev,
 				    "packet %*ph... does not answer opcode 0x%02x\n",
 				    min(len, 4U), buf, x->tg[1]);
@@ -710,7 +708,6 @@ static int nxt_usb_probe(struct usb_interface *intf,
 		usb_set_intfdata(intf, NULL);
 		goto err_put;
 	}
-	nxt->minor = intf->minor;
 
 	/* Nothing is sent to the brick until someone opens it or reads sysfs. */
 	dev_info(&intf->dev, "LEGO NXT brick %s now at %s\n",

@@ -89,7 +89,6 @@ struct nxt_info {
  * @intf: the bound interface; NULL once disconnected (@io_mutex)
  * @out_pipe: bulk OUT pipe (endpoint 0x01 on a LEGO brick)
  * @in_pipe: bulk IN pipe (endpoint 0x82)
- * @minor: the char device's minor
  * @io_mutex: see the comment at the top of this file
  * @suspended: suspended or being reset: no URB may be submitted (@io_mutex)
  * @reader_wanted: the reader was started and runs when not suspended (@io_mutex)
@@ -98,7 +97,6 @@ struct nxt_info {
  * @gone: disconnected; set with @intf cleared (@lock)
  * @reader_running: @in_urb is submitted (@lock)
  * @drain_until: jiffies until which no telegram is sent (@lock)
- * @stale: packets dropped as stale (@lock)
  * @wait: woken when the slot is freed, a transaction progresses or the
  *	brick goes away
  * @in_urb: the reader's URB
@@ -116,7 +114,6 @@ struct nxt_usb {
 	struct usb_interface *intf;
 	unsigned int out_pipe;
 	unsigned int in_pipe;
-	int minor;
 
 	struct mutex io_mutex;	/* see the comment at the top */
 	bool suspended;
@@ -127,7 +124,6 @@ struct nxt_usb {
 	bool gone;
 	bool reader_running;
 	unsigned long drain_until;
-	unsigned long stale;
 	wait_queue_head_t wait;
 
 	struct urb *in_urb;
