@@ -32,5 +32,12 @@ fi
 # The guest tests' check of the uapi header, compiled here: a compiler in
 # the emulated guest is slow.
 gcc -Wall -Wextra -Werror -I "$top/include/uapi" -o "$out/uapi-check" "$top/tests/guest/nxt_uapi_check.c"
+# The userspace tools, for the guest tests: $LEGO_BUILD/tools/.
+mkdir -p "$out/tools"
+if ! make -s -C "$top/tools" O="$out/tools" >"$out/tools.log" 2>&1 || grep -E '(warning|error):' "$out/tools.log" >&2; then
+	cat "$out/tools.log" >&2
+	echo "build-modules: the userspace tools did not build cleanly" >&2
+	exit 1
+fi
 n=$(find "$out" -name '*.ko' | wc -l)
 echo "build-modules: $n modules built against $kdir${sparse:+ (sparse clean)}" >&2

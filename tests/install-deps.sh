@@ -9,6 +9,7 @@ debs=(
 	linux-source-6.12 linux-source-6.1 linux-headers-amd64
 	qemu-system-x86 sparse build-essential bc bison flex libelf-dev libssl-dev
 	cpio busybox-static kmod util-linux rsync python3 perl libiio-utils
+	dkms udev
 )
 
 missing=()
