@@ -6,7 +6,7 @@
 #   make check         the whole test suite in a QEMU test VM (installs what it needs)
 #   make checkpatch    checkpatch.pl --strict on every source file
 #   make sparse        the modules with sparse (C=2)
-#   make demo          (not yet: comes with the userspace tools)
+#   make demo          four emulated EV3 sensors and an NXT brick in the test VM
 
 KDIR ?= /lib/modules/$(shell uname -r)/build
 LEGO_SRC := $(CURDIR)
@@ -38,8 +38,7 @@ check:
 	@tests/check.sh
 
 demo:
-	@echo "make demo: not yet available; it comes with the userspace tools (issue 5)." >&2
-	@exit 1
+	@tests/demo/run.sh
 
 help:
 	@sed -n '3,10p' Makefile
