@@ -294,7 +294,7 @@ static const char *find_device(void)
 	static char path[64];
 	glob_t g;
 
-	if (glob("/dev/nxt*", 0, NULL, &g))
+	if (glob("/dev/nxt[0-9]*", 0, NULL, &g))
 		return NULL;
 	snprintf(path, sizeof(path), "%s", g.gl_pathv[0]);
 	globfree(&g);
@@ -376,7 +376,7 @@ static int cmd_list(int argc, char **argv)
 	ret = parse_opts("list", argc, argv, NULL, pos, &npos, 0, 0);
 	if (ret)
 		return ret;
-	if (glob("/dev/nxt*", 0, NULL, &g))
+	if (glob("/dev/nxt[0-9]*", 0, NULL, &g))
 		return EXIT_OK;
 	for (i = 0; i < g.gl_pathc; i++) {
 		node = strrchr(g.gl_pathv[i], '/') + 1;
