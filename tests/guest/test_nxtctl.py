@@ -415,7 +415,7 @@ def test_raw(brick, ctl):
     assert ok(ctl('raw', '0x000b')) == '02 0b 00 %02x %02x\n' % (
         brick.fw.battery_mv & 0xff, brick.fw.battery_mv >> 8)
     # No reply asked for: nothing printed, but the brick played the tone.
-    assert ok(ctl('raw', '80 03 e8 03 64 00'.split())) == ''
+    assert ok(ctl('raw', *'80 03 e8 03 64 00'.split())) == ''
     assert wait_for(lambda: brick.fw.sound and brick.fw.sound[:2] == ('tone', 1000))
     # An error status: the reply is printed, the status named, exit 1.
     p = ctl('raw', '0001')
