@@ -1,0 +1,403 @@
+// SPDX-License-Identifier: GPL-2.0
+/*
+ * nxtctl: the brick's flash file system through system commands sent with
+ * NXT_IOC_TRANSACT (OpenRead/OpenWrite/Read/Write/Close/Delete and
+ * FindFirst/FindNext). Every telegram and reply fits one 64-byte packet:
+ * a Write carries at most 61 data bytes, a Read asks for at most 58 (the
+ * firmware caps its USB reply there but echoes the count asked for).
+ */
+#include <errno.h>
+#include <fcntl.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/ioctl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "nxtctl.h"
+
+#define LOCAL_MAX	(16 * 1024 * 1024)	/* far more than the flash holds */
+
+static void put_le32(__u8 *p, __u32 v)
+{
+	p[0] = v;
+	p[1] = v >> 8;
+	p[2] = v >> 16;
+	p[3] = v >> 24;
+}
+
+static __u32 get_le32(const __u8 *p)
+{
+	return p[0] | p[1] << 8 | p[2] << 16 | (__u32)p[3] << 24;
+}
+
+/* A name as the 20-byte NUL-padded field of the system commands. */
+static void name_field(__u8 *field, const char *name)
+{
+	memset(field, 0, NXT_NAME_LEN);
+	memcpy(field, name, strnlen(name, NXT_NAME_LEN - 1));
+}
+
+/* Close a handle after an error: best effort, the first error is reported. */
+static void close_quietly(__u8 handle)
+{
+	struct nxt_transaction t = {};
+
+	t.telegram[0] = NXT_SYSTEM_CMD;
+	t.telegram[1] = NXT_SYS_CLOSE;
+	t.telegram[2] = handle;
+	t.length = 3;
+	(void)ioctl(nxt_fd, NXT_IOC_TRANSACT, &t);
+}
+
+static int close_handle(__u8 handle, const char *what)
+{
+	struct nxt_transaction t;
+	int ret;
+
+	ret = system_cmd(&t, NXT_SYS_CLOSE, &handle, 1, what);
+	if (ret)
+		return ret;
+	if (t.reply[2])
+		return brick_error(what, t.reply[2]);
+	return EXIT_OK;
+}
+
+static int delete_file(const char *name, __u8 *status)
+{
+	struct nxt_transaction t;
+	__u8 field[NXT_NAME_LEN];
+	int ret;
+
+	name_field(field, name);
+	ret = system_cmd(&t, NXT_SYS_DELETE, field, sizeof(field), "Delete");
+	if (ret)
+		return ret;
+	*status = t.reply[2];
+	return EXIT_OK;
+}
+
+static int read_local(const char *path, __u8 **data, size_t *size)
+{
+	size_t cap = 4096, len = 0;
+	ssize_t n;
+	__u8 *buf;
+	int fd;
+
+	fd = open(path, O_RDONLY | O_CLOEXEC);
+	if (fd < 0) {
+		fprintf(stderr, "nxtctl: cannot open %s: %s\n", path, strerror(errno));
+		return EXIT_DEVICE;
+	}
+	buf = malloc(cap);
+	for (;;) {
+		if (!buf) {
+			fprintf(stderr, "nxtctl: %s: out of memory\n", path);
+			close(fd);
+			return EXIT_DEVICE;
+		}
+		n = read(fd, buf + len, cap - len);
+		if (n < 0 && errno == EINTR)
+			continue;
+		if (n < 0) {
+			fprintf(stderr, "nxtctl: cannot read %s: %s\n", path, strerror(errno));
+			free(buf);
+			close(fd);
+			return EXIT_DEVICE;
+		}
+		if (n == 0)
+			break;
+		len += n;
+		if (len > LOCAL_MAX) {
+			fprintf(stderr, "nxtctl: %s: too big for the brick\n", path);
+			free(buf);
+			close(fd);
+			return EXIT_DEVICE;
+		}
+		if (len == cap) {
+			__u8 *bigger;
+
+			cap *= 2;
+			bigger = realloc(buf, cap);
+			if (!bigger)
+				free(buf);
+			buf = bigger;
+		}
+	}
+	close(fd);
+	*data = buf;
+	*size = len;
+	return EXIT_OK;
+}
+
+static int open_write(const char *remote, size_t size, __u8 *status, __u8 *handle)
+{
+	__u8 args[NXT_NAME_LEN + 4];
+	struct nxt_transaction t;
+	int ret;
+
+	name_field(args, remote);
+	put_le32(args + NXT_NAME_LEN, size);
+	ret = system_cmd(&t, NXT_SYS_OPEN_WRITE, args, sizeof(args), "OpenWrite");
+	if (ret)
+		return ret;
+	*status = t.reply[2];
+	*handle = t.reply[3];
+	return EXIT_OK;
+}
+
+int cmd_upload(int argc, char **argv)
+{
+	struct opt opts[] = { { .name = "force" }, {} };
+	__u8 status, handle, *data = NULL;
+	struct nxt_transaction t;
+	size_t size, off, n;
+	const char *remote;
+	char *pos[2];
+	int npos, ret;
+
+	ret = parse_opts("upload", argc, argv, opts, pos, &npos, 1, 2);
+	if (ret)
+		return ret;
+	remote = npos > 1 ? pos[1] : strrchr(pos[0], '/') ? strrchr(pos[0], '/') + 1 : pos[0];
+	ret = check_name("upload", remote);
+	if (ret)
+		return ret;
+	ret = read_local(pos[0], &data, &size);
+	if (ret)
+		return ret;
+
+	ret = open_write(remote, size, &status, &handle);
+	if (ret)
+		goto out;
+	if (status == NXT_STATUS_FILE_EXISTS && opts[0].set) {
+		ret = delete_file(remote, &status);
+		if (ret)
+			goto out;
+		if (status) {
+			ret = brick_error("Delete (--force)", status);
+			goto out;
+		}
+		ret = open_write(remote, size, &status, &handle);
+		if (ret)
+			goto out;
+	}
+	if (status == NXT_STATUS_FILE_EXISTS) {
+		ret = brick_error("OpenWrite", status);
+		fprintf(stderr, "nxtctl: %s is on the brick already; use --force to replace it\n",
+			remote);
+		goto out;
+	}
+	if (status) {
+		ret = brick_error("OpenWrite", status);
+		goto out;
+	}
+
+	for (off = 0; off < size; off += n) {
+		n = size - off;
+		if (n > NXT_WRITE_CHUNK)
+			n = NXT_WRITE_CHUNK;
+		memset(&t, 0, sizeof(t));
+		t.telegram[0] = NXT_SYSTEM_CMD;
+		t.telegram[1] = NXT_SYS_WRITE;
+		t.telegram[2] = handle;
+		memcpy(t.telegram + 3, data + off, n);
+		t.length = 3 + n;
+		ret = transact(&t, "Write");
+		if (ret)
+			goto fail;
+		if (t.reply[2]) {
+			ret = brick_error("Write", t.reply[2]);
+			goto fail;
+		}
+		if ((size_t)(t.reply[4] | t.reply[5] << 8) != n) {
+			fprintf(stderr, "nxtctl: Write: the brick took %u of %zu bytes\n",
+				t.reply[4] | t.reply[5] << 8, n);
+			ret = EXIT_DEVICE;
+			goto fail;
+		}
+	}
+	ret = close_handle(handle, "Close");
+	if (ret)
+		goto out;
+	free(data);
+	return EXIT_OK;
+
+fail:
+	/* Do not leave a half-written file behind. */
+	close_quietly(handle);
+	delete_file(remote, &status);
+out:
+	free(data);
+	return ret;
+}
+
+static int write_all(int fd, const __u8 *buf, size_t len)
+{
+	ssize_t n;
+
+	while (len) {
+		n = write(fd, buf, len);
+		if (n < 0 && errno == EINTR)
+			continue;
+		if (n < 0)
+			return -1;
+		buf += n;
+		len -= n;
+	}
+	return 0;
+}
+
+int cmd_download(int argc, char **argv)
+{
+	struct nxt_transaction t;
+	__u8 field[NXT_NAME_LEN], handle;
+	const char *local;
+	__u32 size, off, n;
+	int npos, ret, fd;
+	char *pos[2];
+
+	ret = parse_opts("download", argc, argv, NULL, pos, &npos, 1, 2);
+	if (ret)
+		return ret;
+	ret = check_name("download", pos[0]);
+	if (ret)
+		return ret;
+	local = npos > 1 ? pos[1] : pos[0];
+
+	name_field(field, pos[0]);
+	ret = system_cmd(&t, NXT_SYS_OPEN_READ, field, sizeof(field), "OpenRead");
+	if (ret)
+		return ret;
+	if (t.reply[2])
+		return brick_error("OpenRead", t.reply[2]);
+	handle = t.reply[3];
+	size = get_le32(t.reply + 4);
+
+	if (!strcmp(local, "-"))
+		fd = STDOUT_FILENO;
+	else
+		fd = open(local, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+	if (fd < 0) {
+		fprintf(stderr, "nxtctl: cannot create %s: %s\n", local, strerror(errno));
+		close_quietly(handle);
+		return EXIT_DEVICE;
+	}
+
+	for (off = 0; off < size; off += n) {
+		n = size - off;
+		if (n > NXT_READ_CHUNK)
+			n = NXT_READ_CHUNK;
+		memset(&t, 0, sizeof(t));
+		t.telegram[0] = NXT_SYSTEM_CMD;
+		t.telegram[1] = NXT_SYS_READ;
+		t.telegram[2] = handle;
+		t.telegram[3] = n;
+		t.telegram[4] = n >> 8;
+		t.length = 5;
+		ret = transact(&t, "Read");
+		if (ret)
+			goto fail;
+		if (t.reply[2]) {
+			ret = brick_error("Read", t.reply[2]);
+			goto fail;
+		}
+		if (t.reply_length < 6 + n) {
+			fprintf(stderr, "nxtctl: Read: short reply (%u bytes for %u data bytes)\n",
+				t.reply_length, n);
+			ret = EXIT_DEVICE;
+			goto fail;
+		}
+		if (write_all(fd, t.reply + 6, n)) {
+			fprintf(stderr, "nxtctl: cannot write %s: %s\n", local, strerror(errno));
+			ret = EXIT_DEVICE;
+			goto fail;
+		}
+	}
+	ret = close_handle(handle, "Close");
+	if (fd != STDOUT_FILENO && close(fd)) {
+		fprintf(stderr, "nxtctl: cannot write %s: %s\n", local, strerror(errno));
+		unlink(local);
+		return EXIT_DEVICE;
+	}
+	return ret;
+
+fail:
+	close_quietly(handle);
+	if (fd != STDOUT_FILENO) {
+		close(fd);
+		unlink(local);
+	}
+	return ret;
+}
+
+int cmd_ls(int argc, char **argv)
+{
+	struct nxt_transaction t;
+	__u8 field[NXT_NAME_LEN], handle;
+	const char *pattern;
+	char name[NXT_NAME_LEN];
+	int npos, ret;
+	char *pos[1];
+
+	ret = parse_opts("ls", argc, argv, NULL, pos, &npos, 0, 1);
+	if (ret)
+		return ret;
+	pattern = npos ? pos[0] : "*.*";
+	ret = check_name("ls", pattern);
+	if (ret)
+		return ret;
+	name_field(field, pattern);
+	ret = system_cmd(&t, NXT_SYS_FIND_FIRST, field, sizeof(field), "FindFirst");
+	if (ret)
+		return ret;
+	if (t.reply[2] == NXT_STATUS_FILE_NOT_FOUND)
+		return EXIT_OK;		/* nothing matches */
+	if (t.reply[2])
+		return brick_error("FindFirst", t.reply[2]);
+	handle = t.reply[3];
+	for (;;) {
+		memcpy(name, t.reply + 4, NXT_NAME_LEN);
+		name[NXT_NAME_LEN - 1] = 0;
+		printf("%8u  %s\n", get_le32(t.reply + 24), name);
+		ret = system_cmd(&t, NXT_SYS_FIND_NEXT, &handle, 1, "FindNext");
+		if (ret)
+			break;
+		if (t.reply[2] == NXT_STATUS_FILE_NOT_FOUND)
+			break;
+		if (t.reply[2]) {
+			ret = brick_error("FindNext", t.reply[2]);
+			break;
+		}
+	}
+	/* The search's handle may be closed already: ignore the answer. */
+	close_quietly(handle);
+	return ret;
+}
+
+int cmd_rm(int argc, char **argv)
+{
+	char *pos[16], what[40];
+	int npos, ret, i;
+	__u8 status;
+
+	ret = parse_opts("rm", argc, argv, NULL, pos, &npos, 1, 16);
+	if (ret)
+		return ret;
+	for (i = 0; i < npos; i++) {
+		ret = check_name("rm", pos[i]);
+		if (ret)
+			return ret;
+	}
+	for (i = 0; i < npos; i++) {
+		ret = delete_file(pos[i], &status);
+		if (ret)
+			return ret;
+		if (status) {
+			snprintf(what, sizeof(what), "Delete %s", pos[i]);
+			return brick_error(what, status);
+		}
+	}
+	return EXIT_OK;
+}

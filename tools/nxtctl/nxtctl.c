@@ -1,0 +1,1240 @@
+// SPDX-License-Identifier: GPL-2.0
+/*
+ * nxtctl: drive a LEGO MINDSTORMS NXT brick through /dev/nxtN.
+ *
+ * Uses only the uapi header <linux/lego_nxt.h>: the typed ioctls for the
+ * direct commands, NXT_IOC_TRANSACT for the system commands and for raw
+ * telegrams. See Documentation/lego/nxtctl.rst.
+ */
+#include <ctype.h>
+#include <errno.h>
+#include <fcntl.h>
+#include <glob.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+#include <sys/ioctl.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "nxtctl.h"
+
+#define DEFAULT_TIMEOUT_MS	1000
+
+int nxt_fd = -1;
+static unsigned int timeout_ms = DEFAULT_TIMEOUT_MS;
+static const char *dev_path;	/* -d */
+static long dev_timeout;	/* -t, 0 for the driver's */
+
+static int open_device(const char *dev, long timeout);
+
+/* The device is opened on first use, after the arguments were checked. */
+static int ensure_device(void)
+{
+	if (nxt_fd >= 0)
+		return EXIT_OK;
+	return open_device(dev_path, dev_timeout);
+}
+
+/* ---- errors ---- */
+
+static const struct {
+	unsigned char status;
+	const char *name;
+} statuses[] = {
+	{ NXT_STATUS_PENDING, "transaction pending" },
+	{ NXT_STATUS_MAILBOX_EMPTY, "mailbox empty" },
+	{ NXT_STATUS_NO_MORE_HANDLES, "no more handles" },
+	{ NXT_STATUS_NO_SPACE, "no space" },
+	{ NXT_STATUS_NO_MORE_FILES, "no more files" },
+	{ NXT_STATUS_EOF_EXPECTED, "end of file expected" },
+	{ NXT_STATUS_END_OF_FILE, "end of file" },
+	{ NXT_STATUS_NOT_LINEAR_FILE, "not a linear file" },
+	{ NXT_STATUS_FILE_NOT_FOUND, "file not found" },
+	{ NXT_STATUS_HANDLE_CLOSED, "handle already closed" },
+	{ NXT_STATUS_NO_LINEAR_SPACE, "no linear space" },
+	{ NXT_STATUS_UNDEFINED_ERROR, "undefined error" },
+	{ NXT_STATUS_FILE_BUSY, "file busy" },
+	{ NXT_STATUS_NO_WRITE_BUFFERS, "no write buffers" },
+	{ NXT_STATUS_APPEND_NOT_POSSIBLE, "append not possible" },
+	{ NXT_STATUS_FILE_FULL, "file full" },
+	{ NXT_STATUS_FILE_EXISTS, "file exists" },
+	{ NXT_STATUS_MODULE_NOT_FOUND, "module not found" },
+	{ NXT_STATUS_OUT_OF_BOUNDS, "out of bounds" },
+	{ NXT_STATUS_ILLEGAL_FILE_NAME, "illegal file name" },
+	{ NXT_STATUS_ILLEGAL_HANDLE, "illegal handle" },
+	{ NXT_STATUS_BT_BUSY, "Bluetooth busy" },
+	{ NXT_STATUS_BT_CONNECT_FAIL, "Bluetooth connection failed" },
+	{ NXT_STATUS_BT_TIMEOUT, "Bluetooth timeout" },
+	{ NXT_STATUS_FILE_TX_TIMEOUT, "file transfer timeout" },
+	{ NXT_STATUS_FILE_TX_DST_EXISTS, "destination file exists" },
+	{ NXT_STATUS_FILE_TX_SRC_MISSING, "source file missing" },
+	{ NXT_STATUS_FILE_TX_STREAM_ERROR, "file transfer stream error" },
+	{ NXT_STATUS_FILE_TX_CLOSE_ERROR, "file transfer close error" },
+	{ NXT_STATUS_REQUEST_FAILED, "request failed" },
+	{ NXT_STATUS_UNKNOWN_OPCODE, "unknown command opcode" },
+	{ NXT_STATUS_INSANE_PACKET, "insane packet" },
+	{ NXT_STATUS_OUT_OF_RANGE, "value out of range (or no such file)" },
+	{ NXT_STATUS_BUS_ERROR, "communication bus error" },
+	{ NXT_STATUS_BUFFER_FULL, "communication buffer full" },
+	{ NXT_STATUS_BAD_CHANNEL, "invalid channel or connection" },
+	{ NXT_STATUS_CHANNEL_BUSY, "channel not configured or busy" },
+	{ NXT_STATUS_NO_PROGRAM, "no program running" },
+	{ NXT_STATUS_BAD_SIZE, "illegal size" },
+	{ NXT_STATUS_BAD_MAILBOX, "illegal mailbox" },
+	{ NXT_STATUS_BAD_FIELD, "invalid field" },
+	{ NXT_STATUS_BAD_PORT, "bad input or output port" },
+	{ NXT_STATUS_NO_MEMORY, "insufficient memory" },
+	{ NXT_STATUS_BAD_ARGUMENTS, "bad arguments" },
+};
+
+const char *status_name(unsigned int status)
+{
+	size_t i;
+
+	for (i = 0; i < ARRAY_SIZE(statuses); i++)
+		if (statuses[i].status == status)
+			return statuses[i].name;
+	return "unknown status";
+}
+
+int brick_error(const char *what, unsigned int status)
+{
+	fprintf(stderr, "nxtctl: %s: %s (status 0x%02x)\n", what,
+		status_name(status), status);
+	return EXIT_BRICK;
+}
+
+int sys_error(const char *what, int err)
+{
+	if (err == ETIMEDOUT)
+		fprintf(stderr, "nxtctl: %s: %s: the brick did not answer within %u ms\n",
+			what, strerror(err), timeout_ms);
+	else if (err == ENODEV)
+		fprintf(stderr, "nxtctl: %s: %s: the brick is gone (unplugged?)\n",
+			what, strerror(err));
+	else
+		fprintf(stderr, "nxtctl: %s: %s\n", what, strerror(err));
+	return EXIT_DEVICE;
+}
+
+static const struct command *find_command(const char *name);
+static void print_usage(FILE *f, const struct command *c);
+
+int usage_error(const char *cmd, const char *fmt, ...)
+{
+	va_list ap;
+
+	fputs("nxtctl: ", stderr);
+	va_start(ap, fmt);
+	vfprintf(stderr, fmt, ap);
+	va_end(ap);
+	fputc('\n', stderr);
+	if (cmd && find_command(cmd))
+		print_usage(stderr, find_command(cmd));
+	else
+		fputs("Try 'nxtctl --help'.\n", stderr);
+	return EXIT_USAGE;
+}
+
+/* ---- transport ---- */
+
+int transact(struct nxt_transaction *t, const char *what)
+{
+	if (ensure_device())
+		return EXIT_DEVICE;
+	if (ioctl(nxt_fd, NXT_IOC_TRANSACT, t) < 0)
+		return sys_error(what, errno);
+	return EXIT_OK;
+}
+
+/*
+ * A system command: @op with @len bytes of arguments. Returns EXIT_DEVICE
+ * after a transport error, else EXIT_OK; the caller checks t->reply[2].
+ */
+int system_cmd(struct nxt_transaction *t, __u8 op, const void *args,
+	       size_t len, const char *what)
+{
+	memset(t, 0, sizeof(*t));
+	t->telegram[0] = NXT_SYSTEM_CMD;
+	t->telegram[1] = op;
+	if (len)
+		memcpy(t->telegram + 2, args, len);
+	t->length = 2 + len;
+	if (transact(t, what))
+		return EXIT_DEVICE;
+	if (t->reply_length < 3) {
+		fprintf(stderr, "nxtctl: %s: short reply (%u bytes)\n", what,
+			t->reply_length);
+		return EXIT_DEVICE;
+	}
+	return EXIT_OK;
+}
+
+/* A typed ioctl: @status points into @arg. */
+static int do_ioctl(unsigned long req, void *arg, const __u8 *status,
+		    const char *what)
+{
+	if (ensure_device())
+		return EXIT_DEVICE;
+	if (ioctl(nxt_fd, req, arg) == 0)
+		return EXIT_OK;
+	if (*status)
+		return brick_error(what, *status);
+	return sys_error(what, errno);
+}
+
+/* ---- argument parsing ---- */
+
+int parse_opts(const char *cmd, int argc, char **argv, struct opt *opts,
+	       char **pos, int *npos, int min, int max)
+{
+	int i, n = 0, no_more = 0;
+	struct opt *o;
+
+	for (i = 0; i < argc; i++) {
+		if (!no_more && !strcmp(argv[i], "--")) {
+			no_more = 1;
+			continue;
+		}
+		if (no_more || strncmp(argv[i], "--", 2)) {
+			if (n >= max)
+				return usage_error(cmd, "%s: too many arguments", cmd);
+			pos[n++] = argv[i];
+			continue;
+		}
+		for (o = opts; o && o->name; o++)
+			if (!strcmp(argv[i] + 2, o->name))
+				break;
+		if (!o || !o->name)
+			return usage_error(cmd, "%s: unknown option '%s'", cmd, argv[i]);
+		o->set = 1;
+		if (o->has_arg) {
+			if (i + 1 >= argc)
+				return usage_error(cmd, "%s: option '%s' needs a value",
+						   cmd, argv[i]);
+			o->arg = argv[++i];
+		}
+	}
+	if (n < min)
+		return usage_error(cmd, "%s: missing arguments", cmd);
+	*npos = n;
+	return EXIT_OK;
+}
+
+static int parse_long(const char *s, long min, long max, long *val)
+{
+	char *end;
+	long v;
+
+	errno = 0;
+	v = strtol(s, &end, 0);
+	if (errno || end == s || *end || v < min || v > max)
+		return -1;
+	*val = v;
+	return 0;
+}
+
+static int num_arg(const char *cmd, const char *what, const char *s, long min,
+		   long max, long *val)
+{
+	if (parse_long(s, min, max, val))
+		return usage_error(cmd, "%s: %s must be a number from %ld to %ld, not '%s'",
+				   cmd, what, min, max, s);
+	return EXIT_OK;
+}
+
+/* Motor ports: A, B, C (0 to 2), "all" where @all allows it. */
+static int motor_port(const char *cmd, const char *s, int all, __u8 *port)
+{
+	if (all && !strcasecmp(s, "all")) {
+		*port = NXT_OUTPUT_ALL;
+		return EXIT_OK;
+	}
+	if (strlen(s) == 1 && toupper((unsigned char)s[0]) >= 'A' &&
+	    toupper((unsigned char)s[0]) <= 'C') {
+		*port = toupper((unsigned char)s[0]) - 'A';
+		return EXIT_OK;
+	}
+	return usage_error(cmd, "%s: motor port must be A, B or C%s, not '%s'",
+			   cmd, all ? " (or all)" : "", s);
+}
+
+/* Sensor ports: 1 to 4 (0 to 3 on the wire). */
+static int sensor_port(const char *cmd, const char *s, __u8 *port)
+{
+	if (strlen(s) == 1 && s[0] >= '1' && s[0] <= '4') {
+		*port = s[0] - '1';
+		return EXIT_OK;
+	}
+	return usage_error(cmd, "%s: sensor port must be 1, 2, 3 or 4, not '%s'",
+			   cmd, s);
+}
+
+int check_name(const char *cmd, const char *name)
+{
+	size_t i, len = strlen(name);
+
+	if (len < 1 || len >= NXT_NAME_LEN)
+		return usage_error(cmd, "%s: a file name on the brick has 1 to %d characters: '%s'",
+				   cmd, NXT_NAME_LEN - 1, name);
+	for (i = 0; i < len; i++)
+		if (name[i] < 0x20 || name[i] > 0x7e)
+			return usage_error(cmd, "%s: file names are printable ASCII: '%s'",
+					   cmd, name);
+	return EXIT_OK;
+}
+
+/* ---- device ---- */
+
+static const char *find_device(void)
+{
+	static char path[64];
+	glob_t g;
+
+	if (glob("/dev/nxt[0-9]*", 0, NULL, &g))
+		return NULL;
+	snprintf(path, sizeof(path), "%s", g.gl_pathv[0]);
+	globfree(&g);
+	return path;
+}
+
+static int open_device(const char *dev, long timeout)
+{
+	__u32 t;
+	int fd;
+
+	if (!dev)
+		dev = getenv("NXT_DEVICE");
+	if (!dev || !*dev) {
+		dev = find_device();
+		if (!dev) {
+			fprintf(stderr, "nxtctl: no NXT brick found (no /dev/nxt* device)\n");
+			return EXIT_DEVICE;
+		}
+	}
+	fd = open(dev, O_RDWR | O_CLOEXEC);
+	if (fd < 0) {
+		fprintf(stderr, "nxtctl: cannot open %s: %s\n", dev, strerror(errno));
+		return EXIT_DEVICE;
+	}
+	nxt_fd = fd;
+	if (timeout > 0) {
+		t = timeout;
+		if (ioctl(nxt_fd, NXT_IOC_SET_TIMEOUT, &t) < 0) {
+			fprintf(stderr, "nxtctl: %s: cannot set the timeout: %s\n",
+				dev, strerror(errno));
+			return EXIT_DEVICE;
+		}
+		timeout_ms = t;
+	} else if (ioctl(nxt_fd, NXT_IOC_GET_TIMEOUT, &t) == 0) {
+		timeout_ms = t;
+	} else {
+		fprintf(stderr, "nxtctl: %s: not an NXT brick: %s\n", dev, strerror(errno));
+		return EXIT_DEVICE;
+	}
+	return EXIT_OK;
+}
+
+/* ---- commands ---- */
+
+static int read_attr(const char *node, const char *attr, char *buf, size_t size)
+{
+	char path[256];
+	FILE *f;
+	size_t n;
+
+	snprintf(path, sizeof(path), "/sys/class/usbmisc/%s/device/%s", node, attr);
+	f = fopen(path, "r");
+	if (!f)
+		goto fail;
+	n = fread(buf, 1, size - 1, f);
+	if (ferror(f)) {
+		fclose(f);
+		goto fail;
+	}
+	fclose(f);
+	buf[n] = 0;
+	while (n && (buf[n - 1] == '\n' || buf[n - 1] == ' '))
+		buf[--n] = 0;
+	return 0;
+fail:
+	snprintf(buf, size, "?");
+	return -1;
+}
+
+static int cmd_list(int argc, char **argv)
+{
+	char *pos[1], name[64], addr[64], fw[32];
+	const char *node;
+	int npos, ret;
+	size_t i;
+	glob_t g;
+
+	ret = parse_opts("list", argc, argv, NULL, pos, &npos, 0, 0);
+	if (ret)
+		return ret;
+	if (glob("/dev/nxt[0-9]*", 0, NULL, &g))
+		return EXIT_OK;
+	for (i = 0; i < g.gl_pathc; i++) {
+		node = strrchr(g.gl_pathv[i], '/') + 1;
+		read_attr(node, "brick_name", name, sizeof(name));
+		read_attr(node, "bt_address", addr, sizeof(addr));
+		read_attr(node, "firmware_version", fw, sizeof(fw));
+		printf("%s\t%s\t%s\t%s\n", g.gl_pathv[i], name, addr, fw);
+	}
+	globfree(&g);
+	return EXIT_OK;
+}
+
+static int get_versions(unsigned int *proto, unsigned int *fw)
+{
+	struct nxt_transaction t;
+	int ret;
+
+	ret = system_cmd(&t, NXT_SYS_GET_VERSIONS, NULL, 0, "GetVersions");
+	if (ret)
+		return ret;
+	if (t.reply[2])
+		return brick_error("GetVersions", t.reply[2]);
+	*proto = t.reply[4] << 8 | t.reply[3];
+	*fw = t.reply[6] << 8 | t.reply[5];
+	return EXIT_OK;
+}
+
+static int cmd_info(int argc, char **argv)
+{
+	struct nxt_battery bat = { 0 };
+	struct nxt_transaction t;
+	unsigned int proto, fw;
+	char *pos[1], name[16];
+	const __u8 *r;
+	int npos, ret;
+
+	ret = parse_opts("info", argc, argv, NULL, pos, &npos, 0, 0);
+	if (ret)
+		return ret;
+	ret = system_cmd(&t, NXT_SYS_GET_DEVICE_INFO, NULL, 0, "GetDeviceInfo");
+	if (ret)
+		return ret;
+	if (t.reply[2])
+		return brick_error("GetDeviceInfo", t.reply[2]);
+	r = t.reply + 3;
+	memcpy(name, r, 15);
+	name[15] = 0;
+	ret = get_versions(&proto, &fw);
+	if (ret)
+		return ret;
+	ret = do_ioctl(NXT_IOC_GET_BATTERY_LEVEL, &bat, &bat.status, "GetBatteryLevel");
+	if (ret)
+		return ret;
+	printf("name: %s\n", name);
+	printf("bt_address: %02x:%02x:%02x:%02x:%02x:%02x\n",
+	       r[15], r[16], r[17], r[18], r[19], r[20]);
+	printf("firmware: %u.%02u\n", fw >> 8, fw & 0xff);
+	printf("protocol: %u.%u\n", proto >> 8, proto & 0xff);
+	printf("battery_mv: %u\n", bat.millivolts);
+	printf("free_flash: %u\n",
+	       (unsigned int)(r[26] | r[27] << 8 | r[28] << 16 | (unsigned int)r[29] << 24));
+	return EXIT_OK;
+}
+
+static int cmd_battery(int argc, char **argv)
+{
+	struct nxt_battery bat = { 0 };
+	int npos, ret;
+	char *pos[1];
+
+	ret = parse_opts("battery", argc, argv, NULL, pos, &npos, 0, 0);
+	if (ret)
+		return ret;
+	ret = do_ioctl(NXT_IOC_GET_BATTERY_LEVEL, &bat, &bat.status, "GetBatteryLevel");
+	if (ret)
+		return ret;
+	printf("%u\n", bat.millivolts);
+	return EXIT_OK;
+}
+
+static int cmd_keep_alive(int argc, char **argv)
+{
+	struct nxt_keep_alive ka = { 0 };
+	int npos, ret;
+	char *pos[1];
+
+	ret = parse_opts("keep-alive", argc, argv, NULL, pos, &npos, 0, 0);
+	if (ret)
+		return ret;
+	ret = do_ioctl(NXT_IOC_KEEP_ALIVE, &ka, &ka.status, "KeepAlive");
+	if (ret)
+		return ret;
+	printf("%u\n", ka.sleep_limit);
+	return EXIT_OK;
+}
+
+static int cmd_tone(int argc, char **argv)
+{
+	struct nxt_tone tone = { 0 };
+	long freq, dur;
+	int npos, ret;
+	char *pos[2];
+
+	ret = parse_opts("tone", argc, argv, NULL, pos, &npos, 2, 2);
+	if (ret)
+		return ret;
+	ret = num_arg("tone", "FREQ_HZ", pos[0], NXT_TONE_MIN_HZ, NXT_TONE_MAX_HZ, &freq);
+	if (ret)
+		return ret;
+	ret = num_arg("tone", "DURATION_MS", pos[1], 0, 65535, &dur);
+	if (ret)
+		return ret;
+	tone.frequency = freq;
+	tone.duration = dur;
+	return do_ioctl(NXT_IOC_PLAY_TONE, &tone, &tone.status, "PlayTone");
+}
+
+static int cmd_play(int argc, char **argv)
+{
+	struct opt opts[] = { { .name = "loop" }, {} };
+	struct nxt_sound_file s = {};
+	int npos, ret;
+	char *pos[1];
+
+	ret = parse_opts("play", argc, argv, opts, pos, &npos, 1, 1);
+	if (ret)
+		return ret;
+	ret = check_name("play", pos[0]);
+	if (ret)
+		return ret;
+	memcpy(s.name, pos[0], strlen(pos[0]));	/* checked: < NXT_NAME_LEN */
+	s.loop = opts[0].set;
+	return do_ioctl(NXT_IOC_PLAY_SOUND_FILE, &s, &s.status, "PlaySoundFile");
+}
+
+static int cmd_stop_sound(int argc, char **argv)
+{
+	struct nxt_status_only s = { 0 };
+	int npos, ret;
+	char *pos[1];
+
+	ret = parse_opts("stop-sound", argc, argv, NULL, pos, &npos, 0, 0);
+	if (ret)
+		return ret;
+	return do_ioctl(NXT_IOC_STOP_SOUND_PLAYBACK, &s, &s.status, "StopSoundPlayback");
+}
+
+static int cmd_motor(int argc, char **argv)
+{
+	struct opt opts[] = {
+		{ .name = "tacho-limit", .has_arg = 1 },
+		{ .name = "brake" },
+		{ .name = "regulated" },
+		{ .name = "sync" },
+		{ .name = "turn-ratio", .has_arg = 1 },
+		{}
+	};
+	struct nxt_output_state o = { 0 };
+	long power, limit = 0, turn = 0;
+	int npos, ret;
+	char *pos[2];
+
+	ret = parse_opts("motor", argc, argv, opts, pos, &npos, 2, 2);
+	if (ret)
+		return ret;
+	ret = motor_port("motor", pos[0], 1, &o.port);
+	if (ret)
+		return ret;
+	if (!strcmp(pos[1], "stop") || !strcmp(pos[1], "coast")) {
+		/* Power off, the motor coasts to a stop. */
+		o.run_state = NXT_RUN_STATE_IDLE;
+		return do_ioctl(NXT_IOC_SET_OUTPUT_STATE, &o, &o.status, "SetOutputState");
+	}
+	if (!strcmp(pos[1], "brake")) {
+		/* Power 0 with the brake and speed regulation: hold still. */
+		o.mode = NXT_MODE_MOTORON | NXT_MODE_BRAKE | NXT_MODE_REGULATED;
+		o.regulation_mode = NXT_REGULATION_MOTOR_SPEED;
+		o.run_state = NXT_RUN_STATE_RUNNING;
+		return do_ioctl(NXT_IOC_SET_OUTPUT_STATE, &o, &o.status, "SetOutputState");
+	}
+	ret = num_arg("motor", "POWER", pos[1], -NXT_POWER_MAX, NXT_POWER_MAX, &power);
+	if (ret)
+		return ret;
+	if (opts[0].set) {
+		ret = num_arg("motor", "--tacho-limit", opts[0].arg, 0, 0x7fffffff, &limit);
+		if (ret)
+			return ret;
+	}
+	if (opts[4].set) {
+		ret = num_arg("motor", "--turn-ratio", opts[4].arg, -NXT_POWER_MAX,
+			      NXT_POWER_MAX, &turn);
+		if (ret)
+			return ret;
+	}
+	if (opts[2].set && opts[3].set)
+		return usage_error("motor", "motor: --regulated and --sync exclude each other");
+	o.power = power;
+	o.mode = NXT_MODE_MOTORON;
+	if (opts[1].set)
+		o.mode |= NXT_MODE_BRAKE;
+	if (opts[2].set || opts[3].set)
+		o.mode |= NXT_MODE_REGULATED;
+	o.regulation_mode = opts[3].set ? NXT_REGULATION_MOTOR_SYNC :
+			    opts[2].set ? NXT_REGULATION_MOTOR_SPEED :
+			    NXT_REGULATION_IDLE;
+	o.turn_ratio = turn;
+	o.run_state = NXT_RUN_STATE_RUNNING;
+	o.tacho_limit = limit;
+	return do_ioctl(NXT_IOC_SET_OUTPUT_STATE, &o, &o.status, "SetOutputState");
+}
+
+static const char *run_state_name(unsigned int s)
+{
+	switch (s) {
+	case NXT_RUN_STATE_IDLE:
+		return "idle";
+	case NXT_RUN_STATE_RAMPUP:
+		return "ramp-up";
+	case NXT_RUN_STATE_RUNNING:
+		return "running";
+	case NXT_RUN_STATE_RAMPDOWN:
+		return "ramp-down";
+	}
+	return "unknown";
+}
+
+static const char *const regulation_names[] = { "idle", "speed", "sync" };
+
+static int cmd_motor_state(int argc, char **argv)
+{
+	struct nxt_output_state o = { 0 };
+	int npos, ret;
+	char *pos[1];
+
+	ret = parse_opts("motor-state", argc, argv, NULL, pos, &npos, 1, 1);
+	if (ret)
+		return ret;
+	ret = motor_port("motor-state", pos[0], 0, &o.port);
+	if (ret)
+		return ret;
+	ret = do_ioctl(NXT_IOC_GET_OUTPUT_STATE, &o, &o.status, "GetOutputState");
+	if (ret)
+		return ret;
+	printf("port: %c\n", 'A' + o.port);
+	printf("power: %d\n", o.power);
+	printf("mode:%s%s%s%s\n", o.mode & NXT_MODE_MOTORON ? " on" : "",
+	       o.mode & NXT_MODE_BRAKE ? " brake" : "",
+	       o.mode & NXT_MODE_REGULATED ? " regulated" : "",
+	       o.mode ? "" : " off");
+	printf("regulation: %s\n", o.regulation_mode < 3 ?
+	       regulation_names[o.regulation_mode] : "unknown");
+	printf("turn_ratio: %d\n", o.turn_ratio);
+	printf("run_state: %s\n", run_state_name(o.run_state));
+	printf("tacho_limit: %u\n", o.tacho_limit);
+	printf("tacho_count: %d\n", o.tacho_count);
+	printf("block_tacho_count: %d\n", o.block_tacho_count);
+	printf("rotation_count: %d\n", o.rotation_count);
+	return EXIT_OK;
+}
+
+static int cmd_reset_motor(int argc, char **argv)
+{
+	struct opt opts[] = { { .name = "relative" }, {} };
+	struct nxt_motor_position m = { 0 };
+	int npos, ret;
+	char *pos[1];
+
+	ret = parse_opts("reset-motor", argc, argv, opts, pos, &npos, 1, 1);
+	if (ret)
+		return ret;
+	ret = motor_port("reset-motor", pos[0], 0, &m.port);
+	if (ret)
+		return ret;
+	m.relative = opts[0].set;
+	return do_ioctl(NXT_IOC_RESET_MOTOR_POSITION, &m, &m.status, "ResetMotorPosition");
+}
+
+static const char *const sensor_types[NXT_SENSOR_TYPES] = {
+	[NXT_SENSOR_NONE] = "none",
+	[NXT_SENSOR_SWITCH] = "touch",
+	[NXT_SENSOR_TEMPERATURE] = "temperature",
+	[NXT_SENSOR_REFLECTION] = "reflection",
+	[NXT_SENSOR_ANGLE] = "angle",
+	[NXT_SENSOR_LIGHT_ACTIVE] = "light-active",
+	[NXT_SENSOR_LIGHT_INACTIVE] = "light-inactive",
+	[NXT_SENSOR_SOUND_DB] = "sound-db",
+	[NXT_SENSOR_SOUND_DBA] = "sound-dba",
+	[NXT_SENSOR_CUSTOM] = "custom",
+	[NXT_SENSOR_LOWSPEED] = "lowspeed",
+	[NXT_SENSOR_LOWSPEED_9V] = "lowspeed-9v",
+};
+
+static const char *const sensor_modes[8] = {
+	"raw", "bool", "transitions", "periods", "percent", "celsius",
+	"fahrenheit", "angle-steps",
+};
+
+static int cmd_sensor_type(int argc, char **argv)
+{
+	struct opt opts[] = { { .name = "slope", .has_arg = 1 }, {} };
+	struct nxt_input_mode m = { 0 };
+	int npos, ret, type = -1, mode = 0;
+	long slope = 0;
+	char *pos[3];
+	int i;
+
+	ret = parse_opts("sensor-type", argc, argv, opts, pos, &npos, 2, 3);
+	if (ret)
+		return ret;
+	ret = sensor_port("sensor-type", pos[0], &m.port);
+	if (ret)
+		return ret;
+	for (i = 0; i < NXT_SENSOR_TYPES; i++)
+		if (!strcasecmp(pos[1], sensor_types[i]))
+			type = i;
+	if (!strcasecmp(pos[1], "switch"))
+		type = NXT_SENSOR_SWITCH;
+	if (!strcasecmp(pos[1], "ultrasonic"))
+		type = NXT_SENSOR_LOWSPEED_9V;
+	if (type < 0)
+		return usage_error("sensor-type", "sensor-type: unknown sensor type '%s'",
+				   pos[1]);
+	if (npos > 2) {
+		mode = -1;
+		for (i = 0; i < 8; i++)
+			if (!strcasecmp(pos[2], sensor_modes[i]))
+				mode = i;
+		if (!strcasecmp(pos[2], "boolean"))
+			mode = 1;
+		if (mode < 0)
+			return usage_error("sensor-type", "sensor-type: unknown sensor mode '%s'",
+					   pos[2]);
+	}
+	if (opts[0].set) {
+		ret = num_arg("sensor-type", "--slope", opts[0].arg, 0, 31, &slope);
+		if (ret)
+			return ret;
+	}
+	m.type = type;
+	m.mode = mode << 5 | slope;
+	return do_ioctl(NXT_IOC_SET_INPUT_MODE, &m, &m.status, "SetInputMode");
+}
+
+static int cmd_sensor(int argc, char **argv)
+{
+	struct nxt_input_values v = { 0 };
+	int npos, ret;
+	char *pos[1];
+
+	ret = parse_opts("sensor", argc, argv, NULL, pos, &npos, 1, 1);
+	if (ret)
+		return ret;
+	ret = sensor_port("sensor", pos[0], &v.port);
+	if (ret)
+		return ret;
+	ret = do_ioctl(NXT_IOC_GET_INPUT_VALUES, &v, &v.status, "GetInputValues");
+	if (ret)
+		return ret;
+	printf("port: %u\n", v.port + 1);
+	printf("type: %s\n", v.type < NXT_SENSOR_TYPES ? sensor_types[v.type] : "unknown");
+	printf("mode: %s\n", sensor_modes[v.mode >> 5]);
+	printf("slope: %u\n", v.mode & 0x1f);
+	printf("valid: %u\n", v.valid);
+	printf("calibrated: %u\n", v.calibrated);
+	printf("raw: %u\n", v.raw);
+	printf("normalized: %u\n", v.normalized);
+	printf("scaled: %d\n", v.scaled);
+	printf("calibrated_value: %d\n", v.calibrated_value);
+	return EXIT_OK;
+}
+
+static int cmd_reset_sensor(int argc, char **argv)
+{
+	struct nxt_input_port p = { 0 };
+	int npos, ret;
+	char *pos[1];
+
+	ret = parse_opts("reset-sensor", argc, argv, NULL, pos, &npos, 1, 1);
+	if (ret)
+		return ret;
+	ret = sensor_port("reset-sensor", pos[0], &p.port);
+	if (ret)
+		return ret;
+	return do_ioctl(NXT_IOC_RESET_INPUT_SCALED_VALUE, &p, &p.status,
+			"ResetInputScaledValue");
+}
+
+static double now_ms(void)
+{
+	struct timespec ts;
+
+	clock_gettime(CLOCK_MONOTONIC, &ts);
+	return ts.tv_sec * 1000.0 + ts.tv_nsec / 1e6;
+}
+
+static void sleep_ms(unsigned int ms)
+{
+	struct timespec ts = { ms / 1000, (ms % 1000) * 1000000L };
+
+	nanosleep(&ts, NULL);
+}
+
+/* The LEGO ultrasonic sensor: I2C address 0x02, register 0x42 (cm). */
+static int cmd_ultrasonic(int argc, char **argv)
+{
+	struct nxt_input_values v = { 0 };
+	struct nxt_input_mode m = { 0 };
+	struct nxt_ls_status st;
+	struct nxt_ls_write w;
+	struct nxt_ls_read r;
+	double deadline;
+	int npos, ret;
+	char *pos[1];
+	__u8 port = 0;
+
+	ret = parse_opts("ultrasonic", argc, argv, NULL, pos, &npos, 1, 1);
+	if (ret)
+		return ret;
+	ret = sensor_port("ultrasonic", pos[0], &port);
+	if (ret)
+		return ret;
+	v.port = port;
+	ret = do_ioctl(NXT_IOC_GET_INPUT_VALUES, &v, &v.status, "GetInputValues");
+	if (ret)
+		return ret;
+	if (v.type != NXT_SENSOR_LOWSPEED_9V) {
+		m.port = port;
+		m.type = NXT_SENSOR_LOWSPEED_9V;
+		m.mode = NXT_SENSOR_MODE_RAW;
+		ret = do_ioctl(NXT_IOC_SET_INPUT_MODE, &m, &m.status, "SetInputMode");
+		if (ret)
+			return ret;
+	}
+	/* The port may need a moment after SetInputMode: retry while busy. */
+	deadline = now_ms() + timeout_ms;
+	for (;;) {
+		memset(&w, 0, sizeof(w));
+		w.port = port;
+		w.tx_length = 2;
+		w.rx_length = 1;
+		w.tx_data[0] = 0x02;
+		w.tx_data[1] = 0x42;
+		if (ioctl(nxt_fd, NXT_IOC_LS_WRITE, &w) == 0)
+			break;
+		if (w.status != NXT_STATUS_CHANNEL_BUSY || now_ms() > deadline)
+			return w.status ? brick_error("LSWrite", w.status) :
+					  sys_error("LSWrite", errno);
+		sleep_ms(20);
+	}
+	for (;;) {
+		memset(&st, 0, sizeof(st));
+		st.port = port;
+		if (ioctl(nxt_fd, NXT_IOC_LS_GET_STATUS, &st) == 0) {
+			if (st.bytes_ready)
+				break;
+		} else if (st.status != NXT_STATUS_PENDING) {
+			return st.status ? brick_error("LSGetStatus", st.status) :
+					   sys_error("LSGetStatus", errno);
+		}
+		if (now_ms() > deadline)
+			return sys_error("LSGetStatus (waiting for the sensor)", ETIMEDOUT);
+		sleep_ms(5);
+	}
+	memset(&r, 0, sizeof(r));
+	r.port = port;
+	ret = do_ioctl(NXT_IOC_LS_READ, &r, &r.status, "LSRead");
+	if (ret)
+		return ret;
+	if (r.length < 1) {
+		fprintf(stderr, "nxtctl: LSRead: the sensor sent no data\n");
+		return EXIT_DEVICE;
+	}
+	printf("%u\n", r.data[0]);
+	return EXIT_OK;
+}
+
+static int mailbox(const char *cmd, const char *s, long max, __u8 *box)
+{
+	long v;
+	int ret;
+
+	ret = num_arg(cmd, "BOX", s, 0, max, &v);
+	if (!ret)
+		*box = v;
+	return ret;
+}
+
+static int cmd_mailbox_send(int argc, char **argv)
+{
+	struct nxt_message m = { 0 };
+	int npos, ret;
+	char *pos[2];
+	size_t len;
+
+	ret = parse_opts("mailbox-send", argc, argv, NULL, pos, &npos, 2, 2);
+	if (ret)
+		return ret;
+	ret = mailbox("mailbox-send", pos[0], NXT_INBOXES - 1, &m.inbox);
+	if (ret)
+		return ret;
+	len = strlen(pos[1]);
+	if (len >= NXT_MESSAGE_MAX)
+		return usage_error("mailbox-send", "mailbox-send: a message has at most %d bytes",
+				   NXT_MESSAGE_MAX - 1);
+	memcpy(m.data, pos[1], len);
+	m.size = len + 1;
+	return do_ioctl(NXT_IOC_MESSAGE_WRITE, &m, &m.status, "MessageWrite");
+}
+
+static int cmd_mailbox_read(int argc, char **argv)
+{
+	struct opt opts[] = { { .name = "remove" }, {} };
+	struct nxt_message m = { 0 };
+	int npos, ret;
+	char *pos[1];
+
+	ret = parse_opts("mailbox-read", argc, argv, opts, pos, &npos, 1, 1);
+	if (ret)
+		return ret;
+	ret = mailbox("mailbox-read", pos[0], NXT_REMOTE_INBOXES - 1, &m.inbox);
+	if (ret)
+		return ret;
+	m.remove = opts[0].set;
+	ret = do_ioctl(NXT_IOC_MESSAGE_READ, &m, &m.status, "MessageRead");
+	if (ret)
+		return ret;
+	/* The message ends in its NUL; print what precedes it. */
+	printf("%.*s\n", (int)strnlen((char *)m.data, m.size), (char *)m.data);
+	return EXIT_OK;
+}
+
+static int cmd_start(int argc, char **argv)
+{
+	struct nxt_program p = {};
+	int npos, ret;
+	char *pos[1];
+
+	ret = parse_opts("start", argc, argv, NULL, pos, &npos, 1, 1);
+	if (ret)
+		return ret;
+	ret = check_name("start", pos[0]);
+	if (ret)
+		return ret;
+	memcpy(p.name, pos[0], strlen(pos[0]));	/* checked: < NXT_NAME_LEN */
+	return do_ioctl(NXT_IOC_START_PROGRAM, &p, &p.status, "StartProgram");
+}
+
+static int cmd_stop(int argc, char **argv)
+{
+	struct nxt_status_only s = { 0 };
+	int npos, ret;
+	char *pos[1];
+
+	ret = parse_opts("stop", argc, argv, NULL, pos, &npos, 0, 0);
+	if (ret)
+		return ret;
+	return do_ioctl(NXT_IOC_STOP_PROGRAM, &s, &s.status, "StopProgram");
+}
+
+static int cmd_current(int argc, char **argv)
+{
+	struct nxt_program p = {};
+	int npos, ret;
+	char *pos[1];
+
+	ret = parse_opts("current", argc, argv, NULL, pos, &npos, 0, 0);
+	if (ret)
+		return ret;
+	ret = do_ioctl(NXT_IOC_GET_CURRENT_PROGRAM_NAME, &p, &p.status,
+		       "GetCurrentProgramName");
+	if (ret)
+		return ret;
+	printf("%.*s\n", NXT_NAME_LEN, p.name);
+	return EXIT_OK;
+}
+
+static int cmd_name(int argc, char **argv)
+{
+	struct nxt_transaction t;
+	__u8 name[16] = { 0 };
+	int npos, ret;
+	char *pos[1];
+	size_t i, len;
+
+	ret = parse_opts("name", argc, argv, NULL, pos, &npos, 1, 1);
+	if (ret)
+		return ret;
+	len = strlen(pos[0]);
+	if (len < 1 || len > 15)
+		return usage_error("name", "name: a brick name has 1 to 15 characters");
+	for (i = 0; i < len; i++)
+		if (pos[0][i] < 0x20 || pos[0][i] > 0x7e)
+			return usage_error("name", "name: a brick name is printable ASCII");
+	memcpy(name, pos[0], len);
+	ret = system_cmd(&t, NXT_SYS_SET_BRICK_NAME, name, sizeof(name), "SetBrickName");
+	if (ret)
+		return ret;
+	if (t.reply[2])
+		return brick_error("SetBrickName", t.reply[2]);
+	return EXIT_OK;
+}
+
+static int hex_digit(int c)
+{
+	if (c >= '0' && c <= '9')
+		return c - '0';
+	c = tolower(c);
+	if (c >= 'a' && c <= 'f')
+		return c - 'a' + 10;
+	return -1;
+}
+
+static int cmd_raw(int argc, char **argv)
+{
+	struct nxt_transaction t = {};
+	const char *s;
+	int i, hi, lo;
+	__u32 k;
+
+	if (argc < 1)
+		return usage_error("raw", "raw: missing arguments");
+	for (i = 0; i < argc; i++) {
+		s = argv[i];
+		if (!strncmp(s, "0x", 2) || !strncmp(s, "0X", 2))
+			s += 2;
+		if (!*s || strlen(s) % 2)
+			return usage_error("raw", "raw: '%s' is not whole bytes in hex", argv[i]);
+		for (; *s; s += 2) {
+			hi = hex_digit((unsigned char)s[0]);
+			lo = hex_digit((unsigned char)s[1]);
+			if (hi < 0 || lo < 0)
+				return usage_error("raw", "raw: '%s' is not hex", argv[i]);
+			if (t.length >= NXT_TELEGRAM_MAX)
+				return usage_error("raw", "raw: a telegram has at most %d bytes",
+						   NXT_TELEGRAM_MAX);
+			t.telegram[t.length++] = hi << 4 | lo;
+		}
+	}
+	if (t.length < NXT_TELEGRAM_MIN)
+		return usage_error("raw", "raw: a telegram has at least %d bytes",
+				   NXT_TELEGRAM_MIN);
+	if (transact(&t, "raw telegram"))
+		return EXIT_DEVICE;
+	for (k = 0; k < t.reply_length; k++)
+		printf("%s%02x", k ? " " : "", t.reply[k]);
+	if (t.reply_length)
+		printf("\n");
+	if (t.reply_length >= 3 && t.reply[2])
+		return brick_error("raw telegram", t.reply[2]);
+	return EXIT_OK;
+}
+
+/* ---- the command table and help ---- */
+
+struct command {
+	const char *name;
+	int (*fn)(int argc, char **argv);
+	const char *args;
+	const char *help;
+};
+
+static int cmd_help(int argc, char **argv);
+
+static const struct command commands[] = {
+	{ "list", cmd_list, "",
+	  "List the bricks present: device, name, Bluetooth address and firmware\n"
+	  "version (from sysfs), one brick a line, separated by tabs.\n" },
+	{ "info", cmd_info, "",
+	  "Print the brick's name, Bluetooth address, firmware and protocol\n"
+	  "versions, battery voltage (mV) and free flash (bytes).\n" },
+	{ "battery", cmd_battery, "",
+	  "Print the battery voltage in millivolts.\n" },
+	{ "keep-alive", cmd_keep_alive, "",
+	  "Reset the brick's sleep timer; print its sleep limit in milliseconds\n"
+	  "(0: never sleeps).\n" },
+	{ "tone", cmd_tone, "FREQ_HZ DURATION_MS",
+	  "Play a tone of 200 to 14000 Hz for 0 to 65535 ms (returns at once).\n" },
+	{ "play", cmd_play, "FILE.rso [--loop]",
+	  "Play a sound file stored on the brick, once or (--loop) until\n"
+	  "stop-sound.\n" },
+	{ "stop-sound", cmd_stop_sound, "",
+	  "Stop playing sound.\n" },
+	{ "motor", cmd_motor,
+	  "PORT POWER [--tacho-limit DEG] [--brake] [--regulated|--sync] [--turn-ratio N]\n"
+	  "       nxtctl motor PORT stop|brake",
+	  "Run the motor on PORT (A, B, C or all) at POWER (-100 to 100), for\n"
+	  "DEG degrees with --tacho-limit (0: no limit). --brake brakes between\n"
+	  "the PWM pulses, --regulated turns on speed regulation, --sync\n"
+	  "synchronises two motors (with --turn-ratio -100 to 100).\n"
+	  "'stop' turns the power off (the motor coasts), 'brake' holds the\n"
+	  "motor still (power 0, brake and regulation on).\n" },
+	{ "motor-state", cmd_motor_state, "PORT",
+	  "Print the state of the motor on PORT (A, B or C): power, mode,\n"
+	  "regulation, run state, tacho limit and the three counters.\n" },
+	{ "reset-motor", cmd_reset_motor, "PORT [--relative]",
+	  "Reset the motor's rotation count, or with --relative its block\n"
+	  "tacho count (relative to the last movement).\n" },
+	{ "sensor-type", cmd_sensor_type, "PORT TYPE [MODE] [--slope N]",
+	  "Set the type and mode of sensor PORT (1 to 4). TYPE: none, touch,\n"
+	  "temperature, reflection, angle, light-active, light-inactive,\n"
+	  "sound-db, sound-dba, custom, lowspeed, lowspeed-9v (alias\n"
+	  "ultrasonic). MODE (default raw): raw, bool, transitions, periods,\n"
+	  "percent, celsius, fahrenheit, angle-steps; --slope 0 to 31.\n" },
+	{ "sensor", cmd_sensor, "PORT",
+	  "Read sensor PORT (1 to 4): type, mode, valid, raw, normalized,\n"
+	  "scaled and calibrated values.\n" },
+	{ "reset-sensor", cmd_reset_sensor, "PORT",
+	  "Reset the scaled value (counters) of sensor PORT.\n" },
+	{ "ultrasonic", cmd_ultrasonic, "PORT",
+	  "Print the distance in cm measured by a LEGO ultrasonic sensor on\n"
+	  "PORT (1 to 4), through LSWrite/LSGetStatus/LSRead (I2C address\n"
+	  "0x02, register 0x42). Sets the port to lowspeed-9v first if needed.\n" },
+	{ "mailbox-send", cmd_mailbox_send, "BOX TEXT",
+	  "Put TEXT (at most 58 bytes) in inbox BOX (0 to 9) of the running\n"
+	  "program.\n" },
+	{ "mailbox-read", cmd_mailbox_read, "BOX [--remove]",
+	  "Print the oldest message of the running program's mailbox BOX\n"
+	  "(0 to 19; 10 to 19 are the outboxes the program writes to), and\n"
+	  "with --remove take it out of the queue.\n" },
+	{ "start", cmd_start, "PROGRAM.rxe",
+	  "Start a program stored on the brick.\n" },
+	{ "stop", cmd_stop, "",
+	  "Stop the running program.\n" },
+	{ "current", cmd_current, "",
+	  "Print the name of the running program.\n" },
+	{ "name", cmd_name, "NEWNAME",
+	  "Rename the brick (1 to 15 printable ASCII characters).\n" },
+	{ "raw", cmd_raw, "HEX...",
+	  "Send one telegram, given as hex bytes (\"01 88\", \"0188\" or 0x01 0x88),\n"
+	  "and print the reply in hex (nothing for the no-reply types 0x80 and\n"
+	  "0x81). A reply with a non-zero status byte exits with 1.\n" },
+	{ "upload", cmd_upload, "LOCAL [REMOTE] [--force]",
+	  "Copy the file LOCAL to the brick as REMOTE (default: the base name\n"
+	  "of LOCAL). --force deletes an existing REMOTE first.\n" },
+	{ "download", cmd_download, "REMOTE [LOCAL]",
+	  "Copy the file REMOTE from the brick to LOCAL (default: REMOTE in\n"
+	  "the current directory; '-' for standard output).\n" },
+	{ "ls", cmd_ls, "[PATTERN]",
+	  "List the files on the brick matching PATTERN (default *.*; also\n"
+	  "NAME.*, *.EXT or a full name): size in bytes and name.\n" },
+	{ "rm", cmd_rm, "NAME",
+	  "Delete the file NAME from the brick.\n" },
+	{ "help", cmd_help, "[COMMAND]",
+	  "Print the help of COMMAND, or the list of commands.\n" },
+};
+
+#define NCOMMANDS	ARRAY_SIZE(commands)
+
+static const struct command *find_command(const char *name)
+{
+	size_t i;
+
+	for (i = 0; i < NCOMMANDS; i++)
+		if (!strcmp(commands[i].name, name))
+			return &commands[i];
+	return NULL;
+}
+
+static void print_usage(FILE *f, const struct command *c)
+{
+	fprintf(f, "usage: nxtctl [-d DEVICE] [-t TIMEOUT_MS] %s%s%s\n", c->name,
+		*c->args ? " " : "", c->args);
+}
+
+static void print_main_help(FILE *f)
+{
+	size_t i;
+
+	fputs("usage: nxtctl [-d DEVICE] [-t TIMEOUT_MS] COMMAND [ARGS...]\n"
+	      "       nxtctl help COMMAND | nxtctl COMMAND --help\n"
+	      "\n"
+	      "Drive a LEGO MINDSTORMS NXT brick through /dev/nxtN.\n"
+	      "\n"
+	      "  -d DEVICE      the brick's device (default: $NXT_DEVICE, else the\n"
+	      "                 first /dev/nxt*)\n"
+	      "  -t TIMEOUT_MS  how long to wait for each reply, 1 to 60000\n"
+	      "                 (default: the driver's, 1000)\n"
+	      "  -h, --help     this help\n"
+	      "\n"
+	      "Commands:\n", f);
+	for (i = 0; i < NCOMMANDS; i++)
+		fprintf(f, "  %s%s%.*s\n", commands[i].name,
+			*commands[i].args ? " " : "",
+			(int)strcspn(commands[i].args, "\n"), commands[i].args);
+	fputs("\n"
+	      "Exit status: 0 success, 1 the brick answered with an error status,\n"
+	      "2 usage error, 3 device, transport or local I/O error.\n"
+	      "See Documentation/lego/nxtctl.rst.\n", f);
+}
+
+static int cmd_help(int argc, char **argv)
+{
+	const struct command *c;
+
+	if (argc == 0) {
+		print_main_help(stdout);
+		return EXIT_OK;
+	}
+	if (argc > 1)
+		return usage_error("help", "help: too many arguments");
+	c = find_command(argv[0]);
+	if (!c)
+		return usage_error(NULL, "unknown command '%s'", argv[0]);
+	print_usage(stdout, c);
+	printf("\n%s", c->help);
+	return EXIT_OK;
+}
+
+int main(int argc, char **argv)
+{
+	const struct command *c;
+	const char *dev = NULL;
+	long timeout = 0;
+	int i, ret;
+
+	for (i = 1; i < argc && argv[i][0] == '-'; i++) {
+		if (!strcmp(argv[i], "-h") || !strcmp(argv[i], "--help")) {
+			print_main_help(stdout);
+			return EXIT_OK;
+		}
+		if (!strcmp(argv[i], "--")) {
+			i++;
+			break;
+		}
+		if (!strcmp(argv[i], "-d") && i + 1 < argc) {
+			dev = argv[++i];
+			continue;
+		}
+		if (strcmp(argv[i], "-t") || i + 1 >= argc)
+			return usage_error(NULL, "unknown or incomplete option '%s'", argv[i]);
+		if (parse_long(argv[++i], 1, 60000, &timeout))
+			return usage_error(NULL, "-t: the timeout is 1 to 60000 ms, not '%s'",
+					   argv[i]);
+	}
+	if (i >= argc)
+		return usage_error(NULL, "no command given");
+	c = find_command(argv[i]);
+	if (!c)
+		return usage_error(NULL, "unknown command '%s'", argv[i]);
+	argc -= i + 1;
+	argv += i + 1;
+	for (i = 0; i < argc; i++) {
+		if (!strcmp(argv[i], "--"))
+			break;
+		if (!strcmp(argv[i], "--help")) {
+			print_usage(stdout, c);
+			printf("\n%s", c->help);
+			return EXIT_OK;
+		}
+	}
+	dev_path = dev;
+	dev_timeout = timeout;
+	ret = c->fn(argc, argv);
+	if (nxt_fd >= 0)
+		close(nxt_fd);
+	if (fflush(stdout) || ferror(stdout)) {
+		fprintf(stderr, "nxtctl: writing the output: %s\n", strerror(errno));
+		return EXIT_DEVICE;
+	}
+	return ret;
+}
