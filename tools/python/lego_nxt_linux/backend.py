@@ -122,9 +122,9 @@ class DevNodeSock:
     """A connection to one brick through its ``/dev/nxtN`` node."""
 
     #: File I/O chunk. A Read of n bytes is answered with at most 58 data
-    #: bytes over USB (the reply is one 64-byte packet), and the firmware
-    #: mishandles larger requests, so chunks stay at 58; a Write telegram
-    #: of 58 data bytes is 61 bytes long and fits a packet too.
+    #: bytes over USB (the reply is one 64-byte packet) while the firmware
+    #: moves on in the file by n, so chunks stay at 58; a Write telegram of
+    #: 58 data bytes is 61 bytes long and fits a packet too.
     bsize = 58
 
     #: Connection type: the latency class nxt-python's motor code uses.
