@@ -11,6 +11,8 @@ debs=(
 	cpio busybox-static kmod util-linux rsync python3 perl libiio-utils
 	dkms udev
 )
+# libusb for pyusb: nxt-python's usb backend in tests/guest/test_nxt_python.py
+debs+=(libusb-1.0-0)
 
 missing=()
 for p in "${debs[@]}"; do

@@ -1,0 +1,11 @@
+# SPDX-License-Identifier: GPL-2.0
+"""nxt-python support for the lego_nxt_usb kernel driver.
+
+Pass :func:`lego_nxt_linux.get_backend` (or a :class:`Backend`) to
+``nxt.locator.find(backends=[...])`` to reach NXT bricks through
+``/dev/nxtN``.
+"""
+from .backend import Backend, DevNodeSock, get_backend, list_devices
+
+__all__ = ["Backend", "DevNodeSock", "get_backend", "list_devices"]
+__version__ = "0.1.0"
