@@ -22,7 +22,7 @@ import traceback
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, '..', 'guest'))
 import ev3  # noqa: E402
-import nxt  # noqa: E402
+import nxtdev as nxt  # noqa: E402
 
 TOOLS = os.path.join(os.environ.get('LEGO_BUILD', ''), 'tools')
 ATTACH = os.path.join(TOOLS, 'lego-ev3-attach')

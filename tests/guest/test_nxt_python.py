@@ -4,13 +4,9 @@ Through lego_nxt_usb's /dev/nxtN with the backend in tools/python
 (lego_nxt_linux), and through nxt-python's own libusb backend once the
 driver is unbound from the brick.
 
-The guest test helpers are a module called `nxt` too (tests/guest/nxt.py),
-so nxt-python is imported here under its own name with the helpers out of
-the way, and an autouse fixture puts its modules in sys.modules while each
-test runs (the locator imports string backends such as "usb" by name).
+The guest test helpers are tests/guest/nxtdev.py; `nxt` is nxt-python.
 """
 import errno
-import importlib
 import os
 import sys
 import termios
@@ -18,62 +14,28 @@ import time
 
 import pytest
 
-import nxt as guest                      # tests/guest/nxt.py
+import nxtdev                            # tests/guest/nxtdev.py
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-TOOLS_PYTHON = os.path.join(guest.TOP, 'tools', 'python')
+TOOLS_PYTHON = os.path.join(nxtdev.TOP, 'tools', 'python')
+sys.path.insert(0, TOOLS_PYTHON)
+
+import nxt                               # noqa: E402  nxt-python, from PyPI
+import nxt.backend.devfile               # noqa: E402
+import nxt.backend.usb                   # noqa: E402
+import nxt.brick                         # noqa: E402
+import nxt.error                         # noqa: E402
+import nxt.locator                       # noqa: E402
+import nxt.motor                         # noqa: E402
+import nxt.sensor                        # noqa: E402
+import nxt.sensor.generic                # noqa: E402
+import lego_nxt_linux                    # noqa: E402
+
+assert lego_nxt_linux.__file__.startswith(TOOLS_PYTHON), lego_nxt_linux.__file__
 
 SERIAL = '001653A0B1C2'
 HOST = '00:16:53:A0:B1:C2'
 SERIAL2 = '0016530D0E0F'
 HOST2 = '00:16:53:0D:0E:0F'
-
-
-def _ours(name):
-    return name == 'nxt' or name.startswith('nxt.')
-
-
-def _import_nxt_python():
-    saved = {k: m for k, m in sys.modules.items() if _ours(k)}
-    old_path = list(sys.path)
-    for k in saved:
-        del sys.modules[k]
-    sys.path[:] = [TOOLS_PYTHON] + [p for p in sys.path
-                                    if os.path.abspath(p or '.') != HERE]
-    try:
-        for name in ('nxt', 'nxt.brick', 'nxt.error', 'nxt.locator', 'nxt.motor',
-                     'nxt.sensor', 'nxt.sensor.generic', 'nxt.backend.usb',
-                     'nxt.backend.devfile',
-                     'lego_nxt_linux'):
-            importlib.import_module(name)
-        mods = {k: m for k, m in sys.modules.items() if _ours(k)}
-    finally:
-        for k in [k for k in sys.modules if _ours(k)]:
-            del sys.modules[k]
-        sys.modules.update(saved)
-        sys.path[:] = old_path
-    return mods
-
-
-NXTPY = _import_nxt_python()
-nxtpy = NXTPY['nxt']
-lego_nxt_linux = sys.modules['lego_nxt_linux']
-assert nxtpy.__file__ != guest.__file__
-assert lego_nxt_linux.__file__.startswith(TOOLS_PYTHON), lego_nxt_linux.__file__
-
-
-@pytest.fixture(autouse=True)
-def nxt_python_modules():
-    saved = {k: m for k, m in sys.modules.items() if _ours(k)}
-    for k in saved:
-        del sys.modules[k]
-    sys.modules.update(NXTPY)
-    try:
-        yield
-    finally:
-        for k in [k for k in sys.modules if _ours(k)]:
-            del sys.modules[k]
-        sys.modules.update(saved)
 
 
 def version_string():
@@ -84,12 +46,12 @@ def version_string():
 def find(**kw):
     """The locator with our backend only, and no configuration file."""
     kw.setdefault('backends', [lego_nxt_linux.get_backend()])
-    return nxtpy.locator.find(config=None, **kw)
+    return nxt.locator.find(config=None, **kw)
 
 
 @pytest.fixture(scope='module')
 def brick():
-    b = guest.Brick('dummy_udc.0', SERIAL)
+    b = nxtdev.Brick('dummy_udc.0', SERIAL)
     b.plug()
     yield b
     b.unplug()
@@ -136,7 +98,7 @@ def test_list_devices_and_sock(brick):
 def test_devfile_backend_cannot_use_the_node(brick):
     """nxt-python's devfile backend wants a tty (Bluetooth framing): refused."""
     with pytest.raises(termios.error) as e:
-        nxtpy.locator.find(backends=['devfile'], filename=brick.node, config=None)
+        nxt.locator.find(backends=['devfile'], filename=brick.node, config=None)
     assert e.value.args[0] == errno.ENOTTY
 
 def test_find_returns_working_brick(brick, nb):
@@ -153,7 +115,7 @@ def test_find_returns_working_brick(brick, nb):
 
 
 def test_find_filters_by_name_host_and_node(brick):
-    other = guest.Brick('dummy_udc.1', SERIAL2, name='Second')
+    other = nxtdev.Brick('dummy_udc.1', SERIAL2, name='Second')
     other.plug()
     try:
         with find(name='Second') as b:
@@ -176,9 +138,9 @@ def test_find_filters_by_name_host_and_node(brick):
             assert b.get_device_info()[0] == 'Second'
         with find(filename=other.node) as b:
             assert b._sock.filename == other.node
-        with pytest.raises(nxtpy.locator.BrickNotFoundError):
+        with pytest.raises(nxt.locator.BrickNotFoundError):
             find(name='Nobody')
-        with pytest.raises(nxtpy.locator.BrickNotFoundError):
+        with pytest.raises(nxt.locator.BrickNotFoundError):
             find(host='00:16:53:FF:FF:FF')
         found = list(find(find_all=True))
         try:
@@ -202,7 +164,7 @@ def test_play_tone(brick, nb):
 
 
 def test_output_state_and_motor(brick, nb, packets):
-    M = nxtpy.motor
+    M = nxt.motor
     nb.set_output_state(M.Port.B, 40, M.Mode.ON, M.RegulationMode.IDLE, 0,
                         M.RunState.RUNNING, 0)
     state = nb.get_output_state(M.Port.B)
@@ -224,7 +186,7 @@ def test_output_state_and_motor(brick, nb, packets):
 
 
 def test_touch_sensor_and_input_values(brick, nb):
-    S = nxtpy.sensor
+    S = nxt.sensor
     touch = S.generic.Touch(nb, S.Port.S1)
     brick.fw.set_touch(0, True)
     assert touch.is_pressed() is True
@@ -237,7 +199,7 @@ def test_touch_sensor_and_input_values(brick, nb):
 
 
 def test_program_and_mailboxes(brick, nb):
-    E = nxtpy.error
+    E = nxt.error
     with pytest.raises(E.NoActiveProgramError):
         nb.get_current_program_name()
     nb.start_program('Demo.rxe')
@@ -303,7 +265,7 @@ def test_file_upload_read_back_and_find(brick, nb, packets):
 
 
 def test_brick_errors_are_nxt_python_exceptions(brick, nb):
-    E = nxtpy.error
+    E = nxt.error
     with pytest.raises(E.FileNotFoundError):
         nb.open_file('Missing.txt', 'rb')
     with pytest.raises(E.FileExistsError):
@@ -319,7 +281,7 @@ def test_brick_errors_are_nxt_python_exceptions(brick, nb):
 
 
 def test_timeout_is_an_oserror():
-    mute = guest.Brick('dummy_udc.1', SERIAL2, hostile='noreply')
+    mute = nxtdev.Brick('dummy_udc.1', SERIAL2, hostile='noreply')
     mute.plug()
     try:
         b = find(backends=[lego_nxt_linux.Backend(devices=[mute.node], timeout_ms=300)])
@@ -348,26 +310,26 @@ def _wait(cond, timeout, what):
 def test_libusb_backend_after_unbind(brick):
     import usb.core
     import usb.util
-    E, M = nxtpy.error, nxtpy.motor
+    E, M = nxt.error, nxt.motor
     intf = brick.interface()
     name = os.path.basename(intf)
     assert os.path.isdir('/dev/bus/usb'), 'libusb needs /dev/bus/usb'
 
     # Bound: nxt-python's own USB backend cannot configure the brick.
     with pytest.raises(usb.core.USBError) as e:
-        nxtpy.locator.find(backends=['usb'], config=None)
+        nxt.locator.find(backends=['usb'], config=None)
     assert e.value.errno == errno.EBUSY
     assert brick.emu.wait_configured(10)
-    assert guest.interface_of(SERIAL) == intf      # still ours after the reset
+    assert nxtdev.interface_of(SERIAL) == intf      # still ours after the reset
 
-    with open(guest.DRIVER + '/unbind', 'w') as f:
+    with open(nxtdev.DRIVER + '/unbind', 'w') as f:
         f.write(name)
     try:
         _wait(lambda: not os.path.exists(brick.node), 5, 'the node outlived the unbind')
         assert brick.node not in lego_nxt_linux.list_devices()
-        with pytest.raises(nxtpy.locator.BrickNotFoundError):
+        with pytest.raises(nxt.locator.BrickNotFoundError):
             find()
-        b = nxtpy.locator.find(backends=['usb'], config=None, host=HOST)
+        b = nxt.locator.find(backends=['usb'], config=None, host=HOST)
         dev = b._sock._dev
         try:
             assert dev.serial_number == SERIAL
@@ -387,9 +349,9 @@ def test_libusb_backend_after_unbind(brick):
             # pyusb keeps the interface claimed until its resources go.
             usb.util.dispose_resources(dev)
     finally:
-        with open(guest.DRIVER + '/bind', 'w') as f:
+        with open(nxtdev.DRIVER + '/bind', 'w') as f:
             f.write(name)
-    brick.node = guest.node_of(SERIAL)
+    brick.node = nxtdev.node_of(SERIAL)
     assert brick.node, 'no node after the bind'
     with find(host=HOST) as b:
         assert b.get_battery_level() == brick.fw.battery_mv

@@ -15,7 +15,7 @@ import time
 
 import pytest
 
-import nxt
+import nxtdev as nxt
 from conftest import module_path
 
 SERIAL = '001653A0B1C2'

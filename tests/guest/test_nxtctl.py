@@ -12,7 +12,7 @@ import time
 
 import pytest
 
-import nxt
+import nxtdev as nxt
 
 SERIAL = '001653C0FFEE'
 SERIAL2 = '0016530D0E0F'
