@@ -118,6 +118,13 @@ static bool label_ok(const char *label)
 /* An exit code for errno after open() of the tty. */
 static int open_error(const char *path, int err)
 {
+	struct stat st;
+
+	/* A file, a directory, on a read-only file system... */
+	if (err != ENOENT && !stat(path, &st) && !S_ISCHR(st.st_mode)) {
+		msg("%s: not a tty", path);
+		return EXIT_NOTTY;
+	}
 	switch (err) {
 	case ENOENT:
 	case ENXIO:
