@@ -236,6 +236,21 @@ def test_attach_on_8250(ev3_module, procs):
         ln.close()
 
 
+def test_hangup_exits_7(ev3_module, procs):
+    """A hangup (what unplugging a USB-serial adapter does) ends the helper
+    with status 7: closing a pty's master hangs up its slave."""
+    master, slave = os.openpty()
+    name = os.ttyname(slave)
+    try:
+        p = start(procs, name)
+        assert wait_ldisc(name, N_LEGOEV3, proc=p) == N_LEGOEV3, p.communicate()
+    finally:
+        os.close(slave)
+        os.close(master)
+    assert wait_exit(p) == 7, p.communicate()
+    assert 'hung up' in p.stderr.read()
+
+
 def test_second_attach_is_refused(nm, procs):
     ln = nm(3)
     p = start(procs, ln.host)
