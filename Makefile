@@ -11,7 +11,8 @@
 #                      systemd units; DESTDIR=, PREFIX=/usr/local, KDIR=
 #   make uninstall     remove what make install installed (same variables)
 #   make dkms-install  copy the sources to /usr/src/lego-mindstorms-VERSION,
-#                      then dkms add, build and install (for the running kernel)
+#                      then dkms add, build and install (for the running kernel,
+#                      or DKMS_KERNEL=KVER)
 #   make dkms-remove   dkms remove --all, and remove those sources
 #   make dkms-source   only copy the sources DKMS builds (DESTDIR= honoured)
 #
@@ -157,6 +158,8 @@ DKMS_NAME := lego-mindstorms
 DKMS_SRC := $(DESTDIR)/usr/src/$(DKMS_NAME)-$(VERSION)
 DKMS_FILES := dkms.conf Makefile Kbuild drivers include
 DKMS ?= dkms
+# DKMS_KERNEL=KVER: build and install for that kernel, not the running one.
+DKMS_K = $(if $(DKMS_KERNEL),-k $(DKMS_KERNEL))
 
 dkms-source:
 	rm -rf $(DKMS_SRC)
@@ -165,10 +168,17 @@ dkms-source:
 		--exclude='*.mod' --exclude='*.mod.c' --exclude='modules.order' \
 		--exclude='Module.symvers' $(DKMS_FILES) | tar -C $(DKMS_SRC) -xf -
 
-dkms-install: dkms-source
+# Again for the same version: the old one is removed first (from every
+# kernel; AUTOINSTALL builds it for the others at their next boot).
+dkms-install:
+	@if [ -n "$$($(DKMS) status -m $(DKMS_NAME) -v $(VERSION))" ]; then \
+		echo "$(DKMS) remove -m $(DKMS_NAME) -v $(VERSION) --all"; \
+		$(DKMS) remove -m $(DKMS_NAME) -v $(VERSION) --all || exit 1; \
+	fi
+	$(MAKE) dkms-source
 	$(DKMS) add -m $(DKMS_NAME) -v $(VERSION)
-	$(DKMS) build -m $(DKMS_NAME) -v $(VERSION)
-	$(DKMS) install -m $(DKMS_NAME) -v $(VERSION)
+	$(DKMS) build -m $(DKMS_NAME) -v $(VERSION) $(DKMS_K)
+	$(DKMS) install -m $(DKMS_NAME) -v $(VERSION) $(DKMS_K)
 
 dkms-remove:
 	$(DKMS) remove -m $(DKMS_NAME) -v $(VERSION) --all

@@ -48,7 +48,7 @@ def listing(root):
 @pytest.fixture(scope='module')
 def src(tmp_path_factory):
     dst = str(tmp_path_factory.mktemp('src') / 'lego')
-    shutil.copytree(TOP, dst, ignore=shutil.ignore_patterns(
+    shutil.copytree(TOP, dst, symlinks=True, ignore=shutil.ignore_patterns(
         '.git', '.build', '*.o', '*.ko', '*.mod', '*.mod.c', '.*.cmd', 'modules.order',
         'Module.symvers', '__pycache__', '.pytest_cache'))
     return dst
@@ -132,3 +132,31 @@ def test_dkms_conf_names_the_built_modules(src):
         assert 'obj-m += %s.o' % n in kbuild, (n, path)
     assert re.search(r'^MAKE\[0\]=".*KDIR=\$\{kernel_source_dir\}', conf, re.M)
     assert re.search(r'^AUTOINSTALL="yes"', conf, re.M)
+
+
+def test_make_dkms_install_twice_and_remove(src, tree):
+    """make dkms-install (again: it replaces the version) and dkms-remove,
+    in a private mount namespace with tmpfs over DKMS's directories."""
+    if os.getuid() != 0 or not shutil.which('dkms') or not shutil.which('unshare'):
+        pytest.skip('needs root, dkms and unshare')
+    kver = krelease(tree)
+    script = r'''
+set -e
+for d in /var/lib/dkms /usr/src /lib/modules; do mount -t tmpfs tmpfs $d; done
+mkdir -p /lib/modules/{k} && ln -s {tree} /lib/modules/{k}/build
+for n in 1 2; do make -s -C {src} dkms-install DKMS_KERNEL={k}; done
+echo "status: $(dkms status)"
+ls /lib/modules/{k}/updates/dkms
+make -s -C {src} dkms-remove
+echo "after: $(dkms status)"
+ls /usr/src /var/lib/dkms
+find /lib/modules -name '*.ko*'
+'''.format(k=kver, tree=tree, src=src)
+    r = subprocess.run(['unshare', '-m', '--propagation', 'private', 'bash', '-c', script],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
+    out = r.stdout
+    status, after = out.split('status: ', 1)[1].split('after: ', 1)
+    assert re.search(r'lego-mindstorms/\S+, %s, \S+: installed' % re.escape(kver), status)
+    assert 'lego_ev3_uart.ko' in status and 'lego_nxt_usb.ko' in status
+    assert '.ko' not in after and 'lego-mindstorms' not in after, after
