@@ -7,6 +7,16 @@
 #   make checkpatch    checkpatch.pl --strict on every source file
 #   make sparse        the modules with sparse (C=2)
 #   make demo          four emulated EV3 sensors and an NXT brick in the test VM
+#   make install       modules (updates/), uapi headers, tools, udev rules and
+#                      systemd units; DESTDIR=, PREFIX=/usr/local, KDIR=
+#   make uninstall     remove what make install installed (same variables)
+#   make dkms-install  copy the sources to /usr/src/lego-mindstorms-VERSION,
+#                      then dkms add, build and install (for the running kernel,
+#                      or DKMS_KERNEL=KVER)
+#   make dkms-remove   dkms remove --all, and remove those sources
+#   make dkms-source   only copy the sources DKMS builds (DESTDIR= honoured)
+#
+# Documentation/lego/install.rst describes installing in detail.
 
 KDIR ?= /lib/modules/$(shell uname -r)/build
 LEGO_SRC := $(CURDIR)
@@ -15,6 +25,7 @@ export LEGO_SRC
 KBUILD_ARGS := -C $(KDIR) M=$(CURDIR) W=1
 
 .PHONY: all modules sparse clean checkpatch check deps vm-run demo help
+.PHONY: install uninstall modules_install dkms-source dkms-install dkms-remove
 
 all: modules
 
@@ -41,4 +52,133 @@ demo:
 	@tests/demo/run.sh
 
 help:
-	@sed -n '3,10p' Makefile
+	@sed -n '3,/^$$/p' Makefile
+
+# --- Installing -----------------------------------------------------------
+#
+# Modules go to /lib/modules/KVER/$(INSTALL_MOD_DIR) (under DESTDIR), where
+# they take precedence over in-tree modules of the same name. depmod runs
+# only for a real install (no DESTDIR): a packaging step runs it on the
+# target. udev reads rules from /etc/udev/rules.d and /usr/lib/udev/rules.d
+# (systemd-udevd 252 also /usr/local/lib/udev/rules.d, older udev and eudev
+# do not): a local install (PREFIX other than /usr) puts them in /etc, a
+# package (PREFIX=/usr) in /usr/lib. systemd reads units from both
+# /usr/local/lib/systemd/system and /usr/lib/systemd/system.
+PREFIX ?= /usr/local
+DESTDIR ?=
+INSTALL_MOD_DIR ?= updates
+INCLUDEDIR ?= $(PREFIX)/include
+ifeq ($(PREFIX),/usr)
+UDEVRULESDIR ?= /usr/lib/udev/rules.d
+else
+UDEVRULESDIR ?= /etc/udev/rules.d
+endif
+SYSTEMDUNITDIR ?= $(PREFIX)/lib/systemd/system
+INSTALL ?= install
+DEPMOD ?= depmod
+
+# The kernel release KDIR builds for, as kbuild installs for it (Debian's
+# headers have another one in include/config/kernel.release).
+KRELEASE = $(or $(shell sed -n 's/^\#define UTS_RELEASE "\(.*\)"/\1/p' \
+	$(KDIR)/include/generated/utsrelease.h 2>/dev/null),$(shell uname -r))
+# A kernel that signs all its modules (CONFIG_MODULE_SIG_ALL) but whose key
+# is not at hand, as with distribution headers: install them unsigned rather
+# than with sign-file's errors (DKMS signs with its own key, see install.rst).
+SIG_KEY = $(shell sed -n 's/^CONFIG_MODULE_SIG_KEY="*\([^"]*\)"*/\1/p' \
+	$(KDIR)/include/config/auto.conf 2>/dev/null)
+NO_SIGN = $(if $(filter-out pkcs11:%,$(SIG_KEY)),$(if $(wildcard $(SIG_KEY) \
+	$(KDIR)/$(SIG_KEY)),,CONFIG_MODULE_SIG_ALL=))
+UAPI_HEADERS := lego_ev3_uart.h lego_nxt.h
+UDEV_RULES = $(notdir $(wildcard tools/udev/*.rules))
+SYSTEMD_UNITS = $(notdir $(wildcard tools/systemd/*.service tools/systemd/*.socket \
+	tools/systemd/*.path tools/systemd/*.timer))
+
+# Kbuild's modules_install (it signs and compresses as the kernel's config
+# says), without the test-only modules: LEGO_TESTS=n leaves out tests/kmod
+# and the KUnit modules. depmod runs here, not in kbuild (which skips it
+# without a System.map, as in distribution headers), and not with a DESTDIR:
+# a package's module indexes are made on the target system.
+INSTALL_KBUILD_ARGS = $(KBUILD_ARGS) LEGO_TESTS=n INSTALL_MOD_DIR=$(INSTALL_MOD_DIR) \
+	$(if $(DESTDIR),INSTALL_MOD_PATH=$(DESTDIR)) DEPMOD=true $(NO_SIGN)
+# Where kbuild puts them: the subdirectory of each in this tree is kept.
+INSTALLED_MODULES = $(DESTDIR)/lib/modules/$(KRELEASE)/$(INSTALL_MOD_DIR)/drivers/lego/ev3/lego_ev3_uart.ko \
+	$(DESTDIR)/lib/modules/$(KRELEASE)/$(INSTALL_MOD_DIR)/drivers/lego/nxt/lego_nxt_usb.ko
+
+modules_install:
+	rm -f modules.order
+	$(MAKE) $(INSTALL_KBUILD_ARGS) modules
+	$(MAKE) $(INSTALL_KBUILD_ARGS) modules_install
+ifeq ($(DESTDIR),)
+	$(DEPMOD) -a $(KRELEASE)
+endif
+
+install: modules_install
+	$(INSTALL) -d $(DESTDIR)$(INCLUDEDIR)/linux
+	$(INSTALL) -m 0644 $(addprefix include/uapi/linux/,$(UAPI_HEADERS)) $(DESTDIR)$(INCLUDEDIR)/linux/
+ifneq ($(wildcard tools/Makefile),)
+	$(MAKE) -C tools install DESTDIR=$(DESTDIR) PREFIX=$(PREFIX)
+endif
+ifneq ($(UDEV_RULES),)
+	$(INSTALL) -d $(DESTDIR)$(UDEVRULESDIR)
+	$(INSTALL) -m 0644 $(addprefix tools/udev/,$(UDEV_RULES)) $(DESTDIR)$(UDEVRULESDIR)/
+endif
+ifneq ($(SYSTEMD_UNITS),)
+	$(INSTALL) -d $(DESTDIR)$(SYSTEMDUNITDIR)
+	$(INSTALL) -m 0644 $(addprefix tools/systemd/,$(SYSTEMD_UNITS)) $(DESTDIR)$(SYSTEMDUNITDIR)/
+endif
+ifeq ($(DESTDIR),)
+	@udevadm control --reload 2>/dev/null || true
+	@systemctl daemon-reload 2>/dev/null || true
+	@getent group lego >/dev/null || { \
+		echo "The udev rules give /dev/nxtN and the EV3 sensor devices to the group lego:"; \
+		echo "  groupadd --system lego && usermod -a -G lego YOUR-USER  (then log in again)"; }
+endif
+
+uninstall:
+	rm -f $(INSTALLED_MODULES) $(addsuffix .xz,$(INSTALLED_MODULES)) \
+		$(addsuffix .zst,$(INSTALLED_MODULES)) $(addsuffix .gz,$(INSTALLED_MODULES))
+	-rmdir -p --ignore-fail-on-non-empty $(sort $(dir $(INSTALLED_MODULES))) 2>/dev/null
+ifeq ($(DESTDIR),)
+	$(DEPMOD) -a $(KRELEASE)
+endif
+	rm -f $(addprefix $(DESTDIR)$(INCLUDEDIR)/linux/,$(UAPI_HEADERS))
+ifneq ($(wildcard tools/Makefile),)
+	$(MAKE) -C tools uninstall DESTDIR=$(DESTDIR) PREFIX=$(PREFIX)
+endif
+	rm -f $(addprefix $(DESTDIR)$(UDEVRULESDIR)/,$(UDEV_RULES))
+	rm -f $(addprefix $(DESTDIR)$(SYSTEMDUNITDIR)/,$(SYSTEMD_UNITS))
+
+# --- DKMS -----------------------------------------------------------------
+#
+# dkms builds a copy of the sources in /usr/src/lego-mindstorms-VERSION:
+# only what the module build needs goes there (no tests, no build output).
+VERSION := $(shell sed -n 's/^PACKAGE_VERSION="\(.*\)"/\1/p' $(CURDIR)/dkms.conf)
+DKMS_NAME := lego-mindstorms
+DKMS_SRC := $(DESTDIR)/usr/src/$(DKMS_NAME)-$(VERSION)
+DKMS_FILES := dkms.conf Makefile Kbuild drivers include
+DKMS ?= dkms
+# DKMS_KERNEL=KVER: build and install for that kernel, not the running one.
+DKMS_K = $(if $(DKMS_KERNEL),-k $(DKMS_KERNEL))
+
+dkms-source:
+	rm -rf $(DKMS_SRC)
+	$(INSTALL) -d $(DKMS_SRC)
+	tar -C $(CURDIR) -cf - --exclude='*.o' --exclude='*.ko' --exclude='.*.cmd' \
+		--exclude='*.mod' --exclude='*.mod.c' --exclude='modules.order' \
+		--exclude='Module.symvers' $(DKMS_FILES) | tar -C $(DKMS_SRC) -xf -
+
+# Again for the same version: the old one is removed first (from every
+# kernel; AUTOINSTALL builds it for the others at their next boot).
+dkms-install:
+	@if [ -n "$$($(DKMS) status -m $(DKMS_NAME) -v $(VERSION))" ]; then \
+		echo "$(DKMS) remove -m $(DKMS_NAME) -v $(VERSION) --all"; \
+		$(DKMS) remove -m $(DKMS_NAME) -v $(VERSION) --all || exit 1; \
+	fi
+	$(MAKE) dkms-source
+	$(DKMS) add -m $(DKMS_NAME) -v $(VERSION)
+	$(DKMS) build -m $(DKMS_NAME) -v $(VERSION) $(DKMS_K)
+	$(DKMS) install -m $(DKMS_NAME) -v $(VERSION) $(DKMS_K)
+
+dkms-remove:
+	$(DKMS) remove -m $(DKMS_NAME) -v $(VERSION) --all
+	rm -rf $(DKMS_SRC)

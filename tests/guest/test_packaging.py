@@ -1,0 +1,286 @@
+"""Packaging: the drivers through DKMS, and loaded on demand.
+
+Runs in the test VM against the test kernel, in a private setup that hides
+the host's files: tmpfs over /lib/modules, /var/lib/dkms and /usr/src, with
+/lib/modules/$(uname -r)/build pointing at the test kernel's tree.
+
+ 1. dkms add, build and install, run on the host by
+    tests/packaging/dkms-prepare.sh (`make check` does it; a dkms build in
+    the emulated guest had not finished after 14 minutes; on the host it
+    takes 8 s)
+    into $LEGO_BUILD/../dkms-SERIES: the guest copies its /var/lib/dkms,
+    /usr/src and /lib/modules into tmpfs at their places, and checks that
+    the modules are in updates/dkms, that dkms status, modinfo and modprobe
+    find them there;
+ 2. with lego_ev3_uart unloaded, TIOCSETD 29 on a pty makes the kernel load
+    it (request_module("tty-ldisc-29") through /proc/sys/kernel/modprobe);
+ 3. with lego_nxt_usb unloaded, plugging the emulated brick makes udevd
+    load it by its modalias, and tools/udev/90-lego-nxt.rules gives
+    /dev/nxtN to the group lego, with the by-serial link;
+ 4. dkms remove --all removes the modules.
+
+The modules that vm-run loaded are unloaded first and loaded again from
+$LEGO_MODULES at the end, so later tests see the usual setup.
+"""
+import fcntl
+import glob
+import grp
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from conftest import loaded, module_path
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), '..', 'emulator'))
+
+TOP = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
+KVER = os.uname().release
+NAME = 'lego-mindstorms'
+MODULES = ['lego_ev3_uart', 'lego_nxt_usb']
+WORK = '/tmp/lego-packaging'
+TIOCSETD = 0x5423
+N_LEGOEV3 = 29
+SERIAL = '0016530A0B0C'
+
+
+def run(cmd, **kw):
+    """Run a command; on failure, the assertion shows its output."""
+    r = subprocess.run(cmd, capture_output=True, text=True, **kw)
+    assert r.returncode == 0, '%s: exit %d\n%s%s' % (' '.join(cmd), r.returncode,
+                                                     r.stdout, r.stderr)
+    return r.stdout
+
+
+def version():
+    with open(os.path.join(TOP, 'dkms.conf')) as f:
+        return re.search(r'^PACKAGE_VERSION="([^"]+)"', f.read(), re.M).group(1)
+
+
+def prepared():
+    """The host-side dkms result for the running kernel."""
+    series = '.'.join(KVER.split('.')[:2])
+    out = os.path.join(os.path.dirname(os.environ.get('LEGO_BUILD', '/nonexistent')),
+                       'dkms-' + series)
+    try:
+        with open(os.path.join(out, 'kernel-release')) as f:
+            ok = f.read().strip() == KVER
+    except OSError:
+        ok = False
+    if not ok:
+        pytest.fail('no dkms build for %s in %s: run tests/packaging/dkms-prepare.sh '
+                    '"$(tests/kernel/build-kernel.sh --tree-only %s)" %s on the host first '
+                    '(make check does)' % (KVER, out, series, out))
+    return out
+
+
+def unload(*names):
+    for name in names:
+        if loaded(name):
+            run(['rmmod', name])
+
+
+def mount_tmpfs(path, mounted):
+    os.makedirs(path, exist_ok=True)
+    run(['mount', '-t', 'tmpfs', '-o', 'mode=0755', 'tmpfs', path])
+    mounted.append(path)
+
+
+def wait_for(cond, timeout):
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if cond():
+            return True
+        time.sleep(0.05)
+    return cond()
+
+
+@pytest.fixture(scope='module')
+def dkms_setup():
+    """The private tmpfs setup, torn down (and vm-run's modules reloaded) at
+    the end of the module."""
+    out = prepared()
+    mounted = []
+    made_fd = False
+    old_modprobe = open('/proc/sys/kernel/modprobe').read().strip()
+    try:
+        for path, copy in (('/lib/modules', 'modules'), ('/var/lib/dkms', 'dkms'),
+                           ('/usr/src', 'src')):
+            mount_tmpfs(path, mounted)
+            run(['cp', '-a', os.path.join(out, copy) + '/.', path])
+        mount_tmpfs(WORK, mounted)
+        # dkms uses <(...), which needs /dev/fd (made by udev or systemd on
+        # a real system, not by the VM's devtmpfs).
+        if not os.path.exists('/dev/fd'):
+            os.symlink('/proc/self/fd', '/dev/fd')
+            made_fd = True
+        moddir = '/lib/modules/' + KVER
+        assert os.path.isfile(os.readlink(moddir + '/build') + '/Makefile')
+        unload('lego_nxt_usb', 'lego_ev3_uart')
+        yield moddir
+    finally:
+        with open('/proc/sys/kernel/modprobe', 'w') as f:
+            f.write(old_modprobe)
+        unload('lego_nxt_usb', 'lego_ev3_uart')
+        if made_fd:
+            os.unlink('/dev/fd')
+        for path in reversed(mounted):
+            subprocess.run(['umount', '-l', path])
+        for name in MODULES:
+            subprocess.run(['insmod', module_path(name)], check=True)
+
+
+@pytest.fixture(scope='module')
+def installed(dkms_setup):
+    """The drivers as dkms installed them (on the host, see the top)."""
+    src = '/usr/src/%s-%s' % (NAME, version())
+    assert os.path.isfile(src + '/dkms.conf')
+    assert not os.path.exists(src + '/tests'), 'the DKMS sources include the tests'
+    return dkms_setup
+
+
+def test_dkms_installs_to_updates_dkms(installed):
+    for name in MODULES:
+        ko = '%s/updates/dkms/%s.ko' % (installed, name)
+        assert os.path.isfile(ko), ko
+        info = run(['modinfo', '-k', KVER, '-F', 'filename', name]).strip()
+        assert info == ko
+        assert run(['modinfo', '-F', 'vermagic', ko]).split()[0] == KVER
+    # No test-only module was installed.
+    kos = sorted(os.path.basename(p) for p in glob.glob(installed + '/updates/**/*.ko',
+                                                          recursive=True))
+    assert kos == sorted(n + '.ko' for n in MODULES)
+    status = run(['dkms', 'status', '-m', NAME, '-v', version()])
+    assert re.search(r'%s.*installed' % KVER, status), status
+
+
+def test_modprobe_loads_the_dkms_copy(installed):
+    assert not loaded('lego_ev3_uart')
+    out = run(['modprobe', '-v', 'lego_ev3_uart'])
+    assert '%s/updates/dkms/lego_ev3_uart.ko' % installed in out, out
+    assert loaded('lego_ev3_uart')
+    run(['modprobe', '-r', 'lego_ev3_uart'])
+    assert not loaded('lego_ev3_uart')
+
+
+@pytest.fixture
+def kernel_modprobe(installed):
+    """/proc/sys/kernel/modprobe pointing at the host's modprobe, logging.
+
+    The kernel runs it with the root of PID 1, the initramfs of the test VM,
+    where the tests' root (the host's) is /host: a wrapper there chroots."""
+    log = os.path.join(WORK, 'modprobe.log')
+    wrapper = os.path.join(WORK, 'modprobe')
+    chroot = '/host' if os.path.isdir('/proc/1/root/host' + WORK) else ''
+    with open(wrapper, 'w') as f:
+        f.write('#!/bin/sh\n'
+                'PATH=/bin:/sbin:/usr/bin:/usr/sbin\n'
+                'echo "$@" >> %s\n' % (chroot + log))
+        if chroot:
+            f.write('exec chroot %s /sbin/modprobe "$@"\n' % chroot)
+        else:
+            f.write('exec /sbin/modprobe "$@"\n')
+    os.chmod(wrapper, 0o755)
+    with open('/proc/sys/kernel/modprobe', 'w') as f:
+        f.write(chroot + wrapper)
+    yield log
+
+
+def test_ldisc_29_loads_lego_ev3_uart(kernel_modprobe):
+    assert not loaded('lego_ev3_uart')
+    master, slave = os.openpty()
+    try:
+        fcntl.ioctl(slave, TIOCSETD, N_LEGOEV3.to_bytes(4, 'little'))
+        assert loaded('lego_ev3_uart'), 'TIOCSETD 29 did not load lego_ev3_uart'
+        fcntl.ioctl(slave, TIOCSETD, (0).to_bytes(4, 'little'))    # back to N_TTY
+    finally:
+        os.close(slave)
+        os.close(master)
+    with open(kernel_modprobe) as f:
+        calls = f.read()
+    assert 'tty-ldisc-29' in calls, calls
+    run(['rmmod', 'lego_ev3_uart'])
+
+
+def alive(pid):
+    """Running (not gone, and not a zombie its new parent never reaps)."""
+    try:
+        with open('/proc/%d/stat' % pid) as f:
+            return f.read().rsplit(')', 1)[1].split()[0] != 'Z'
+    except OSError:
+        return False
+
+
+@pytest.fixture
+def udevd(installed):
+    """systemd-udevd with tools/udev/90-lego-nxt.rules, the group lego in a
+    private copy of /etc/group, its state in /run (a tmpfs in the guest)."""
+    group = os.path.join(WORK, 'group')
+    with open('/etc/group') as f:
+        lines = f.read()
+    gid = None
+    try:
+        gid = grp.getgrnam('lego').gr_gid
+    except KeyError:
+        used = {int(line.split(':')[2]) for line in lines.splitlines() if line.count(':') >= 3}
+        gid = next(g for g in range(990, 100, -1) if g not in used)
+        with open(group, 'w') as f:
+            f.write(lines + 'lego:x:%d:\n' % gid)
+        run(['mount', '--bind', group, '/etc/group'])
+    rules = '/run/udev/rules.d'
+    os.makedirs(rules, exist_ok=True)
+    shutil.copy(os.path.join(TOP, 'tools/udev/90-lego-nxt.rules'), rules)
+    run(['/lib/systemd/systemd-udevd', '--daemon'])
+    try:
+        yield gid
+    finally:
+        # udevadm control refuses to act in a chroot, as the tests run.
+        out = subprocess.run(['pidof', 'systemd-udevd'], capture_output=True, text=True).stdout
+        pids = [int(p) for p in out.split()]
+        for pid in pids:
+            os.kill(pid, signal.SIGTERM)
+        if not wait_for(lambda: not any(alive(p) for p in pids), 20):
+            for pid in pids:
+                os.kill(pid, signal.SIGKILL)
+        os.unlink(os.path.join(rules, '90-lego-nxt.rules'))
+        if os.path.exists(group):
+            subprocess.run(['umount', '/etc/group'])
+
+
+def test_brick_plug_loads_lego_nxt_usb_and_udev_rule(udevd):
+    import nxt
+    import nxt_brick
+    unload('lego_nxt_usb')
+    emu = nxt_brick.RawGadgetBrick(udc='dummy_udc.0', serial=SERIAL)
+    link = '/dev/nxt/by-serial/' + SERIAL
+    emu.start()
+    try:
+        assert emu.wait_configured(15), 'brick not configured'
+        assert wait_for(lambda: loaded('lego_nxt_usb'), 30), \
+            'plugging the brick did not load lego_nxt_usb'
+        node = nxt.node_of(SERIAL, 15)
+        assert node, 'no /dev/nxtN for the brick'
+        assert wait_for(lambda: os.path.exists(link), 15), link + ' missing'
+        assert os.path.realpath(link) == node
+        assert wait_for(lambda: os.stat(node).st_gid == udevd, 15), \
+            'group of %s: %d, not lego (%d)' % (node, os.stat(node).st_gid, udevd)
+        assert os.stat(node).st_mode & 0o777 == 0o660
+    finally:
+        emu.unplug()
+    assert wait_for(lambda: not nxt.interface_of(SERIAL), 15), 'the brick outlived its unplug'
+    assert wait_for(lambda: not os.path.lexists(link), 15), link + ' left behind'
+
+
+def test_dkms_remove_all(installed):
+    unload('lego_nxt_usb', 'lego_ev3_uart')
+    run(['dkms', 'remove', '-m', NAME, '-v', version(), '--all'])
+    for name in MODULES:
+        assert not os.path.exists('%s/updates/dkms/%s.ko' % (installed, name))
+        r = subprocess.run(['modinfo', '-k', KVER, name], capture_output=True, text=True)
+        assert r.returncode != 0, r.stdout
+    assert not os.path.exists('/var/lib/dkms/' + NAME)

@@ -1,0 +1,162 @@
+"""`make install DESTDIR=...` and `make uninstall` (host side, no VM).
+
+Runs on a copy of the checkout (the build writes objects next to the
+sources), against the test kernel's tree when it is built, otherwise the
+running kernel's headers:
+
+  python3 -m pytest -v tests/packaging
+"""
+import os
+import re
+import shutil
+import subprocess
+
+import pytest
+
+TOP = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
+
+
+def kdir():
+    tree = os.environ.get('LEGO_KERNEL_TREE')
+    if tree:
+        return tree
+    r = subprocess.run([os.path.join(TOP, 'tests/kernel/build-kernel.sh'), '--tree-only', '6.12'],
+                       capture_output=True, text=True)
+    if r.returncode == 0 and r.stdout.strip():
+        return r.stdout.strip()
+    build = '/lib/modules/%s/build' % os.uname().release
+    if os.path.isdir(build):
+        return build
+    pytest.skip('no kernel tree: build the test kernel or install the headers')
+
+
+def make(src, *args):
+    r = subprocess.run(['make', '-C', src] + list(args), capture_output=True, text=True)
+    assert r.returncode == 0, 'make %s: exit %d\n%s%s' % (' '.join(args), r.returncode,
+                                                          r.stdout[-3000:], r.stderr[-3000:])
+    return r.stdout + r.stderr
+
+
+def listing(root):
+    files = set()
+    for d, _, names in os.walk(root):
+        for n in names:
+            files.add(os.path.relpath(os.path.join(d, n), root))
+    return files
+
+
+@pytest.fixture(scope='module')
+def src(tmp_path_factory):
+    dst = str(tmp_path_factory.mktemp('src') / 'lego')
+    shutil.copytree(TOP, dst, symlinks=True, ignore=shutil.ignore_patterns(
+        '.git', '.build', '*.o', '*.ko', '*.mod', '*.mod.c', '.*.cmd', 'modules.order',
+        'Module.symvers', '__pycache__', '.pytest_cache'))
+    return dst
+
+
+@pytest.fixture(scope='module')
+def tree():
+    return kdir()
+
+
+def krelease(tree):
+    with open(os.path.join(tree, 'include/generated/utsrelease.h')) as f:
+        return re.search(r'UTS_RELEASE "([^"]+)"', f.read()).group(1)
+
+
+def expected(tree, prefix, udevdir, unitdir, src):
+    kver = krelease(tree)
+    exp = {
+        'lib/modules/%s/updates/drivers/lego/ev3/lego_ev3_uart.ko' % kver,
+        'lib/modules/%s/updates/drivers/lego/nxt/lego_nxt_usb.ko' % kver,
+        prefix + '/include/linux/lego_ev3_uart.h',
+        prefix + '/include/linux/lego_nxt.h',
+    }
+    for r in os.listdir(os.path.join(src, 'tools/udev')):
+        if r.endswith('.rules'):
+            exp.add(udevdir + '/' + r)
+    units = os.path.join(src, 'tools/systemd')
+    if os.path.isdir(units):
+        for u in os.listdir(units):
+            if re.search(r'\.(service|socket|path|timer)$', u):
+                exp.add(unitdir + '/' + u)
+    return exp
+
+
+@pytest.mark.parametrize('prefix,udevdir,unitdir', [
+    ('/usr/local', 'etc/udev/rules.d', 'usr/local/lib/systemd/system'),
+    ('/usr', 'usr/lib/udev/rules.d', 'usr/lib/systemd/system'),
+])
+def test_install_and_uninstall_destdir(src, tree, tmp_path, prefix, udevdir, unitdir):
+    dest = str(tmp_path / 'stage')
+    make(src, 'install', 'KDIR=' + tree, 'DESTDIR=' + dest, 'PREFIX=' + prefix)
+    files = listing(dest)
+    exp = expected(tree, prefix.lstrip('/'), udevdir, unitdir, src)
+    missing = exp - files
+    assert not missing, 'not installed: %s' % sorted(missing)
+    # Nothing else but the tools (under PREFIX) and their documentation.
+    extra = {f for f in files - exp if not f.startswith(prefix.lstrip('/') + '/')}
+    assert not extra, 'installed outside PREFIX: %s' % sorted(extra)
+    # No test-only module, and no module index in a staged install.
+    kos = {f for f in files if f.endswith('.ko')}
+    assert len(kos) == 2, sorted(kos)
+    assert not [f for f in files if os.path.basename(f).startswith('modules.')], \
+        'depmod ran on DESTDIR'
+    make(src, 'uninstall', 'KDIR=' + tree, 'DESTDIR=' + dest, 'PREFIX=' + prefix)
+    left = listing(dest)
+    assert not left & exp, 'left by make uninstall: %s' % sorted(left & exp)
+
+
+def test_dkms_source_has_only_the_build_files(src, tmp_path):
+    dest = str(tmp_path / 'stage')
+    make(src, 'dkms-source', 'DESTDIR=' + dest)
+    with open(os.path.join(src, 'dkms.conf')) as f:
+        ver = re.search(r'^PACKAGE_VERSION="([^"]+)"', f.read(), re.M).group(1)
+    root = os.path.join(dest, 'usr/src/lego-mindstorms-' + ver)
+    assert sorted(os.listdir(root)) == ['Kbuild', 'Makefile', 'dkms.conf', 'drivers', 'include']
+    files = listing(root)
+    assert 'drivers/lego/ev3/ev3_uart_ldisc.c' in files
+    assert 'include/uapi/linux/lego_nxt.h' in files
+    assert not [f for f in files if f.endswith(('.o', '.ko', '.cmd'))]
+
+
+def test_dkms_conf_names_the_built_modules(src):
+    with open(os.path.join(src, 'dkms.conf')) as f:
+        conf = f.read()
+    names = re.findall(r'^BUILT_MODULE_NAME\[(\d)\]="([^"]+)"', conf, re.M)
+    locs = dict(re.findall(r'^BUILT_MODULE_LOCATION\[(\d)\]="([^"]+)"', conf, re.M))
+    assert {n for _, n in names} == {'lego_ev3_uart', 'lego_nxt_usb'}
+    for i, n in names:
+        path = os.path.join(src, locs[i])
+        kbuild = open(os.path.join(path, 'Kbuild')).read()
+        assert 'obj-m += %s.o' % n in kbuild, (n, path)
+    assert re.search(r'^MAKE\[0\]=".*KDIR=\$\{kernel_source_dir\}', conf, re.M)
+    assert re.search(r'^AUTOINSTALL="yes"', conf, re.M)
+
+
+def test_make_dkms_install_twice_and_remove(src, tree):
+    """make dkms-install (again: it replaces the version) and dkms-remove,
+    in a private mount namespace with tmpfs over DKMS's directories."""
+    if os.getuid() != 0 or not shutil.which('dkms') or not shutil.which('unshare'):
+        pytest.skip('needs root, dkms and unshare')
+    kver = krelease(tree)
+    script = r'''
+set -e
+for d in /var/lib/dkms /usr/src /lib/modules; do mount -t tmpfs tmpfs $d; done
+mkdir -p /lib/modules/{k} && ln -s {tree} /lib/modules/{k}/build
+for n in 1 2; do make -s -C {src} dkms-install DKMS_KERNEL={k}; done
+echo "status: $(dkms status)"
+ls /lib/modules/{k}/updates/dkms
+make -s -C {src} dkms-remove
+echo "after: $(dkms status)"
+ls /usr/src /var/lib/dkms
+find /lib/modules -name '*.ko*'
+'''.format(k=kver, tree=tree, src=src)
+    r = subprocess.run(['unshare', '-m', '--propagation', 'private', 'bash', '-c', script],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
+    out = r.stdout
+    status, after = out.split('status: ', 1)[1].split('after: ', 1)
+    assert re.search(r'lego-mindstorms/\S+, %s, \S+: installed' % re.escape(kver), status)
+    assert 'lego_ev3_uart.ko' in status and 'lego_nxt_usb.ko' in status
+    assert '.ko' not in after and 'lego-mindstorms' not in after, after
