@@ -9,6 +9,7 @@
 #   make demo          four emulated EV3 sensors and an NXT brick in the test VM
 #   make install       modules (updates/), uapi headers, tools, udev rules and
 #                      systemd units; DESTDIR=, PREFIX=/usr/local, KDIR=
+#   make install-userspace  the same without the modules (with DKMS)
 #   make uninstall     remove what make install installed (same variables)
 #   make dkms-install  copy the sources to /usr/src/lego-mindstorms-VERSION,
 #                      then dkms add, build and install (for the running kernel,
@@ -25,7 +26,7 @@ export LEGO_SRC
 KBUILD_ARGS := -C $(KDIR) M=$(CURDIR) W=1
 
 .PHONY: all modules sparse clean checkpatch check deps vm-run demo help
-.PHONY: install uninstall modules_install dkms-source dkms-install dkms-remove
+.PHONY: install install-userspace uninstall modules_install dkms-source dkms-install dkms-remove
 
 all: modules
 
@@ -112,7 +113,10 @@ ifeq ($(DESTDIR),)
 	$(DEPMOD) -a $(KRELEASE)
 endif
 
-install: modules_install
+install: modules_install install-userspace
+
+# Everything but the modules: with DKMS, `make dkms-install install-userspace`.
+install-userspace:
 	$(INSTALL) -d $(DESTDIR)$(INCLUDEDIR)/linux
 	$(INSTALL) -m 0644 $(addprefix include/uapi/linux/,$(UAPI_HEADERS)) $(DESTDIR)$(INCLUDEDIR)/linux/
 ifneq ($(wildcard tools/Makefile),)
