@@ -44,3 +44,15 @@ def line(ev3_module):
     left = [d for d in ev3.glob.glob(ev3.CLASS + '/sensor*')
             if ev3.read_attr(d, 'address').split(':')[0] == ln.address]
     assert not left, 'sensor left behind after detach: %s' % left
+
+
+@pytest.fixture(scope='module')
+def brick(request):
+    """An emulated NXT brick on dummy_udc.0, with the test module's SERIAL,
+    plugged in (with its /dev/nxtN) for the module's tests, then unplugged."""
+    import nxtdev
+    b = nxtdev.Brick('dummy_udc.0', request.module.SERIAL)
+    b.plug()
+    yield b
+    b.unplug()
+    assert b.wait_gone(), 'the node outlived the brick'

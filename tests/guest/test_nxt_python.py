@@ -49,15 +49,6 @@ def find(**kw):
     return nxt.locator.find(config=None, **kw)
 
 
-@pytest.fixture(scope='module')
-def brick():
-    b = nxtdev.Brick('dummy_udc.0', SERIAL)
-    b.plug()
-    yield b
-    b.unplug()
-    assert b.wait_gone(), 'the node outlived the brick'
-
-
 @pytest.fixture
 def nb(brick):
     """nxt-python's Brick for the emulated brick, found by the locator."""

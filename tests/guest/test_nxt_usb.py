@@ -23,15 +23,6 @@ SERIAL2 = '0016530D0E0F'
 VERSIONS_REPLY = b'\x02\x88\x00\x7c\x01\x1d\x01'     # firmware 1.29
 
 
-@pytest.fixture(scope='module')
-def brick():
-    b = nxt.Brick('dummy_udc.0', SERIAL)
-    b.plug()
-    yield b
-    b.unplug()
-    assert b.wait_gone(), 'the node outlived the brick'
-
-
 @pytest.fixture
 def fd(brick):
     f = brick.open()

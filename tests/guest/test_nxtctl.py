@@ -25,19 +25,10 @@ COMMANDS = ['list', 'info', 'battery', 'keep-alive', 'tone', 'play', 'stop-sound
             'download', 'ls', 'rm', 'help']
 
 
-@pytest.fixture(scope='module')
-def brick():
-    assert os.access(NXTCTL, os.X_OK), 'nxtctl not built: ' + NXTCTL
-    b = nxt.Brick('dummy_udc.0', SERIAL)
-    b.plug()
-    yield b
-    b.unplug()
-    assert b.wait_gone(), 'the node outlived the brick'
-
-
 @pytest.fixture
 def ctl(brick):
     """Run nxtctl on the brick: ctl(args...) -> CompletedProcess."""
+    assert os.access(NXTCTL, os.X_OK), 'nxtctl not built: ' + NXTCTL
     def run(*args, text=True, timeout=60):
         return subprocess.run([NXTCTL, '-d', brick.node] + [str(a) for a in args],
                               capture_output=True, text=text, timeout=timeout)

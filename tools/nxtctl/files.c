@@ -19,19 +19,6 @@
 
 #define LOCAL_MAX	(16 * 1024 * 1024)	/* far more than the flash holds */
 
-static void put_le32(__u8 *p, __u32 v)
-{
-	p[0] = v;
-	p[1] = v >> 8;
-	p[2] = v >> 16;
-	p[3] = v >> 24;
-}
-
-static __u32 get_le32(const __u8 *p)
-{
-	return p[0] | p[1] << 8 | p[2] << 16 | (__u32)p[3] << 24;
-}
-
 /* A name as the 20-byte NUL-padded field of the system commands. */
 static void name_field(__u8 *field, const char *name)
 {
@@ -211,9 +198,9 @@ int cmd_upload(int argc, char **argv)
 			ret = brick_error("Write", t.reply[2]);
 			goto fail;
 		}
-		if ((size_t)(t.reply[4] | t.reply[5] << 8) != n) {
+		if ((size_t)get_le16(t.reply + 4) != n) {
 			fprintf(stderr, "nxtctl: Write: the brick took %u of %zu bytes\n",
-				t.reply[4] | t.reply[5] << 8, n);
+				get_le16(t.reply + 4), n);
 			ret = EXIT_DEVICE;
 			goto fail;
 		}
@@ -293,8 +280,7 @@ int cmd_download(int argc, char **argv)
 		t.telegram[0] = NXT_SYSTEM_CMD;
 		t.telegram[1] = NXT_SYS_READ;
 		t.telegram[2] = handle;
-		t.telegram[3] = n;
-		t.telegram[4] = n >> 8;
+		put_le16(t.telegram + 3, n);
 		t.length = 5;
 		ret = transact(&t, "Read");
 		if (ret)

@@ -399,8 +399,8 @@ static int get_versions(unsigned int *proto, unsigned int *fw)
 		return ret;
 	if (t.reply[2])
 		return brick_error("GetVersions", t.reply[2]);
-	*proto = t.reply[4] << 8 | t.reply[3];
-	*fw = t.reply[6] << 8 | t.reply[5];
+	*proto = get_le16(t.reply + 3);
+	*fw = get_le16(t.reply + 5);
 	return EXIT_OK;
 }
 
@@ -436,8 +436,7 @@ static int cmd_info(int argc, char **argv)
 	printf("firmware: %u.%02u\n", fw >> 8, fw & 0xff);
 	printf("protocol: %u.%u\n", proto >> 8, proto & 0xff);
 	printf("battery_mv: %u\n", bat.millivolts);
-	printf("free_flash: %u\n",
-	       (unsigned int)(r[26] | r[27] << 8 | r[28] << 16 | (unsigned int)r[29] << 24));
+	printf("free_flash: %u\n", get_le32(r + 26));
 	return EXIT_OK;
 }
 

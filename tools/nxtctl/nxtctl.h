@@ -63,4 +63,29 @@ struct opt {
 int parse_opts(const char *cmd, int argc, char **argv, struct opt *opts,
 	       char **pos, int *npos, int min, int max);
 
+/* Wire data is little-endian whatever the host's byte order. */
+static inline __u16 get_le16(const __u8 *p)
+{
+	return p[0] | p[1] << 8;
+}
+
+static inline __u32 get_le32(const __u8 *p)
+{
+	return p[0] | p[1] << 8 | p[2] << 16 | (__u32)p[3] << 24;
+}
+
+static inline void put_le16(__u8 *p, __u16 v)
+{
+	p[0] = v;
+	p[1] = v >> 8;
+}
+
+static inline void put_le32(__u8 *p, __u32 v)
+{
+	p[0] = v;
+	p[1] = v >> 8;
+	p[2] = v >> 16;
+	p[3] = v >> 24;
+}
+
 #endif /* NXTCTL_H */
