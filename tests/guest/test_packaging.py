@@ -253,7 +253,7 @@ def udevd(installed):
 
 
 def test_brick_plug_loads_lego_nxt_usb_and_udev_rule(udevd):
-    import nxt
+    import nxtdev
     import nxt_brick
     unload('lego_nxt_usb')
     emu = nxt_brick.RawGadgetBrick(udc='dummy_udc.0', serial=SERIAL)
@@ -263,7 +263,7 @@ def test_brick_plug_loads_lego_nxt_usb_and_udev_rule(udevd):
         assert emu.wait_configured(15), 'brick not configured'
         assert wait_for(lambda: loaded('lego_nxt_usb'), 30), \
             'plugging the brick did not load lego_nxt_usb'
-        node = nxt.node_of(SERIAL, 15)
+        node = nxtdev.node_of(SERIAL, 15)
         assert node, 'no /dev/nxtN for the brick'
         assert wait_for(lambda: os.path.exists(link), 15), link + ' missing'
         assert os.path.realpath(link) == node
@@ -272,7 +272,7 @@ def test_brick_plug_loads_lego_nxt_usb_and_udev_rule(udevd):
         assert os.stat(node).st_mode & 0o777 == 0o660
     finally:
         emu.unplug()
-    assert wait_for(lambda: not nxt.interface_of(SERIAL), 15), 'the brick outlived its unplug'
+    assert wait_for(lambda: not nxtdev.interface_of(SERIAL), 15), 'the brick outlived its unplug'
     assert wait_for(lambda: not os.path.lexists(link), 15), link + ' left behind'
 
 
