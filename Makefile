@@ -7,6 +7,7 @@
 #   make checkpatch    checkpatch.pl --strict on every source file
 #   make sparse        the modules with sparse (C=2)
 #   make demo          four emulated EV3 sensors and an NXT brick in the test VM
+#   make bench         benchmarks; writes tests/bench/results.md (BENCH_ARGS=--quick)
 #   make install       modules (updates/), uapi headers, tools, udev rules and
 #                      systemd units; DESTDIR=, PREFIX=/usr/local, KDIR=
 #   make install-userspace  the same without the modules (with DKMS)
@@ -25,7 +26,7 @@ export LEGO_SRC
 
 KBUILD_ARGS := -C $(KDIR) M=$(CURDIR) W=1
 
-.PHONY: all modules sparse clean checkpatch check deps vm-run demo help
+.PHONY: all modules sparse clean checkpatch check deps vm-run demo bench help
 .PHONY: install install-userspace uninstall modules_install dkms-source dkms-install dkms-remove
 
 all: modules
@@ -51,6 +52,9 @@ check:
 
 demo:
 	@tests/demo/run.sh
+
+bench:
+	@tests/bench/run.sh $(BENCH_ARGS)
 
 help:
 	@sed -n '3,/^$$/p' Makefile

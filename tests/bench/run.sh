@@ -1,0 +1,51 @@
+#!/usr/bin/env bash
+# `make bench`: measure the drivers against their physical limits and their
+# peers, and write the figures, each beside its reference, to the results file.
+#
+#   tests/bench/run.sh [--quick] [--results FILE]
+#
+#   --quick          short runs (for trying the benchmarks out; the results file
+#                    then says so)
+#   --results FILE   where to write the results (default tests/bench/results.md)
+#
+# Steps: the protocol-core cost on the host (callgrind: deterministic), then one
+# test VM running the EV3 and the NXT benchmarks (tests/bench/guest-run.sh).
+# Each benchmark writes a JSON file of figures into one directory
+# (.build/bench/<time>/); tests/bench/report.py turns them into the results
+# file and prints them. Timing figures depend on the machine: run it on a quiet
+# one. A missed target is reported, not an error: the exit status is non-zero
+# only when a benchmark could not run.
+set -euo pipefail
+top=$(cd "$(dirname "$0")/../.." && pwd)
+cd "$top"
+
+quick=
+results=$top/tests/bench/results.md
+while [ $# -gt 0 ]; do
+	case "$1" in
+	--quick) quick=--quick; shift ;;
+	--results) results=$2; shift 2 ;;
+	-h|--help) sed -n '2,/^set -e/p' "$0" | sed '$d; s/^# \{0,1\}//'; exit 0 ;;
+	*) echo "bench: unknown option $1 (try --help)" >&2; exit 2 ;;
+	esac
+done
+
+out=${LEGO_BUILD_DIR:-$top/.build}/bench/$(date -u +%Y%m%dT%H%M%SZ)
+mkdir -p "$out"
+fail=0
+
+tests/install-deps.sh >/dev/null
+echo "==> protocol cores on the host (callgrind)"
+tests/bench/proto/run.sh "$out" $quick || { echo "bench: the protocol-core benchmark failed" >&2; fail=1; }
+
+echo "==> the test VM: EV3 and NXT benchmarks"
+if ! tests/vm-run --timeout 2400 --log "$out/console.log" --share "$out" -- \
+	tests/bench/guest-run.sh "$out" $quick; then
+	echo "bench: the VM benchmarks failed (console: $out/console.log)" >&2
+	fail=1
+fi
+tests/scan-console.py "$out/console.log" || fail=1
+
+python3 tests/bench/report.py --out "$results" $quick "$out" || fail=1
+echo "bench: figures in $out, results file $results"
+exit $fail
