@@ -8,7 +8,7 @@
 #
 #   tests/cross-build.sh [OUTDIR] [ARCH...]   OUTDIR: .build (default); ARCH: arm64 armhf
 #
-# Each architecture builds into OUTDIR/cross-ARCH.
+# Each architecture builds from scratch into OUTDIR/cross-ARCH.
 set -uo pipefail
 top=$(cd "$(dirname "$0")/.." && pwd)
 out=${1:-$top/.build}
@@ -26,6 +26,9 @@ for arch in "${arches[@]}"; do
 	fi
 	# shellcheck source=/dev/null
 	. "$(dirname "$tree")/env"
+	# From scratch: an object left from an earlier run would not be
+	# recompiled, and its warnings not shown again.
+	rm -rf "$out/cross-$arch"
 	if ARCH=$KARCH CROSS_COMPILE=$CROSS "$top/tests/build-modules.sh" --sparse "$tree" "$out/cross-$arch"; then
 		echo "cross-build: $arch clean in $((SECONDS - t0)) s" >&2
 	else
