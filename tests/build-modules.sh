@@ -3,6 +3,8 @@
 # with W=1 (and sparse with --sparse), and fail on any compiler or sparse
 # warning.
 #   tests/build-modules.sh [--sparse] KDIR OUTDIR
+# ARCH and CROSS_COMPILE in the environment cross-compile the modules, the
+# uapi check and the tools (tests/cross-build.sh).
 set -euo pipefail
 sparse=
 if [ "${1:-}" = --sparse ]; then
@@ -12,6 +14,7 @@ fi
 kdir=$1
 out=$2
 top=$(cd "$(dirname "$0")/.." && pwd)
+cc=${CROSS_COMPILE:-}gcc
 
 mkdir -p "$out"
 rsync -a --delete --exclude '*.o' --exclude '*.ko' --exclude '.*.cmd' --exclude '*.mod*' \
@@ -31,13 +34,13 @@ if grep -E '(warning|error):' "$log" >&2; then
 fi
 # The guest tests' check of the uapi header, compiled here: a compiler in
 # the emulated guest is slow.
-gcc -Wall -Wextra -Werror -I "$top/include/uapi" -o "$out/uapi-check" "$top/tests/guest/nxt_uapi_check.c"
+"$cc" -Wall -Wextra -Werror -I "$top/include/uapi" -o "$out/uapi-check" "$top/tests/guest/nxt_uapi_check.c"
 # The userspace tools, for the guest tests: $LEGO_BUILD/tools/.
 mkdir -p "$out/tools"
-if ! make -s -C "$top/tools" O="$out/tools" >"$out/tools.log" 2>&1 || grep -E '(warning|error):' "$out/tools.log" >&2; then
+if ! make -s -C "$top/tools" O="$out/tools" CC="$cc" >"$out/tools.log" 2>&1 || grep -E '(warning|error):' "$out/tools.log" >&2; then
 	cat "$out/tools.log" >&2
 	echo "build-modules: the userspace tools did not build cleanly" >&2
 	exit 1
 fi
 n=$(find "$out" -name '*.ko' | wc -l)
-echo "build-modules: $n modules built against $kdir${sparse:+ (sparse clean)}" >&2
+echo "build-modules: $n modules built against $kdir${ARCH:+ for $ARCH}${sparse:+ (sparse clean)}" >&2

@@ -4,6 +4,8 @@
 #  1. installs what it needs (Debian and PyPI packages),
 #  2. builds (or takes from the cache) the 6.12 test kernel,
 #  3. builds the modules against it with W=1 and sparse, and against 6.1,
+#     then cross-compiles them and the tools for arm64 and armhf
+#     (tests/cross-build.sh),
 #  4. runs checkpatch --strict, the packaging tests of tests/packaging and
 #     dkms (on the host) for the guest's packaging test,
 #  5. boots the test VM: every KUnit suite, then the guest tests,
@@ -63,6 +65,7 @@ tree=$(tests/kernel/build-kernel.sh --tree-only "$kver")
 phase "modules for $kver (W=1, sparse)" tests/build-modules.sh --sparse "$tree" "$build/modules-$kver" || summary
 h61=$(newest_61_headers)
 phase "modules for 6.1 (W=1, sparse)" tests/build-modules.sh --sparse "$h61" "$build/modules-6.1-headers"
+phase "cross: arm64, armhf (W=1, sparse)" tests/cross-build.sh "$build"
 phase "checkpatch --strict" tests/checkpatch.sh
 phase "make install, dkms-source (host)" python3 -m pytest -q -p no:cacheprovider tests/packaging
 # For tests/guest/test_packaging.py: a dkms build in the emulated guest is slow.

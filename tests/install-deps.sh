@@ -13,6 +13,9 @@ debs=(
 )
 # libusb for pyusb: nxt-python's usb backend in tests/guest/test_nxt_python.py
 debs+=(libusb-1.0-0)
+# tests/cross-build.sh: the arm64 and armhf cross compilers (with their libc
+# for the userspace tools)
+debs+=(gcc-aarch64-linux-gnu gcc-arm-linux-gnueabihf libc6-dev-arm64-cross libc6-dev-armhf-cross)
 
 missing=()
 for p in "${debs[@]}"; do

@@ -10,6 +10,13 @@
 #include <linux/module.h>
 #include <kunit/visibility.h>
 
+/* 6.12: the unaligned access helpers moved to <linux/unaligned.h>. */
+#ifdef LEGO_HAVE_LINUX_UNALIGNED
+#include <linux/unaligned.h>
+#else
+#include <asm/unaligned.h>
+#endif
+
 #ifdef LEGO_HAVE_STRING_NS
 #define LEGO_IMPORT_KUNIT_NS() MODULE_IMPORT_NS("EXPORTED_FOR_KUNIT_TESTING")
 #else

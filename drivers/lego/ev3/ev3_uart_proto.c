@@ -6,8 +6,8 @@
  * checksum, the XOR of 0xff with every byte before it. The payload length is
  * a power of two given by the header; INFO messages carry one more byte (the
  * info type) between the header and the payload. Multi-byte values are
- * little endian and are assembled byte by byte here, so neither the host's
- * byte order nor its alignment rules matter.
+ * little endian and are read only with get_unaligned_le16/32(), so neither
+ * the host's byte order nor its alignment rules matter.
  *
  * A connection goes SYNC -> INFO -> ACKED -> DATA (see enum ev3_uart_state).
  * Nothing a sensor sends is trusted: every length, mode number, count and
@@ -37,16 +37,6 @@
 #define EV3_UART_F32_1023	0x447fc000	/* 1023.0 */
 
 enum { EV3_UART_STASH_RAW, EV3_UART_STASH_PCT, EV3_UART_STASH_SI };
-
-static u16 ev3_get_le16(const u8 *p)
-{
-	return p[0] | p[1] << 8;
-}
-
-static u32 ev3_get_le32(const u8 *p)
-{
-	return p[0] | p[1] << 8 | p[2] << 16 | (u32)p[3] << 24;
-}
 
 /**
  * ev3_uart_checksum() - compute the checksum of a message
@@ -235,13 +225,13 @@ int ev3_uart_read_value(const struct ev3_uart_mode *mode, const u8 *data,
 		*out = (s8)p[0];
 		return 0;
 	case EV3_UART_DATA_S16:
-		*out = (s16)ev3_get_le16(p);
+		*out = (s16)get_unaligned_le16(p);
 		return 0;
 	case EV3_UART_DATA_S32:
-		*out = (s32)ev3_get_le32(p);
+		*out = (s32)get_unaligned_le32(p);
 		return 0;
 	default:
-		return ev3_uart_f32_to_fixed(ev3_get_le32(p), mode->decimals, out);
+		return ev3_uart_f32_to_fixed(get_unaligned_le32(p), mode->decimals, out);
 	}
 }
 EXPORT_SYMBOL_IF_KUNIT(ev3_uart_read_value);
@@ -514,7 +504,7 @@ static void ev3_uart_cmd(struct ev3_uart_parser *p, const u8 *payload,
 			return ev3_uart_error(p, ev, "SPEED after INFO");
 		if (plen < 4)
 			return ev3_uart_error(p, ev, "short SPEED");
-		speed = ev3_get_le32(payload);
+		speed = get_unaligned_le32(payload);
 		if (speed < EV3_UART_SPEED_MIN || speed > EV3_UART_SPEED_MAX)
 			return ev3_uart_error(p, ev, "speed out of range");
 		s->speed = speed;
@@ -642,8 +632,8 @@ static void ev3_uart_info(struct ev3_uart_parser *p, const u8 *payload,
 			return ev3_uart_error(p, ev, "duplicate range INFO");
 		if (plen < 8)
 			return ev3_uart_error(p, ev, "short range INFO");
-		p->stash[itype - EV3_UART_INFO_RAW][0] = ev3_get_le32(payload);
-		p->stash[itype - EV3_UART_INFO_RAW][1] = ev3_get_le32(payload + 4);
+		p->stash[itype - EV3_UART_INFO_RAW][0] = get_unaligned_le32(payload);
+		p->stash[itype - EV3_UART_INFO_RAW][1] = get_unaligned_le32(payload + 4);
 		p->info_seen |= bit;
 		return;
 	case EV3_UART_INFO_UNITS:

@@ -152,20 +152,12 @@ static size_t enc_data(u8 *buf, u8 mode, const u8 *payload, unsigned int plen)
 	return enc(buf, EV3_UART_MSG_DATA, mode, -1, payload, plen);
 }
 
-static void put_le32(u8 *p, u32 v)
-{
-	p[0] = v;
-	p[1] = v >> 8;
-	p[2] = v >> 16;
-	p[3] = v >> 24;
-}
-
 static size_t enc_range(u8 *buf, u8 mode, u8 itype, const u32 *range)
 {
 	u8 payload[8];
 
-	put_le32(payload, range[0]);
-	put_le32(payload + 4, range[1]);
+	put_unaligned_le32(range[0], payload);
+	put_unaligned_le32(range[1], payload + 4);
 	return enc_info(buf, mode, itype, payload, 8);
 }
 
@@ -207,7 +199,7 @@ static size_t enc_handshake(u8 *buf, const struct tsensor *s)
 
 	len += enc_cmd(buf + len, EV3_UART_CMD_TYPE, &s->type, 1);
 	len += enc_cmd(buf + len, EV3_UART_CMD_MODES, modes, 2);
-	put_le32(speed, 57600);
+	put_unaligned_le32(57600, speed);
 	len += enc_cmd(buf + len, EV3_UART_CMD_SPEED, speed, 4);
 	for (m = s->modes - 1; m >= 0; m--)
 		len += enc_mode(buf + len, s->type, m, &s->mode[m]);

@@ -303,7 +303,7 @@ static int nxt_count_at(const u8 *tg, size_t len, size_t at, size_t size)
 {
 	if (len < at + size)
 		return -1;	/* the firmware would read stale bytes */
-	return size == 1 ? tg[at] : tg[at] | tg[at + 1] << 8;
+	return size == 1 ? tg[at] : get_unaligned_le16(tg + at);
 }
 
 /**
