@@ -666,17 +666,26 @@ static void ev3_uart_close(struct tty_struct *tty)
 
 	spin_lock(&port->lock);
 	port->closing = true;
+	if (port->sensor)
+		port->sensor->gone = true;
+	complete_all(&port->select_done);
+	spin_unlock(&port->lock);
+
+	/*
+	 * An ack_work already running registers its sensor whatever
+	 * @closing says, and a pending reset_work still runs: take the
+	 * sensor only once no work can run any more.
+	 */
+	cancel_delayed_work_sync(&port->ack_work);
+	cancel_delayed_work_sync(&port->keepalive_work);
+	destroy_workqueue(port->wq);
+
+	spin_lock(&port->lock);
 	sd = port->sensor;
 	port->sensor = NULL;
 	if (sd)
 		sd->gone = true;
-	complete_all(&port->select_done);
 	spin_unlock(&port->lock);
-
-	cancel_delayed_work_sync(&port->ack_work);
-	cancel_delayed_work_sync(&port->keepalive_work);
-	/* Runs a pending reset_work, which may still hold a sensor. */
-	destroy_workqueue(port->wq);
 	if (sd)
 		ev3_uart_sensor_destroy(sd);
 
