@@ -3,6 +3,9 @@
 # with W=1 (and sparse with --sparse), and fail on any compiler or sparse
 # warning.
 #   tests/build-modules.sh [--sparse] KDIR OUTDIR
+# ARCH and CROSS_COMPILE from the environment are passed to make (a cross
+# build, e.g. ARCH=arm64 CROSS_COMPILE=aarch64-linux-gnu-); the uapi check
+# and the tools are then built with ${CROSS_COMPILE}gcc.
 set -euo pipefail
 sparse=
 if [ "${1:-}" = --sparse ]; then
@@ -19,7 +22,11 @@ rsync -a --delete --exclude '*.o' --exclude '*.ko' --exclude '.*.cmd' --exclude 
 	"$top/Kbuild" "$top/Makefile" "$top/drivers" "$top/include" "$out/"
 mkdir -p "$out/tests" && rsync -a --delete "$top/tests/kmod" "$out/tests/"
 log=$out/build.log
-if ! make -C "$out" KDIR="$kdir" $sparse modules >"$log" 2>&1; then
+cross=()
+[ -z "${ARCH:-}" ] || cross+=(ARCH="$ARCH")
+[ -z "${CROSS_COMPILE:-}" ] || cross+=(CROSS_COMPILE="$CROSS_COMPILE")
+cc=${CROSS_COMPILE:-}gcc
+if ! make -C "$out" KDIR="$kdir" "${cross[@]}" $sparse modules >"$log" 2>&1; then
 	cat "$log" >&2
 	echo "build-modules: build against $kdir failed" >&2
 	exit 1
@@ -31,10 +38,10 @@ if grep -E '(warning|error):' "$log" >&2; then
 fi
 # The guest tests' check of the uapi header, compiled here: a compiler in
 # the emulated guest is slow.
-gcc -Wall -Wextra -Werror -I "$top/include/uapi" -o "$out/uapi-check" "$top/tests/guest/nxt_uapi_check.c"
+$cc -Wall -Wextra -Werror -I "$top/include/uapi" -o "$out/uapi-check" "$top/tests/guest/nxt_uapi_check.c"
 # The userspace tools, for the guest tests: $LEGO_BUILD/tools/.
 mkdir -p "$out/tools"
-if ! make -s -C "$top/tools" O="$out/tools" >"$out/tools.log" 2>&1 || grep -E '(warning|error):' "$out/tools.log" >&2; then
+if ! make -s -C "$top/tools" O="$out/tools" CC="$cc" >"$out/tools.log" 2>&1 || grep -E '(warning|error):' "$out/tools.log" >&2; then
 	cat "$out/tools.log" >&2
 	echo "build-modules: the userspace tools did not build cleanly" >&2
 	exit 1

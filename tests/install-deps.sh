@@ -13,6 +13,9 @@ debs=(
 )
 # libusb for pyusb: nxt-python's usb backend in tests/guest/test_nxt_python.py
 debs+=(libusb-1.0-0)
+# make check-arm64 (tests/arm64/check.sh): the arm64 VM, the cross compiler,
+# and debootstrap for its root file system.
+debs+=(qemu-system-arm gcc-aarch64-linux-gnu debootstrap qemu-user-static file)
 
 missing=()
 for p in "${debs[@]}"; do
