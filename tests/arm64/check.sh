@@ -66,10 +66,13 @@ summary() {
 	exit $?
 }
 
+# A phase whose stdout (a path) is not wanted; "==> name" still shows.
+quiet() { "$@" >/dev/null; }
+
 phase "install dependencies" tests/install-deps.sh || summary
-phase "arm64 test kernel $kver" nice -n 15 tests/kernel/build-kernel.sh --arch arm64 "$kver" >/dev/null || summary
+phase "arm64 test kernel $kver" quiet nice -n 15 tests/kernel/build-kernel.sh --arch arm64 "$kver" || summary
 tree=$(tests/kernel/build-kernel.sh --tree-only --arch arm64 "$kver")
-phase "arm64 root file system" tests/arm64/mkrootfs.sh >/dev/null || summary
+phase "arm64 root file system" quiet tests/arm64/mkrootfs.sh || summary
 phase "modules, tools for arm64 (W=1)" env ARCH=arm64 CROSS_COMPILE=aarch64-linux-gnu- \
 	tests/build-modules.sh "$tree" "$build/modules-arm64-$kver" || summary
 
