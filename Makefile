@@ -4,6 +4,8 @@
 #
 #   make               build the modules against KDIR (default: the running kernel)
 #   make check         the whole test suite in a QEMU test VM (installs what it needs)
+#   make check-arm64   the KUnit suites and guest tests on an arm64 kernel under
+#                      qemu-system-aarch64 (TCG; slow, not in CI)
 #   make checkpatch    checkpatch.pl --strict on every source file
 #   make sparse        the modules with sparse (C=2)
 #   make demo          four emulated EV3 sensors and an NXT brick in the test VM
@@ -49,6 +51,10 @@ deps:
 
 check:
 	@tests/check.sh
+
+.PHONY: check-arm64
+check-arm64:
+	@tests/arm64/check.sh
 
 demo:
 	@tests/demo/run.sh

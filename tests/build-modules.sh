@@ -22,7 +22,11 @@ rsync -a --delete --exclude '*.o' --exclude '*.ko' --exclude '.*.cmd' --exclude 
 	"$top/Kbuild" "$top/Makefile" "$top/drivers" "$top/include" "$out/"
 mkdir -p "$out/tests" && rsync -a --delete "$top/tests/kmod" "$out/tests/"
 log=$out/build.log
-if ! make -C "$out" KDIR="$kdir" $sparse modules >"$log" 2>&1; then
+cross=()
+[ -z "${ARCH:-}" ] || cross+=(ARCH="$ARCH")
+[ -z "${CROSS_COMPILE:-}" ] || cross+=(CROSS_COMPILE="$CROSS_COMPILE")
+cc=${CROSS_COMPILE:-}gcc
+if ! make -C "$out" KDIR="$kdir" "${cross[@]}" $sparse modules >"$log" 2>&1; then
 	cat "$log" >&2
 	echo "build-modules: build against $kdir failed" >&2
 	exit 1

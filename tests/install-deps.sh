@@ -16,6 +16,9 @@ debs+=(libusb-1.0-0)
 # tests/cross-build.sh: the arm64 and armhf cross compilers (with their libc
 # for the userspace tools)
 debs+=(gcc-aarch64-linux-gnu gcc-arm-linux-gnueabihf libc6-dev-arm64-cross libc6-dev-armhf-cross)
+# make check-arm64 (tests/arm64/check.sh): the arm64 VM, the cross compiler,
+# and debootstrap for its root file system.
+debs+=(qemu-system-arm debootstrap qemu-user-static file)
 
 missing=()
 for p in "${debs[@]}"; do
