@@ -25,7 +25,6 @@ log=$out/build.log
 cross=()
 [ -z "${ARCH:-}" ] || cross+=(ARCH="$ARCH")
 [ -z "${CROSS_COMPILE:-}" ] || cross+=(CROSS_COMPILE="$CROSS_COMPILE")
-cc=${CROSS_COMPILE:-}gcc
 if ! make -C "$out" KDIR="$kdir" "${cross[@]}" $sparse modules >"$log" 2>&1; then
 	cat "$log" >&2
 	echo "build-modules: build against $kdir failed" >&2
