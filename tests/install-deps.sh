@@ -13,6 +13,8 @@ debs=(
 )
 # libusb for pyusb: nxt-python's usb backend in tests/guest/test_nxt_python.py
 debs+=(libusb-1.0-0)
+# libusb headers and pkg-config for the NXT benchmark's C client (tests/bench/nxt)
+debs+=(libusb-1.0-0-dev pkg-config)
 
 missing=()
 for p in "${debs[@]}"; do
