@@ -146,6 +146,18 @@ def run_nxt_python(clients, seconds):
             'max_us': round(all_lat[-1] * 1e6) if all_lat else 0, 'first_error': first[0]}
 
 
+def clocksource():
+    """The guest's clocksource and whether high-resolution timers are on."""
+    try:
+        with open('/sys/devices/system/clocksource/clocksource0/current_clocksource') as f:
+            cs = f.read().strip()
+        with open('/proc/timer_list') as f:
+            res = next((int(line.split()[1]) for line in f if '.resolution:' in line), 0)
+    except (OSError, ValueError, IndexError):
+        return 'unknown'
+    return '%s, timer resolution %g ms' % (cs, res / 1e6)
+
+
 def wait_for(cond, timeout, what):
     deadline = time.monotonic() + timeout
     while not cond():
@@ -210,7 +222,7 @@ def figures(results, args):
                 reference, ref_tps, ref_p50 = ('firmware ceiling: one command per 1 ms tick',
                                                FIRMWARE_CEILING_TPS, None)
             else:
-                reference, ref_tps, ref_p50 = ('C libusb client, %d clients' % n,
+                reference, ref_tps, ref_p50 = ('C libusb client, %d client%s' % (n, 's' * (n > 1)),
                                                ref['tps'], ref['p50_us'] / 1e3)
             base = 'NXT GetBatteryLevel, %s, %d client%s' % (LABELS[path], n, 's' * (n > 1))
             figs.append({'name': base + ': rate', 'value': r['tps'], 'unit': 'transactions/s',
@@ -222,7 +234,7 @@ def figures(results, args):
                          'reference_value': ref_p50 if ref_p50 is not None else 6,
                          'target': None, 'met': None, 'detail': detail})
             figs.append({'name': base + ': latency p99', 'value': round(r['p99_us'] / 1e3, 3),
-                         'unit': 'ms', 'reference': 'C libusb client p99, %d clients' % n,
+                         'unit': 'ms', 'reference': 'C libusb client p99, %d client%s' % (n, 's' * (n > 1)),
                          'reference_value': round(ref['p99_us'] / 1e3, 3),
                          'target': None, 'met': None, 'detail': detail})
     errors = sum(r['errors'] for r in results.values())
@@ -277,6 +289,10 @@ def main():
             'whole run %.0f s on %s, kernel %s.' % (BATTERY_MV, args.seconds,
                                                       time.monotonic() - started,
                                                       platform.machine(), platform.release()),
+            'Guest clocksource: %s. With refined-jiffies (no ACPI in the test kernel, so no '
+            'HPET/PM timer to calibrate the TSC) high-resolution timers are off and '
+            'dummy_hcd\'s 1 ms frame timer, like every timer, fires on 4 ms jiffies: '
+            'latencies come in multiples of 4 ms.' % clocksource(),
         ],
     }
     path = os.path.join(args.out, 'nxt.json')
