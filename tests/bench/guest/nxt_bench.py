@@ -212,6 +212,7 @@ def figures(results, args):
     figs = []
     for n in args.clients:
         ref = results[('libusb', n)]
+        plural = 's' * (n > 1)
         for path in ('dev', 'nxt-python', 'libusb'):
             r = results[(path, n)]
             detail = ('%d transactions in %.1f s, %d errors%s; p50 %.2f ms, p99 %.2f ms, '
@@ -222,9 +223,9 @@ def figures(results, args):
                 reference, ref_tps, ref_p50 = ('firmware ceiling: one command per 1 ms tick',
                                                FIRMWARE_CEILING_TPS, None)
             else:
-                reference, ref_tps, ref_p50 = ('C libusb client, %d client%s' % (n, 's' * (n > 1)),
+                reference, ref_tps, ref_p50 = ('C libusb client, %d client%s' % (n, plural),
                                                ref['tps'], ref['p50_us'] / 1e3)
-            base = 'NXT GetBatteryLevel, %s, %d client%s' % (LABELS[path], n, 's' * (n > 1))
+            base = 'NXT GetBatteryLevel, %s, %d client%s' % (LABELS[path], n, plural)
             figs.append({'name': base + ': rate', 'value': r['tps'], 'unit': 'transactions/s',
                          'reference': reference, 'reference_value': ref_tps,
                          'target': None, 'met': None, 'detail': detail})
@@ -234,7 +235,8 @@ def figures(results, args):
                          'reference_value': ref_p50 if ref_p50 is not None else 6,
                          'target': None, 'met': None, 'detail': detail})
             figs.append({'name': base + ': latency p99', 'value': round(r['p99_us'] / 1e3, 3),
-                         'unit': 'ms', 'reference': 'C libusb client p99, %d client%s' % (n, 's' * (n > 1)),
+                         'unit': 'ms',
+                         'reference': 'C libusb client p99, %d client%s' % (n, plural),
                          'reference_value': round(ref['p99_us'] / 1e3, 3),
                          'target': None, 'met': None, 'detail': detail})
     errors = sum(r['errors'] for r in results.values())
