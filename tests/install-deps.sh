@@ -19,6 +19,8 @@ debs+=(gcc-aarch64-linux-gnu gcc-arm-linux-gnueabihf libc6-dev-arm64-cross libc6
 # make check-arm64 (tests/arm64/check.sh): the arm64 VM, the cross compiler,
 # and debootstrap for its root file system.
 debs+=(qemu-system-arm debootstrap qemu-user-static file)
+# libusb headers and pkg-config for the NXT benchmark's C client (tests/bench/nxt)
+debs+=(libusb-1.0-0-dev pkg-config)
 
 missing=()
 for p in "${debs[@]}"; do
