@@ -63,7 +63,7 @@ phase "test kernel $kver" tests/kernel/build-kernel.sh "$kver" >/dev/null || sum
 tree=$(tests/kernel/build-kernel.sh --tree-only "$kver")
 phase "modules for $kver (W=1, sparse)" tests/build-modules.sh --sparse "$tree" "$build/modules-$kver" || summary
 h61=$(newest_61_headers)
-phase "modules for 6.1 (W=1, sparse)" tests/build-modules.sh --sparse "$h61" "$build/modules-6.1-headers"
+phase "modules, 6.1 headers (W=1, sparse)" tests/build-modules.sh --sparse "$h61" "$build/modules-6.1-headers"
 phase "checkpatch --strict" tests/checkpatch.sh
 phase "make install, dkms-source (host)" env LEGO_KERNEL_TREE="$tree" \
 	python3 -m pytest -q -p no:cacheprovider tests/packaging
