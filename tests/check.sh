@@ -12,7 +12,8 @@
 #  6. scans the guest console for splats,
 #  7. prints the time of each phase and one line "N passed, N failed".
 #
-# KVER=6.12 is the test kernel series; LEGO_CACHE moves the kernel cache.
+# KVER=6.12 is the test kernel series (KVER=6.1: the 6.1 test kernel, every
+# phase against it); LEGO_CACHE moves the kernel cache.
 set -uo pipefail
 top=$(cd "$(dirname "$0")/.." && pwd)
 cd "$top"
@@ -64,10 +65,11 @@ phase "test kernel $kver" tests/kernel/build-kernel.sh "$kver" >/dev/null || sum
 tree=$(tests/kernel/build-kernel.sh --tree-only "$kver")
 phase "modules for $kver (W=1, sparse)" tests/build-modules.sh --sparse "$tree" "$build/modules-$kver" || summary
 h61=$(newest_61_headers)
-phase "modules for 6.1 (W=1, sparse)" tests/build-modules.sh --sparse "$h61" "$build/modules-6.1-headers"
+phase "modules, 6.1 headers (W=1, sparse)" tests/build-modules.sh --sparse "$h61" "$build/modules-6.1-headers"
 phase "cross: arm64, armhf (W=1, sparse)" tests/cross-build.sh "$build"
 phase "checkpatch --strict" tests/checkpatch.sh
-phase "make install, dkms-source (host)" python3 -m pytest -q -p no:cacheprovider tests/packaging
+phase "make install, dkms-source (host)" env LEGO_KERNEL_TREE="$tree" \
+	python3 -m pytest -q -p no:cacheprovider tests/packaging
 # For tests/guest/test_packaging.py: a dkms build in the emulated guest is slow.
 phase "dkms build for $kver (host)" tests/packaging/dkms-prepare.sh "$tree" "$build/dkms-$kver"
 

@@ -26,7 +26,7 @@ def kunit_cases(node):
 
 def count_kunit(results, tree):
     passed = failed = skipped = 0
-    kdir = os.path.join(results, 'kunit')
+    kdir = os.path.abspath(os.path.join(results, 'kunit'))
     files = sorted(f for f in os.listdir(kdir) if f.endswith('.ktap')) if os.path.isdir(kdir) else []
     kunit_py = os.path.join(tree, 'tools/testing/kunit/kunit.py')
     for f in files:

@@ -46,4 +46,14 @@
 #define LEGO_UEVENT_CONST
 #endif
 
+/*
+ * KUNIT_EXPECT_MEMEQ() for the KUnit tests, which include <kunit/test.h>:
+ * before 6.2, a memcmp() and the names of the two buffers on a failure.
+ */
+#ifndef LEGO_HAVE_KUNIT_MEMEQ
+#define KUNIT_EXPECT_MEMEQ(test, left, right, size)			\
+	KUNIT_EXPECT_TRUE_MSG(test, !memcmp(left, right, size),		\
+			      "%s and %s differ", #left, #right)
+#endif
+
 #endif /* _LEGO_COMPAT_H */
