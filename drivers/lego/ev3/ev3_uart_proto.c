@@ -504,7 +504,8 @@ static void ev3_uart_cmd(struct ev3_uart_parser *p, const u8 *payload,
 		 * a 4-byte form whose extra counts describe modes 8 and up,
 		 * which EV3 hosts do not use.
 		 */
-		s->num_view_modes = plen >= 2 ? min_t(u8, payload[1] + 1, s->num_modes)
+		s->num_view_modes = plen >= 2 ? min_t(unsigned int, payload[1] + 1,
+						      s->num_modes)
 					      : s->num_modes;
 		break;
 	case EV3_UART_CMD_SPEED:
