@@ -7,6 +7,8 @@
 #   make checkpatch    checkpatch.pl --strict on every source file
 #   make sparse        the modules with sparse (C=2)
 #   make demo          four emulated EV3 sensors and an NXT brick in the test VM
+#   make fuzz          libFuzzer on the EV3 and NXT protocol cores (long run;
+#                      FUZZ_ARGS= passes options to tests/fuzz/run.sh)
 #   make install       modules (updates/), uapi headers, tools, udev rules and
 #                      systemd units; DESTDIR=, PREFIX=/usr/local, KDIR=
 #   make install-userspace  the same without the modules (with DKMS)
@@ -25,7 +27,7 @@ export LEGO_SRC
 
 KBUILD_ARGS := -C $(KDIR) M=$(CURDIR) W=1
 
-.PHONY: all modules sparse clean checkpatch check deps vm-run demo help
+.PHONY: all modules sparse clean checkpatch check deps vm-run demo help fuzz
 .PHONY: install install-userspace uninstall modules_install dkms-source dkms-install dkms-remove
 
 all: modules
@@ -51,6 +53,9 @@ check:
 
 demo:
 	@tests/demo/run.sh
+
+fuzz:
+	@tests/fuzz/run.sh $(FUZZ_ARGS)
 
 help:
 	@sed -n '3,/^$$/p' Makefile

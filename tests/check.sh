@@ -4,7 +4,8 @@
 #  1. installs what it needs (Debian and PyPI packages),
 #  2. builds (or takes from the cache) the 6.12 test kernel,
 #  3. builds the modules against it with W=1 and sparse, and against 6.1,
-#  4. runs checkpatch --strict, the packaging tests of tests/packaging and
+#  4. runs checkpatch --strict, a short fuzzing run of the protocol cores
+#     (tests/fuzz/run.sh --short), the packaging tests of tests/packaging and
 #     dkms (on the host) for the guest's packaging test,
 #  5. boots the test VM: every KUnit suite, then the guest tests,
 #  6. scans the guest console for splats,
@@ -64,6 +65,7 @@ phase "modules for $kver (W=1, sparse)" tests/build-modules.sh --sparse "$tree" 
 h61=$(newest_61_headers)
 phase "modules for 6.1 (W=1, sparse)" tests/build-modules.sh --sparse "$h61" "$build/modules-6.1-headers"
 phase "checkpatch --strict" tests/checkpatch.sh
+phase "fuzz (short, 2 x 30 s)" tests/fuzz/run.sh --short
 phase "make install, dkms-source (host)" python3 -m pytest -q -p no:cacheprovider tests/packaging
 # For tests/guest/test_packaging.py: a dkms build in the emulated guest is slow.
 phase "dkms build for $kver (host)" tests/packaging/dkms-prepare.sh "$tree" "$build/dkms-$kver"

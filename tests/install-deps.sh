@@ -13,6 +13,8 @@ debs=(
 )
 # libusb for pyusb: nxt-python's usb backend in tests/guest/test_nxt_python.py
 debs+=(libusb-1.0-0)
+# tests/fuzz (libFuzzer, ASan, UBSan) and tests/bench/proto (callgrind)
+debs+=(clang-14 libclang-rt-14-dev valgrind)
 
 missing=()
 for p in "${debs[@]}"; do

@@ -1,0 +1,108 @@
+#!/usr/bin/env bash
+# SPDX-License-Identifier: GPL-2.0
+#
+# `make fuzz`: build the libFuzzer targets (tests/fuzz/fuzz_ev3.c,
+# fuzz_nxt.c) from the driver sources, replay the committed seeds and
+# regression inputs, then fuzz each target for a fixed time and report its
+# executions, exec/s, coverage and any crash or sanitizer report.
+#
+#   tests/fuzz/run.sh [--seconds N] [--short] [--target-execs N] [TARGET...]
+#
+#   --seconds N       fuzz each target N seconds (default: EV3 and NXT times
+#                     that reach 10 million executions each with a margin,
+#                     see Documentation/lego/fuzzing.rst)
+#   --short           30 s each, no execution target (make check)
+#   --target-execs N  executions each target must reach (default 10000000;
+#                     0 for none); not checked with --short
+#   TARGET            ev3, nxt (default both)
+#
+# Exits 1 on a crash, sanitizer report or failed invariant (the input is
+# kept in .build/fuzz/artifacts/), on fewer executions than the target, or
+# on a build or replay failure. Each target's log is .build/fuzz/TARGET.log.
+set -uo pipefail
+top=$(cd "$(dirname "$0")/../.." && pwd)
+cd "$top"
+
+out=${LEGO_BUILD_DIR:-$top/.build}/fuzz
+seconds=
+short=
+target_execs=10000000
+targets=()
+# Measured on the 2-core development machine, loaded: see fuzzing.rst.
+declare -A default_seconds=([ev3]=900 [nxt]=240)
+
+usage() {
+	sed -n '4,21p' "$0" | sed 's/^# \{0,1\}//'
+	exit 2
+}
+
+while [ $# -gt 0 ]; do
+	case $1 in
+	--seconds) seconds=${2:?}; shift 2 ;;
+	--short) short=1; shift ;;
+	--target-execs) target_execs=${2:?}; shift 2 ;;
+	ev3|nxt) targets+=("$1"); shift ;;
+	-h|--help) usage ;;
+	*) echo "run.sh: unknown argument: $1" >&2; usage ;;
+	esac
+done
+[ ${#targets[@]} -gt 0 ] || targets=(ev3 nxt)
+if [ -n "$short" ]; then
+	seconds=${seconds:-30}
+	target_execs=0
+fi
+
+command -v clang-14 >/dev/null || { echo "run.sh: clang-14 not found (tests/install-deps.sh)" >&2; exit 1; }
+mkdir -p "$out/artifacts"
+if ! make -s -C tests/fuzz O="$out" fuzz replay; then
+	echo "run.sh: build failed" >&2
+	exit 1
+fi
+
+fail=0
+# The committed seeds and regression inputs, through the replay builds.
+for t in "${targets[@]}"; do
+	dirs=(tests/fuzz/corpus/"$t")
+	[ -d tests/fuzz/regressions/"$t" ] && dirs+=(tests/fuzz/regressions/"$t")
+	if ! "$out/replay_$t" "${dirs[@]}"; then
+		echo "run.sh: replay of the $t seeds failed" >&2
+		fail=1
+	fi
+done
+
+report=$out/summary.txt
+printf '%-5s %8s %12s %10s %6s %7s %s\n' target seconds executions exec/s cov ft result | tee "$report"
+for t in "${targets[@]}"; do
+	secs=${seconds:-${default_seconds[$t]}}
+	corpus=$out/corpus-$t
+	log=$out/$t.log
+	rm -rf "$corpus"
+	mkdir -p "$corpus"
+	dict=()
+	[ -f tests/fuzz/"$t".dict ] && dict=(-dict=tests/fuzz/"$t".dict)
+	"$out/fuzz_$t" -max_total_time="$secs" -print_final_stats=1 -seed=1 \
+		-max_len=1024 -timeout=10 -rss_limit_mb=1024 "${dict[@]}" \
+		-artifact_prefix="$out/artifacts/$t-" "$corpus" tests/fuzz/corpus/"$t" \
+		>"$log" 2>&1
+	rc=$?
+	execs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log" | tail -n 1)
+	rate=$(sed -n 's/^stat::average_exec_per_sec: *//p' "$log" | tail -n 1)
+	cov=$(grep -o 'cov: [0-9]*' "$log" | tail -n 1 | cut -d' ' -f2)
+	ft=$(grep -o 'ft: [0-9]*' "$log" | tail -n 1 | cut -d' ' -f2)
+	result=ok
+	if [ $rc -ne 0 ] || grep -qE 'ERROR: (libFuzzer|AddressSanitizer|LeakSanitizer)|runtime error:|invariant failed|^WARNING at' "$log"; then
+		result="CRASH (exit $rc)"
+		fail=1
+	elif [ "$target_execs" -gt 0 ] && [ "${execs:-0}" -lt "$target_execs" ]; then
+		result="too few executions (target $target_execs)"
+		fail=1
+	fi
+	printf '%-5s %8s %12s %10s %6s %7s %s\n' "$t" "$secs" "${execs:-?}" "${rate:-?}" \
+		"${cov:-?}" "${ft:-?}" "$result" | tee -a "$report"
+	if [ "$result" != ok ] && [ "${result#too few}" = "$result" ]; then
+		echo "--- $t: report (full log: $log)"
+		grep -E -B2 -A25 'ERROR: |runtime error:|invariant failed|^WARNING at' "$log" | head -n 60
+		ls -1 "$out/artifacts/$t-"* 2>/dev/null | sed 's/^/input kept: /'
+	fi
+done
+exit $fail
