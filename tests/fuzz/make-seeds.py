@@ -77,17 +77,19 @@ def ev3_seeds():
 
 def ev3_stream(per_mode=200, seed=2):
     """The recorded stream of tests/bench/proto: several sensors one after
-    the other (each plugged in after the previous one was lost), each a
-    handshake then mostly DATA messages."""
+    the other, each a handshake then mostly DATA messages. Returns the bytes
+    and the offsets where a sensor was unplugged (the line went silent
+    until the host gave it up)."""
     rng = random.Random(seed)
     out = b''
+    unplugged = []
     for name in ('color', 'us', 'gyro', 'ir', 'fcl-humidity'):
         sdef = ev3.SENSORS[name]
         out += ev3.handshake(sdef)
         # The data phase starts in mode 0; the quiet host does not SELECT.
         out += frames(sdef, 0, per_mode * len(sdef.modes), rng)
-        out += bytes(40)        # unplugged: the line reads as zeros
-    return out
+        unplugged.append(len(out))
+    return out, unplugged
 
 
 class Clock:
