@@ -166,6 +166,7 @@ static void start_data(struct host *h)
 static void event(struct host *h, const struct ev3_uart_event *ev, size_t rest)
 {
 	struct ev3_uart_parser *p = h->p;
+	const char *name;
 
 	check_parser(p);
 	if (ev->type != EV3_UART_EV_NONE)
@@ -180,6 +181,9 @@ static void event(struct host *h, const struct ev3_uart_event *ev, size_t rest)
 		CHECK(p->state == EV3_UART_STATE_ACKED);
 		check_description(p);
 		h->last_ts = 0;		/* a new IIO device */
+		name = ev3_uart_driver_name(p->sensor.type);
+		CHECK(!name || strncmp(name, "lego-ev3-", 9) == 0 ||
+		      strncmp(name, "fcl-", 4) == 0);
 		h->acked_wait = h->rng && rnd(h) % 4 == 0 ? 1 + rnd(h) % 3 : 0;
 		if (!h->acked_wait)
 			start_data(h);
@@ -267,6 +271,7 @@ static void host_actions(struct host *h)
 
 		h->now += 100000000;	/* the keep-alive period */
 		lost = ev3_uart_parser_tick(p, &ev);
+		CHECK(ev3_uart_build_nack(msg) == 1 && msg[0] == EV3_UART_SYS_NACK);
 
 		CHECK(lost == (ev.type == EV3_UART_EV_ERROR));
 		event(h, &ev, 0);

@@ -6,7 +6,7 @@
  *
  * Input: a selector byte, then
  *  - selector even (NXT_IOC_TRANSACT and the driver's own commands): the
- *    telegram's length - 2 (mod 63), the telegram, then the reply (the
+ *    telegram's length - 2 (mod 64), the telegram, then the reply (the
  *    rest of the input);
  *  - selector odd (the typed ioctls, command number selector / 2): the
  *    reply's length (mod 81), the reply, then the ioctl argument as
@@ -87,14 +87,15 @@ static void decode_sysfs(const u8 *reply, size_t len)
 
 static void raw(const u8 *data, size_t size)
 {
-	u8 tg[NXT_TELEGRAM_MAX] = { };
+	u8 tg[NXT_TELEGRAM_MAX + 1] = { };
 	size_t tg_len, len;
 	u8 *reply;
 	int ret;
 
 	if (size < 1)
 		return;
-	tg_len = NXT_TELEGRAM_MIN + data[0] % (NXT_TELEGRAM_MAX - 1);
+	/* One byte too many is refused before anything is sent. */
+	tg_len = NXT_TELEGRAM_MIN + data[0] % NXT_TELEGRAM_MAX;
 	data++;
 	size--;
 	len = tg_len < size ? tg_len : size;
@@ -103,7 +104,10 @@ static void raw(const u8 *data, size_t size)
 	size -= len;
 
 	ret = nxt_telegram_check(tg, tg_len);
-	CHECK(ret == 0 || ret == 1 || ret == -EINVAL);
+	if (tg_len > NXT_TELEGRAM_MAX)
+		CHECK(ret == -EMSGSIZE);
+	else
+		CHECK(ret == 0 || ret == 1 || ret == -EINVAL);
 	if (ret != 1)
 		return;
 	len = size < REPLY_MAX ? size : REPLY_MAX;

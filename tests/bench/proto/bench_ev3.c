@@ -22,8 +22,12 @@ static u8 *read_file(const char *path, size_t *len)
 	u8 *buf;
 	long n;
 
-	if (!f || fseek(f, 0, SEEK_END) || (n = ftell(f)) < 0 ||
-	    fseek(f, 0, SEEK_SET)) {
+	if (!f || fseek(f, 0, SEEK_END)) {
+		perror(path);
+		exit(1);
+	}
+	n = ftell(f);
+	if (n < 0 || fseek(f, 0, SEEK_SET)) {
 		perror(path);
 		exit(1);
 	}
@@ -117,8 +121,9 @@ int main(int argc, char **argv)
 			}
 		}
 	}
-	printf("bytes %zu batches %lu handshakes %lu data %lu errors %lu garbage %lu checksum %lld\n",
-	       len, batches, handshakes, data, errors, p.garbage, sum);
+	printf("bytes %zu batches %lu handshakes %lu data %lu ", len, batches,
+	       handshakes, data);
+	printf("errors %lu garbage %lu checksum %lld\n", errors, p.garbage, sum);
 	fclose(uf);
 	free(buf);
 	return 0;

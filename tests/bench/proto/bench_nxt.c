@@ -49,11 +49,17 @@ int main(int argc, char **argv)
 		perror(argv[1]);
 		return 1;
 	}
-	while ((kind = getc(f)) != EOF) {
+	for (;;) {
+		kind = getc(f);
+		if (kind == EOF)
+			break;
 		tg_len = getc(f);
 		if (tg_len < NXT_TELEGRAM_MIN || tg_len > NXT_TELEGRAM_MAX ||
-		    fread(rec, 1, tg_len, f) != (size_t)tg_len ||
-		    (len = getc(f)) < 0 || len > NXT_TELEGRAM_MAX ||
+		    fread(rec, 1, tg_len, f) != (size_t)tg_len)
+			len = -1;
+		else
+			len = getc(f);
+		if (len < 0 || len > NXT_TELEGRAM_MAX ||
 		    fread(rec + tg_len, 1, len, f) != (size_t)len ||
 		    kind > (int)ARRAY_SIZE(ioctls)) {
 			fprintf(stderr, "%s: bad record %lu\n", argv[1], replies);
