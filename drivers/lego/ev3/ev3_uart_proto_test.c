@@ -1019,6 +1019,18 @@ static void test_scale_value(struct kunit *test)
 	m.si_min = S32_MIN;
 	m.si_max = S32_MAX - 1;
 	KUNIT_EXPECT_LE(test, ev3_uart_scale_value(&m, S32_MAX), S32_MAX);
+	/*
+	 * A value far outside a one-wide RAW range, on the widest SI range
+	 * (all as a sensor can send them in f32): 2^31 + 2^24 times the SI
+	 * span overflows 64 bits even after dividing (found by fuzzing).
+	 */
+	m.raw_min = -16777216;
+	m.raw_max = -16777215;
+	m.si_min = S32_MIN;
+	m.si_max = 2147483520;
+	KUNIT_EXPECT_EQ(test, ev3_uart_scale_value(&m, S32_MAX), S32_MAX);
+	m.raw_max = -16777217;
+	KUNIT_EXPECT_EQ(test, ev3_uart_scale_value(&m, S32_MAX), S32_MIN);
 }
 
 static void test_float_values(struct kunit *test)
