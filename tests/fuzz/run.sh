@@ -2,8 +2,9 @@
 # SPDX-License-Identifier: GPL-2.0
 #
 # `make fuzz`: build the libFuzzer targets (tests/fuzz/fuzz_ev3.c,
-# fuzz_nxt.c) from the driver sources, replay the committed seeds and
-# regression inputs, then fuzz each target for a fixed time (both at once,
+# fuzz_nxt.c) from the driver sources, run the two cores' KUnit suites in
+# userspace (ASan, UBSan), replay the committed seeds and regression
+# inputs, then fuzz each target for a fixed time (both at once,
 # one a core) and report its executions, exec/s, coverage and any crash or
 # sanitizer report.
 #
@@ -19,7 +20,8 @@
 #
 # Exits 1 on a crash, sanitizer report or failed invariant (the input is
 # kept in .build/fuzz/artifacts/), on fewer executions than the target, or
-# on a build or replay failure. Each target's log is .build/fuzz/TARGET.log.
+# on a build, KUnit or replay failure. Each target's log is
+# .build/fuzz/TARGET.log.
 set -uo pipefail
 top=$(cd "$(dirname "$0")/../.." && pwd)
 cd "$top"
@@ -35,7 +37,7 @@ targets=()
 declare -A default_seconds=([ev3]=1500 [nxt]=240)
 
 usage() {
-	sed -n '4,22p' "$0" | sed 's/^# \{0,1\}//'
+	sed -n '4,24p' "$0" | sed 's/^# \{0,1\}//'
 	exit 2
 }
 
@@ -57,12 +59,22 @@ fi
 
 command -v clang-14 >/dev/null || { echo "run.sh: clang-14 not found (tests/install-deps.sh)" >&2; exit 1; }
 mkdir -p "$out/artifacts"
-if ! make -s -C tests/fuzz O="$out" fuzz replay; then
+if ! make -s -C tests/fuzz O="$out" fuzz replay kunit; then
 	echo "run.sh: build failed" >&2
 	exit 1
 fi
 
 fail=0
+# The cores' KUnit suites in userspace, under ASan and UBSan.
+for t in "${targets[@]}"; do
+	if ! "$out/kunit_$t" >"$out/kunit_$t.log" 2>&1; then
+		grep -vE '^ok ' "$out/kunit_$t.log" >&2
+		echo "run.sh: the KUnit suite failed in userspace (kunit_$t)" >&2
+		fail=1
+	else
+		tail -n 1 "$out/kunit_$t.log"
+	fi
+done
 # The committed seeds and regression inputs, through the replay builds.
 for t in "${targets[@]}"; do
 	dirs=(tests/fuzz/corpus/"$t")
