@@ -10,6 +10,8 @@
 #   make sparse        the modules with sparse (C=2)
 #   make demo          four emulated EV3 sensors and an NXT brick in the test VM
 #   make bench         benchmarks; writes tests/bench/results.md (BENCH_ARGS=--quick)
+#   make fuzz          libFuzzer on the EV3 and NXT protocol cores (long run;
+#                      FUZZ_ARGS= passes options to tests/fuzz/run.sh)
 #   make install       modules (updates/), uapi headers, tools, udev rules and
 #                      systemd units; DESTDIR=, PREFIX=/usr/local, KDIR=
 #   make install-userspace  the same without the modules (with DKMS)
@@ -28,7 +30,7 @@ export LEGO_SRC
 
 KBUILD_ARGS := -C $(KDIR) M=$(CURDIR) W=1
 
-.PHONY: all modules sparse clean checkpatch check deps vm-run demo bench help
+.PHONY: all modules sparse clean checkpatch check deps vm-run demo bench fuzz help
 .PHONY: install install-userspace uninstall modules_install dkms-source dkms-install dkms-remove
 
 all: modules
@@ -61,6 +63,9 @@ demo:
 
 bench:
 	@tests/bench/run.sh $(BENCH_ARGS)
+
+fuzz:
+	@tests/fuzz/run.sh $(FUZZ_ARGS)
 
 help:
 	@sed -n '3,/^$$/p' Makefile

@@ -6,7 +6,8 @@
 #  3. builds the modules against it with W=1 and sparse, and against 6.1,
 #     then cross-compiles them and the tools for arm64 and armhf
 #     (tests/cross-build.sh),
-#  4. runs checkpatch --strict, the packaging tests of tests/packaging and
+#  4. runs checkpatch --strict, a short fuzzing run of the protocol cores
+#     (tests/fuzz/run.sh --short), the packaging tests of tests/packaging and
 #     dkms (on the host) for the guest's packaging test,
 #  5. boots the test VM: every KUnit suite, then the guest tests,
 #  6. scans the guest console for splats,
@@ -68,6 +69,7 @@ h61=$(newest_61_headers)
 phase "modules, 6.1 headers (W=1, sparse)" tests/build-modules.sh --sparse "$h61" "$build/modules-6.1-headers"
 phase "cross: arm64, armhf (W=1, sparse)" tests/cross-build.sh "$build"
 phase "checkpatch --strict" tests/checkpatch.sh
+phase "fuzz (short, 2 x 30 s)" tests/fuzz/run.sh --short
 phase "make install, dkms-source (host)" env LEGO_KERNEL_TREE="$tree" \
 	python3 -m pytest -q -p no:cacheprovider tests/packaging
 # For tests/guest/test_packaging.py: a dkms build in the emulated guest is slow.

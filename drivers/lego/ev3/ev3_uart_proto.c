@@ -253,18 +253,27 @@ s32 ev3_uart_scale_value(const struct ev3_uart_mode *mode, s32 raw)
 {
 	s64 raw_span = (s64)mode->raw_max - mode->raw_min;
 	s64 si_span = (s64)mode->si_max - mode->si_min;
+	s64 off = (s64)raw - mode->raw_min;
 	s64 num, v;
 
 	if ((mode->raw_min == mode->si_min && mode->raw_max == mode->si_max) ||
 	    !raw_span)
 		return raw;
 
-	/* Both spans are below 2^33, so the product can overflow 64 bits. */
-	if (check_mul_overflow((s64)raw - mode->raw_min, si_span, &num))
-		v = div64_s64((s64)raw - mode->raw_min, raw_span) * si_span;
-	else
+	/*
+	 * Both spans are below 2^33, so the product can overflow 64 bits;
+	 * then divide first. A raw value far outside a narrow RAW range can
+	 * overflow that too: its result is far beyond the s32 range.
+	 */
+	if (check_mul_overflow(off, si_span, &num)) {
+		if (check_mul_overflow(div64_s64(off, raw_span), si_span, &v))
+			return ((off < 0) != (raw_span < 0)) != (si_span < 0) ?
+			       S32_MIN : S32_MAX;
+	} else {
 		v = div64_s64(num, raw_span);
-	v += mode->si_min;
+	}
+	if (check_add_overflow(v, (s64)mode->si_min, &v))
+		return mode->si_min < 0 ? S32_MIN : S32_MAX;
 
 	return clamp_t(s64, v, S32_MIN, S32_MAX);
 }
@@ -494,7 +503,8 @@ static void ev3_uart_cmd(struct ev3_uart_parser *p, const u8 *payload,
 		 * a 4-byte form whose extra counts describe modes 8 and up,
 		 * which EV3 hosts do not use.
 		 */
-		s->num_view_modes = plen >= 2 ? min_t(u8, payload[1] + 1, s->num_modes)
+		s->num_view_modes = plen >= 2 ? min_t(unsigned int, payload[1] + 1,
+						      s->num_modes)
 					      : s->num_modes;
 		break;
 	case EV3_UART_CMD_SPEED:

@@ -688,6 +688,25 @@ static void test_incomplete_and_duplicate_modes(struct kunit *test)
 	KUNIT_EXPECT_EQ(test, last(&c->r)->type, EV3_UART_EV_ERROR);
 }
 
+/* 256 views (0xff) are all the modes there are, not 0 (found by fuzz_ev3). */
+static void test_views_clamped(struct kunit *test)
+{
+	static const struct tmode m = { "A", { F0, F100 }, { F0, F100 }, NULL, 1, 0, 2, 0 };
+	u8 modes[2] = { 0, 0xff };
+	u8 type = 99;
+	struct ctx *c = new_ctx(test);
+	size_t len;
+
+	len = enc_cmd(c->buf, EV3_UART_CMD_TYPE, &type, 1);
+	len += enc_cmd(c->buf + len, EV3_UART_CMD_MODES, modes, 2);
+	len += enc_mode(c->buf + len, type, 0, &m);
+	c->buf[len++] = EV3_UART_SYS_ACK;
+	feed(&c->p, c->buf, len, len, &c->r);
+	KUNIT_ASSERT_EQ(test, last(&c->r)->type, EV3_UART_EV_HANDSHAKE);
+	KUNIT_EXPECT_EQ(test, c->p.sensor.num_modes, 1);
+	KUNIT_EXPECT_EQ(test, c->p.sensor.num_view_modes, 1);
+}
+
 /* Powered Up extras are skipped, not fatal. */
 static void test_powered_up_extras_ignored(struct kunit *test)
 {
@@ -992,6 +1011,18 @@ static void test_scale_value(struct kunit *test)
 	m.si_min = S32_MIN;
 	m.si_max = S32_MAX - 1;
 	KUNIT_EXPECT_LE(test, ev3_uart_scale_value(&m, S32_MAX), S32_MAX);
+	/*
+	 * A value far outside a one-wide RAW range, on the widest SI range
+	 * (all as a sensor can send them in f32): 2^31 + 2^24 times the SI
+	 * span overflows 64 bits even after dividing (found by fuzzing).
+	 */
+	m.raw_min = -16777216;
+	m.raw_max = -16777215;
+	m.si_min = S32_MIN;
+	m.si_max = 2147483520;
+	KUNIT_EXPECT_EQ(test, ev3_uart_scale_value(&m, S32_MAX), S32_MAX);
+	m.raw_max = -16777217;
+	KUNIT_EXPECT_EQ(test, ev3_uart_scale_value(&m, S32_MAX), S32_MIN);
 }
 
 static void test_float_values(struct kunit *test)
@@ -1056,6 +1087,7 @@ static struct kunit_case ev3_uart_proto_cases[] = {
 	KUNIT_CASE(test_malformed_handshakes),
 	KUNIT_CASE(test_format_limits),
 	KUNIT_CASE(test_incomplete_and_duplicate_modes),
+	KUNIT_CASE(test_views_clamped),
 	KUNIT_CASE(test_powered_up_extras_ignored),
 	KUNIT_CASE(test_data_decode_real_frames),
 	KUNIT_CASE(test_rgb_raw_checksum_quirk),

@@ -1,0 +1,91 @@
+#!/usr/bin/env python3
+# SPDX-License-Identifier: GPL-2.0
+"""The recorded inputs of tests/bench/proto, from the emulators' models.
+
+Usage: tests/bench/proto/make-streams.py OUTDIR [--quick]
+
+- OUTDIR/ev3.stream: what a UART receives from five sensors plugged in one
+  after the other (colour, ultrasonic, gyro, infrared, FatcatLab humidity):
+  each handshake byte for byte as tests/emulator/ev3_sensor.py sends it,
+  then DATA messages of mode 0 (200 per mode the sensor has; 20 with
+  --quick). OUTDIR/ev3.unplug: the offsets in the stream where the sensor
+  was unplugged (one a line): the line is silent then until the host's
+  keep-alive gives the sensor up.
+- OUTDIR/nxt.records: a program's polling loop against
+  tests/emulator/nxt_brick.py's firmware model, with its replies: 4 x
+  GetInputValues, 3 x GetOutputState, SetOutputState, LSWrite,
+  LSGetStatus, LSRead (ultrasonic), MessageRead per cycle; GetBatteryLevel
+  and KeepAlive every 10 cycles; GetVersions and GetDeviceInfo (sysfs)
+  every 50. 500 cycles (50 with --quick). Record format: see bench_nxt.c.
+
+Deterministic: the same files every time.
+"""
+import importlib.util
+import os
+import sys
+
+TOP = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..', '..'))
+spec = importlib.util.spec_from_file_location('make_seeds',
+                                              os.path.join(TOP, 'tests', 'fuzz', 'make-seeds.py'))
+seeds = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(seeds)
+
+# Typed ioctls by their number in bench_nxt.c's table (1 + index).
+SET_OUTPUT_STATE, SET_INPUT_MODE, GET_OUTPUT_STATE, GET_INPUT_VALUES = 5, 6, 7, 8
+BATTERY, KEEP_ALIVE, LS_GET_STATUS, LS_WRITE, LS_READ, MESSAGE_READ = 12, 14, 15, 16, 17, 19
+RAW = 0
+
+
+def nxt_records(cycles):
+    fw, clock = seeds.nxt_firmware()
+    out = bytearray()
+
+    def cmd(kind, tg):
+        clock.t += 0.01
+        r = fw.handle(tg)
+        assert r is not None and len(r) <= 64, tg.hex()
+        out.extend(bytes([kind, len(tg)]) + tg + bytes([len(r)]) + r)
+
+    cmd(SET_INPUT_MODE, b'\x00\x05\x03\x0b\x00')        # port 4: low-speed 9 V
+    for port in range(3):                               # motors on, regulated
+        cmd(SET_OUTPUT_STATE, bytes([0x00, 0x04, port, 60, 0x07, 0x01, 0, 0x20]) + bytes(4))
+    for i in range(cycles):
+        for port in range(4):
+            cmd(GET_INPUT_VALUES, bytes([0x00, 0x07, port]))
+        for port in range(3):
+            cmd(GET_OUTPUT_STATE, bytes([0x00, 0x06, port]))
+        cmd(SET_OUTPUT_STATE, bytes([0x00, 0x04, i % 3, 40 + i % 40, 0x07, 0x01, 0, 0x20]) + bytes(4))
+        cmd(LS_WRITE, b'\x00\x0f\x03\x02\x01\x02\x42')   # ultrasonic: read distance
+        cmd(LS_GET_STATUS, b'\x00\x0e\x03')
+        cmd(LS_READ, b'\x00\x10\x03')
+        if i % 7 == 0:
+            fw.program_send(10, b'msg %d' % i)
+        cmd(MESSAGE_READ, b'\x00\x13\x0a\x00\x01')
+        if i % 10 == 0:
+            cmd(BATTERY, b'\x00\x0b')
+            cmd(KEEP_ALIVE, b'\x00\x0d')
+        if i % 50 == 0:
+            cmd(RAW, b'\x01\x88')
+            cmd(RAW, b'\x01\x9b')
+    return bytes(out)
+
+
+def main():
+    if len(sys.argv) < 2:
+        sys.exit(__doc__)
+    quick = '--quick' in sys.argv[2:]
+    out = sys.argv[1]
+    os.makedirs(out, exist_ok=True)
+    ev3, unplugged = seeds.ev3_stream(per_mode=20 if quick else 200)
+    nxt = nxt_records(50 if quick else 500)
+    with open(os.path.join(out, 'ev3.stream'), 'wb') as f:
+        f.write(ev3)
+    with open(os.path.join(out, 'ev3.unplug'), 'w') as f:
+        f.write(''.join('%d\n' % o for o in unplugged))
+    with open(os.path.join(out, 'nxt.records'), 'wb') as f:
+        f.write(nxt)
+    print('ev3.stream: %d bytes; nxt.records: %d bytes' % (len(ev3), len(nxt)))
+
+
+if __name__ == '__main__':
+    main()

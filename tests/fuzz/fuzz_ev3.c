@@ -1,0 +1,368 @@
+// SPDX-License-Identifier: GPL-2.0
+/*
+ * libFuzzer target: the EV3 UART protocol core (ev3_uart_proto.c), driven
+ * the way the line discipline (ev3_uart_ldisc.c) drives it.
+ *
+ * Input: a 4-byte little-endian "host" seed, then the bytes the sensor
+ * sends. Seed 0 is a quiet host: the stream is received in one batch, the
+ * host answers the handshake at once and does nothing else. Any other seed
+ * drives a pseudo-random host: batches of 1 to 64 bytes, line errors
+ * (framing, parity, break), keep-alive ticks, SELECTs and WRITEs, bytes
+ * arriving between the sensor's ACK and the host's speed change, failed
+ * registrations. After every call the parser's state is checked against
+ * what its header promises, and every event against the state.
+ *
+ * A custom mutator keeps most checksums right (see the end of this file).
+ */
+#include <errno.h>
+#include <string.h>
+
+#include "ev3_uart_proto.h"
+#include "fuzz_check.h"
+
+struct host {
+	struct ev3_uart_parser *p;
+	u32 rng;		/* xorshift32 state; 0: the quiet host */
+	unsigned int acked_wait;	/* batches to receive before start_data */
+	s64 now;
+	s64 last_ts;
+	unsigned long events;
+};
+
+static u32 rnd(struct host *h)
+{
+	h->rng ^= h->rng << 13;
+	h->rng ^= h->rng >> 17;
+	h->rng ^= h->rng << 5;
+	return h->rng;
+}
+
+static void check_string(const char *s, size_t size, size_t max, bool empty_ok)
+{
+	size_t n = strnlen(s, size), i;
+
+	CHECK(n < size);
+	CHECK(n <= max);
+	CHECK(empty_ok || n > 0);
+	for (i = 0; i < n; i++)
+		CHECK(s[i] >= 0x20 && s[i] <= 0x7e);
+}
+
+static void check_mode(const struct ev3_uart_mode *m)
+{
+	unsigned int size = ev3_uart_data_size(m->data_type);
+
+	check_string(m->name, sizeof(m->name), EV3_UART_NAME_LEN, false);
+	check_string(m->units, sizeof(m->units), EV3_UART_UNITS_LEN, true);
+	CHECK(m->data_type <= EV3_UART_DATA_FLOAT && size);
+	CHECK(m->num_values >= 1);
+	CHECK(m->num_values * size <= EV3_UART_MAX_PAYLOAD);
+	CHECK(m->figures <= EV3_UART_MAX_FIGURES);
+	CHECK(m->decimals <= EV3_UART_MAX_DECIMALS);
+}
+
+static void check_parser(const struct ev3_uart_parser *p)
+{
+	const struct ev3_uart_sensor *s = &p->sensor;
+
+	CHECK(p->state <= EV3_UART_STATE_DATA);
+	CHECK(p->msg_len <= EV3_UART_MAX_MSG_LEN);
+	CHECK(p->replay_pos <= p->replay_len);
+	CHECK(p->replay_len <= EV3_UART_MAX_MSG_LEN);
+	CHECK(p->info_mode == EV3_UART_NO_MODE || p->info_mode < EV3_UART_MAX_MODES);
+	if (p->state == EV3_UART_STATE_SYNC) {
+		CHECK(p->msg_len <= 3);
+		return;
+	}
+	CHECK(s->type >= EV3_UART_TYPE_MIN && s->type <= EV3_UART_TYPE_MAX);
+	CHECK(s->num_modes >= 1 && s->num_modes <= EV3_UART_MAX_MODES);
+	CHECK(s->num_view_modes >= 1 && s->num_view_modes <= s->num_modes);
+	CHECK(s->speed >= EV3_UART_SPEED_MIN && s->speed <= EV3_UART_SPEED_MAX);
+	if (p->state == EV3_UART_STATE_INFO) {
+		CHECK(p->info_mode == EV3_UART_NO_MODE || p->info_mode < s->num_modes);
+		CHECK(p->msg_len < EV3_UART_MAX_MSG_LEN);
+		return;
+	}
+	/* ACKED and DATA: the description is complete (checked in full by
+	 * check_description(), at the handshake and at the end: it does not
+	 * change in between, but per event that would cost half the time).
+	 */
+	CHECK((p->modes_done & ((1U << s->num_modes) - 1)) ==
+	      (1U << s->num_modes) - 1);
+	if (p->state == EV3_UART_STATE_DATA) {
+		CHECK(p->mode < s->num_modes);
+		CHECK(p->pending_mode == EV3_UART_NO_MODE ||
+		      p->pending_mode < s->num_modes);
+		CHECK(p->data_err <= EV3_UART_MAX_DATA_ERR);
+		CHECK(p->silent_ticks <= EV3_UART_MAX_DATA_ERR);
+		CHECK(p->msg_len < EV3_UART_MAX_PAYLOAD + 2);
+	}
+}
+
+static void check_description(const struct ev3_uart_parser *p)
+{
+	unsigned int i;
+
+	check_parser(p);
+	if (p->state == EV3_UART_STATE_ACKED || p->state == EV3_UART_STATE_DATA)
+		for (i = 0; i < p->sensor.num_modes; i++)
+			check_mode(&p->sensor.modes[i]);
+}
+
+/* What ev3_uart_iio.c and ev3_uart_class.c do with a DATA message. */
+static void use_data(struct host *h, const struct ev3_uart_event *ev,
+		     size_t rest)
+{
+	const struct ev3_uart_parser *p = h->p;
+	const struct ev3_uart_mode *m;
+	unsigned int i, size;
+	s32 v;
+	s64 t;
+	int ret;
+
+	CHECK(ev->mode < p->sensor.num_modes);
+	CHECK(ev->mode == p->mode);
+	CHECK(ev->len >= 1 && ev->len <= EV3_UART_MAX_PAYLOAD);
+	CHECK((ev->len & (ev->len - 1)) == 0);
+	m = &p->sensor.modes[ev->mode];
+	size = ev3_uart_data_size(m->data_type);
+	CHECK(ev->len >= m->num_values * size);
+	for (i = 0; i < m->num_values; i++) {
+		ret = ev3_uart_read_value(m, p->data, ev->len, i, &v);
+		CHECK(!ret || (ret == -ERANGE && m->data_type == EV3_UART_DATA_FLOAT));
+		if (!ret)
+			(void)ev3_uart_scale_value(m, v);
+	}
+	CHECK(ev3_uart_read_value(m, p->data, ev->len, m->num_values, &v) == -ENXIO);
+	/* The class's sysfs reads the whole buffer, whatever the length. */
+	for (i = 0; i < m->num_values; i++)
+		if (!ev3_uart_read_value(m, p->data, EV3_UART_MAX_PAYLOAD, i, &v))
+			(void)ev3_uart_scale_value(m, v);
+
+	/*
+	 * The clock moves as the bytes come in (see receive()), so the
+	 * estimates must go strictly forward.
+	 */
+	t = ev3_uart_msg_time(h->now, rest, ev->len + 2, p->sensor.speed, h->last_ts);
+	CHECK(!h->last_ts || t > h->last_ts);
+	h->last_ts = t;
+}
+
+static void start_data(struct host *h)
+{
+	u8 ack;
+
+	CHECK(ev3_uart_build_ack(&ack) == 1 && ack == EV3_UART_SYS_ACK);
+	if (h->rng && rnd(h) % 32 == 0) {
+		/* Registration failed: the ldisc starts over. */
+		ev3_uart_parser_init(h->p);
+		return;
+	}
+	ev3_uart_parser_start_data(h->p);
+	CHECK(h->p->state == EV3_UART_STATE_DATA);
+	CHECK(h->p->mode == 0 && h->p->pending_mode == EV3_UART_NO_MODE);
+}
+
+static void event(struct host *h, const struct ev3_uart_event *ev, size_t rest)
+{
+	struct ev3_uart_parser *p = h->p;
+	const char *name;
+
+	check_parser(p);
+	if (ev->type != EV3_UART_EV_NONE)
+		h->events++;
+	switch (ev->type) {
+	case EV3_UART_EV_NONE:
+		break;
+	case EV3_UART_EV_SYNC:
+		CHECK(p->state == EV3_UART_STATE_INFO);
+		break;
+	case EV3_UART_EV_HANDSHAKE:
+		CHECK(p->state == EV3_UART_STATE_ACKED);
+		check_description(p);
+		h->last_ts = 0;		/* a new IIO device */
+		name = ev3_uart_driver_name(p->sensor.type);
+		CHECK(!name || strncmp(name, "lego-ev3-", 9) == 0 ||
+		      strncmp(name, "fcl-", 4) == 0);
+		h->acked_wait = h->rng && rnd(h) % 4 == 0 ? 1 + rnd(h) % 3 : 0;
+		if (!h->acked_wait)
+			start_data(h);
+		break;
+	case EV3_UART_EV_DATA:
+		CHECK(p->state == EV3_UART_STATE_DATA);
+		use_data(h, ev, rest);
+		break;
+	case EV3_UART_EV_ERROR:
+		CHECK(p->state == EV3_UART_STATE_SYNC);
+		CHECK(ev->reason && ev->reason[0]);
+		break;
+	default:
+		CHECK(0);
+	}
+	check_parser(p);
+}
+
+/* ev3_uart_receive_buf() without line errors, for one batch. */
+static void receive(struct host *h, const u8 *buf, size_t count)
+{
+	struct ev3_uart_event ev;
+	unsigned int stuck = 0;
+	size_t used;
+	u32 speed = h->p->state == EV3_UART_STATE_DATA ? h->p->sensor.speed
+						       : EV3_UART_SPEED_MIN;
+
+	/*
+	 * The batch is handled after its last byte came in (8N1: 10 bits a
+	 * byte), a little late at times.
+	 */
+	h->now += count * 10000000000LL / speed;
+	if (h->rng)
+		h->now += rnd(h) % 5000000;
+	while (count > 0) {
+		used = ev3_uart_parser_feed(h->p, buf, count, &ev);
+		CHECK(used <= count);
+		/* No event: everything was consumed. */
+		CHECK(ev.type != EV3_UART_EV_NONE || used == count);
+		/* Events without input come from the replay buffer: bounded. */
+		stuck = used ? 0 : stuck + 1;
+		CHECK(stuck <= EV3_UART_MAX_MSG_LEN);
+		buf += used;
+		count -= used;
+		event(h, &ev, count);
+	}
+}
+
+/* The host's side of the data phase: SELECT, WRITE, keep-alive. */
+static void host_actions(struct host *h)
+{
+	struct ev3_uart_parser *p = h->p;
+	struct ev3_uart_event ev;
+	u8 msg[EV3_UART_MAX_PAYLOAD + 2], data[EV3_UART_MAX_PAYLOAD + 1];
+	u8 mode;
+	size_t len;
+	int ret;
+
+	if (rnd(h) % 8 == 0) {
+		mode = rnd(h) % (EV3_UART_MAX_MODES + 1);
+		ret = ev3_uart_parser_select(p, mode);
+		if (p->state != EV3_UART_STATE_DATA)
+			CHECK(ret == -ENODEV);
+		else if (mode >= p->sensor.num_modes)
+			CHECK(ret == -EINVAL);
+		else
+			CHECK(!ret && p->pending_mode == mode);
+		CHECK(ev3_uart_build_select(msg, mode) == 3);
+		CHECK(msg[2] == ev3_uart_checksum(msg, 2));
+	}
+	if (rnd(h) % 16 == 0) {
+		len = rnd(h) % (EV3_UART_MAX_PAYLOAD + 2);
+		memset(data, 0x5a, sizeof(data));
+		ret = ev3_uart_build_write(msg, data, len);
+		if (!len || len > EV3_UART_MAX_PAYLOAD) {
+			CHECK(ret == -EINVAL);
+		} else {
+			CHECK(ret >= (int)len + 2 && ret <= EV3_UART_MAX_PAYLOAD + 2);
+			CHECK(ret == (int)ev3_uart_msg_len(msg[0]));
+			CHECK(msg[ret - 1] == ev3_uart_checksum(msg, ret - 1));
+		}
+	}
+	if (rnd(h) % 4 == 0) {
+		bool lost;
+
+		h->now += 100000000;	/* the keep-alive period */
+		lost = ev3_uart_parser_tick(p, &ev);
+		CHECK(ev3_uart_build_nack(msg) == 1 && msg[0] == EV3_UART_SYS_NACK);
+
+		CHECK(lost == (ev.type == EV3_UART_EV_ERROR));
+		event(h, &ev, 0);
+	}
+	if (rnd(h) % 64 == 0) {
+		ev3_uart_parser_line_error(p, &ev);
+		event(h, &ev, 0);
+	}
+}
+
+static int verbose = -1;	/* FUZZ_VERBOSE set: a line per input */
+
+int LLVMFuzzerTestOneInput(const unsigned char *data, size_t size)
+{
+	struct host h = { };
+	struct ev3_uart_event ev;
+	size_t n;
+
+	/* On the heap, so that ASan sees any access past its end. */
+	h.p = malloc(sizeof(*h.p));
+	CHECK(h.p);
+	if (size >= 4) {
+		h.rng = data[0] | data[1] << 8 | data[2] << 16 | (u32)data[3] << 24;
+		data += 4;
+		size -= 4;
+	}
+	ev3_uart_parser_init(h.p);
+	check_parser(h.p);
+
+	while (size) {
+		n = h.rng ? 1 + rnd(&h) % 64 : size;
+		n = n < size ? n : size;
+		receive(&h, data, n);
+		data += n;
+		size -= n;
+		if (h.p->state == EV3_UART_STATE_ACKED && h.acked_wait &&
+		    !--h.acked_wait)
+			start_data(&h);
+		if (h.rng)
+			host_actions(&h);
+	}
+	if (h.p->state == EV3_UART_STATE_ACKED)
+		start_data(&h);
+	/* Bytes left in the replay buffer come out with the next batch. */
+	for (n = 0; n <= EV3_UART_MAX_MSG_LEN; n++) {
+		CHECK(ev3_uart_parser_feed(h.p, (const u8 *)"", 0, &ev) == 0);
+		event(&h, &ev, 0);
+		if (ev.type == EV3_UART_EV_NONE)
+			break;
+	}
+	CHECK(ev.type == EV3_UART_EV_NONE);
+	CHECK(h.p->replay_pos == h.p->replay_len);
+	check_description(h.p);
+	if (verbose < 0)
+		verbose = !!getenv("FUZZ_VERBOSE");
+	if (verbose)
+		printf("type %u, state %u, %lu events, %lu frames, %lu bad, %lu garbage\n",
+		       h.p->sensor.type, h.p->state, h.events, h.p->frames,
+		       h.p->bad_frames, h.p->garbage);
+	free(h.p);
+	return 0;
+}
+
+#ifndef FUZZ_REPLAY
+/*
+ * Most mutations of a message break its checksum, and the parser then
+ * stops at the checksum: after libFuzzer's own mutation, frame the stream
+ * as the parser would and make the checksums right again (three times out
+ * of four), so that the fuzzer gets past the checksums to what they guard.
+ */
+size_t LLVMFuzzerCustomMutator(u8 *data, size_t size, size_t max_size,
+			       unsigned int seed)
+{
+	size_t i = 4, len;
+	u8 b;
+
+	size = LLVMFuzzerMutate(data, size, max_size);
+	if (seed % 4 == 0)
+		return size;
+	while (i < size) {
+		b = data[i];
+		if (b == 0xff || (b & EV3_UART_MSG_TYPE_MASK) == EV3_UART_MSG_SYS) {
+			i++;
+			continue;
+		}
+		len = ev3_uart_msg_len(b);
+		if (i + len > size)
+			break;
+		data[i + len - 1] = ev3_uart_checksum(data + i, len - 1);
+		i += len;
+	}
+	return size;
+}
+#endif

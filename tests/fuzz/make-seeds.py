@@ -1,0 +1,176 @@
+#!/usr/bin/env python3
+# SPDX-License-Identifier: GPL-2.0
+"""Seed corpora for the fuzz targets, from the emulators' own models.
+
+Usage: tests/fuzz/make-seeds.py [OUTDIR]   (default: tests/fuzz/corpus)
+
+Writes OUTDIR/ev3/* and OUTDIR/nxt/* in the input formats of fuzz_ev3.c and
+fuzz_nxt.c:
+
+- ev3: for every sensor tests/emulator/ev3_sensor.py emulates, its handshake
+  byte for byte as the emulator sends it, followed by DATA messages of every
+  mode (with the quiet host, seed 0, and with a pseudo-random host); the
+  emulator's hostile byte sequences followed by a good handshake.
+- nxt: telegrams and the replies tests/emulator/nxt_brick.py's firmware model
+  gives them, for the raw path (NXT_IOC_TRANSACT, sysfs) and for each typed
+  ioctl.
+
+The output is deterministic; tests/bench/proto uses the same streams.
+"""
+import os
+import random
+import struct
+import sys
+
+TOP = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
+sys.path.insert(0, os.path.join(TOP, 'tests', 'emulator'))
+
+import ev3_sensor as ev3  # noqa: E402
+import nxt_brick as nxt  # noqa: E402
+
+QUIET = bytes(4)        # host seed 0: one batch, answers at once
+BUSY = struct.pack('<I', 0x2545f491)
+
+
+def values(rng, mode):
+    lo, hi = mode.raw
+    if mode.t == ev3.FLOAT:
+        return [rng.uniform(lo, hi) for _ in range(mode.n)]
+    bits = {ev3.S8: 8, ev3.S16: 16, ev3.S32: 32}[mode.t]
+    lo = max(int(lo), -(1 << (bits - 1)))
+    hi = min(int(hi), (1 << (bits - 1)) - 1)
+    return [rng.randint(lo, hi) for _ in range(mode.n)]
+
+
+def frames(sdef, mode, count, rng):
+    m = sdef.modes[mode]
+    out = b''
+    for _ in range(count):
+        bad = sdef.type == 29 and mode == 4 and rng.random() < 0.9
+        out += ev3.data_msg(mode, ev3.pack_values(m, values(rng, m)), bad_checksum=bad)
+    return out
+
+
+def ev3_session(sdef, per_mode, rng):
+    """A sensor's handshake, then `per_mode` DATA messages of each mode."""
+    out = ev3.handshake(sdef)
+    for mode in range(len(sdef.modes)):
+        out += frames(sdef, mode, per_mode, rng)
+    return out
+
+
+def ev3_seeds():
+    rng = random.Random(1)
+    seeds = {}
+    for name, sdef in sorted(ev3.SENSORS.items()):
+        seeds['%s-quiet' % name] = QUIET + ev3_session(sdef, 4, rng)
+        seeds['%s-busy' % name] = BUSY + ev3_session(sdef, 4, rng)
+    junk = [ev3.cmd_msg(ev3.CMD_TYPE, [29])[:2] + b'\x00',
+            ev3.cmd_msg(ev3.CMD_TYPE, [29]) + bytes([0xb0, 0x00]) + bytes(70),
+            ev3.cmd_msg(ev3.CMD_TYPE, [29]) + ev3.cmd_msg(ev3.CMD_MODES, [200, 200]),
+            ev3.cmd_msg(ev3.CMD_TYPE, [29]) + ev3.cmd_msg(ev3.CMD_SPEED, struct.pack('<I', 10**9)),
+            ev3.cmd_msg(ev3.CMD_TYPE, [29]) + ev3.info_msg(0, ev3.INFO_NAME, b'X' * 16),
+            bytes([0xc0, 0x01, 0x02, 0xff] * 8)]
+    seeds['hostile-then-color'] = QUIET + b''.join(junk) + ev3_session(ev3.COLOR, 2, rng)
+    return seeds
+
+
+def ev3_stream(per_mode=200, seed=2):
+    """The recorded stream of tests/bench/proto: several sensors one after
+    the other, each a handshake then mostly DATA messages. Returns the bytes
+    and the offsets where a sensor was unplugged (the line went silent
+    until the host gave it up)."""
+    rng = random.Random(seed)
+    out = b''
+    unplugged = []
+    for name in ('color', 'us', 'gyro', 'ir', 'fcl-humidity'):
+        sdef = ev3.SENSORS[name]
+        out += ev3.handshake(sdef)
+        # The data phase starts in mode 0; the quiet host does not SELECT.
+        out += frames(sdef, 0, per_mode * len(sdef.modes), rng)
+        unplugged.append(len(out))
+    return out, unplugged
+
+
+class Clock:
+    def __init__(self):
+        self.t = 1000.0
+
+    def __call__(self):
+        return self.t
+
+
+def nxt_firmware():
+    clock = Clock()
+    fw = nxt.Firmware(now=clock)
+    return fw, clock
+
+
+def nxt_raw_pairs():
+    """(telegram, reply) for telegrams the driver or a program sends raw."""
+    fw, clock = nxt_firmware()
+    tgs = [b'\x01\x88', b'\x01\x9b', b'\x00\x0b', b'\x00\x0d', b'\x00\x11',
+           b'\x00\x06\x00', b'\x00\x06\x02', b'\x00\x07\x00', b'\x00\x07\x03',
+           b'\x00\x0e\x03', b'\x00\x10\x03', b'\x00\x20\x02', b'\x00\x20\x00',
+           b'\x00\x30', b'\x01\x8a\x00\x00',
+           b'\x01\x80' + b'Demo.rxe'.ljust(20, b'\0'),
+           b'\x01\x82\x00\x10\x00', b'\x01\x82\x00\x40\x00',
+           b'\x01\x84\x00',
+           b'\x01\x86' + b'*.*'.ljust(20, b'\0'),
+           b'\x01\x94\x01\x00\x01\x00\x00\x00\x20\x00',
+           b'\x01\xa2\x00\x00\x10',
+           b'\x00\x13\x0a\x00\x01']
+    pairs = []
+    for tg in tgs:
+        clock.t += 0.1
+        r = fw.handle(tg)
+        if r is not None:
+            pairs.append((tg, r))
+    return pairs
+
+
+# The typed ioctls in fuzz_nxt.c's order, and a telegram for each.
+TYPED = [(0x00, b'Demo.rxe'.ljust(20, b'\0')), (0x01, b''),
+         (0x02, b'\x00' + b'Woops.rso'.ljust(20, b'\0')), (0x03, b'\xb8\x01\xe8\x03'),
+         (0x04, b'\x00\x32\x07\x01\x00\x20\x00\x00\x00\x00'), (0x05, b'\x03\x0b\x00'),
+         (0x06, b'\x01'), (0x07, b'\x02'), (0x08, b'\x00'), (0x09, b'\x00\x03hi\0'),
+         (0x0a, b'\x00\x01'), (0x0b, b''), (0x0c, b''), (0x0d, b''), (0x0e, b'\x03'),
+         (0x0f, b'\x03\x02\x01\x02\x42'), (0x10, b'\x03'), (0x11, b''),
+         (0x13, b'\x0a\x00\x01')]
+
+
+def nxt_typed_pairs():
+    fw, clock = nxt_firmware()
+    fw.program_send(10, b'hello')
+    pairs = []
+    for i, (op, args) in enumerate(TYPED):
+        clock.t += 0.5
+        r = fw.handle(bytes([0x00, op]) + args)
+        pairs.append((i, args, r))
+    return pairs
+
+
+def nxt_seeds():
+    seeds = {}
+    for tg, r in nxt_raw_pairs():
+        seeds['raw-%02x%02x-%d' % (tg[0], tg[1], len(tg))] = \
+            bytes([0x00, len(tg) - 2]) + tg + r
+    for i, args, r in nxt_typed_pairs():
+        # The argument is left zero: the fuzzer finds the valid ones.
+        seeds['typed-%02d' % i] = bytes([2 * i + 1, len(r)]) + r
+    return seeds
+
+
+def main():
+    out = sys.argv[1] if len(sys.argv) > 1 else os.path.join(TOP, 'tests', 'fuzz', 'corpus')
+    for sub, seeds in (('ev3', ev3_seeds()), ('nxt', nxt_seeds())):
+        d = os.path.join(out, sub)
+        os.makedirs(d, exist_ok=True)
+        for name, data in seeds.items():
+            with open(os.path.join(d, name), 'wb') as f:
+                f.write(data)
+        print('%s: %d seeds, %d bytes' % (d, len(seeds), sum(map(len, seeds.values()))))
+
+
+if __name__ == '__main__':
+    main()
