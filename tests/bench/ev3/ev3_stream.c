@@ -24,6 +24,7 @@
  *    first DATA message of the new mode;
  *  - with -g, only answers NACKs (value 0xffff, not counted) until it gets
  *    SIGUSR1, then starts the -d SECONDS of its schedule;
+ *  - ends its schedule early on SIGUSR2;
  *  - stops, as a sensor resets, when no NACK came for a second, and stops
  *    after -d SECONDS of data phase (all lines).
  *
@@ -31,7 +32,9 @@
  *   hs LINE T_WRITE T_DRAINED T_ACK BYTES TRIES   (T_ACK 0: never acked)
  *   select LINE T_RECEIVED T_REPLIED MODE
  *   line LINE SENT NACKS LATE_TICKS FIRST_NS LAST_NS STOPPED_BY
- *   total SENT SECONDS RATE_PER_LINE
+ *   total SENT SECONDS RATE_PER_LINE SYSTEM_US
+ * (SYSTEM_US: its own system time, mostly its write() calls, over the -d
+ * SECONDS of its schedule.)
  * Exit status: 0, 1 on an error, 2 on bad usage.
  */
 #define _GNU_SOURCE
@@ -43,6 +46,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/resource.h>
 #include <termios.h>
 #include <time.h>
 #include <unistd.h>
@@ -77,10 +81,14 @@ static unsigned int payload = 2;
 static int constant;
 static volatile sig_atomic_t go = 1;
 
-static void on_go(int sig)
+static volatile sig_atomic_t stop;
+
+static void on_signal(int sig)
 {
-	(void)sig;
-	go = 1;
+	if (sig == SIGUSR1)
+		go = 1;
+	else
+		stop = 1;
 }
 
 static int64_t now_ns(void)
@@ -328,6 +336,7 @@ int main(int argc, char **argv)
 	int64_t period = 0, next, end, start, delay;
 	unsigned long total = 0;
 	int started;
+	struct rusage ru0, ru1;
 	size_t hs_len;
 	speed_t code;
 	FILE *f;
@@ -366,7 +375,8 @@ int main(int argc, char **argv)
 	}
 	setvbuf(stdout, NULL, _IOLBF, 0);
 	started = go;
-	signal(SIGUSR1, on_go);
+	signal(SIGUSR1, on_signal);
+	signal(SIGUSR2, on_signal);
 	for (i = 0; optind < argc; i++, optind++) {
 		lines[i].path = argv[optind];
 		lines[i].fd = open(argv[optind], O_RDWR | O_NOCTTY | O_NONBLOCK);
@@ -386,12 +396,14 @@ int main(int argc, char **argv)
 	delay = (int64_t)(delay_ms * 1e6);
 	if (rate > 0)
 		period = (int64_t)(1e9 / rate);
+	getrusage(RUSAGE_SELF, &ru0);
 	start = now_ns();
 	end = start + (go ? (int64_t)(seconds * 1e9) : 600000000000LL);
 	next = start + period;
 	for (;;) {
 		if (go && !started) {
 			started = 1;
+			getrusage(RUSAGE_SELF, &ru0);
 			start = now_ns();
 			end = start + (int64_t)(seconds * 1e9);
 			next = start + period;
@@ -424,7 +436,7 @@ int main(int argc, char **argv)
 			p[n].events = POLLIN;
 			map[n++] = i;
 		}
-		if (!n || t >= end)
+		if (!n || t >= end || stop)
 			break;
 		if (period && go && t >= next) {
 			for (i = 0; i < nlines; i++)
@@ -452,6 +464,7 @@ int main(int argc, char **argv)
 			if (p[k].revents & POLLIN)
 				host_input(&lines[map[k]], t, !period, delay);
 	}
+	getrusage(RUSAGE_SELF, &ru1);
 	/* Let the last messages leave before the lines close. */
 	for (i = 0; i < nlines; i++) {
 		struct line *l = &lines[i];
@@ -461,7 +474,9 @@ int main(int argc, char **argv)
 		       l->late, (long long)l->first, (long long)l->last, l->stopped);
 		total += l->sent;
 	}
-	printf("total %lu %.3f %.1f\n", total, (now_ns() - start) / 1e9,
-	       nlines ? total / (double)nlines / ((end - start) / 1e9) : 0.0);
+	printf("total %lu %.3f %.1f %lld\n", total, (now_ns() - start) / 1e9,
+	       nlines ? total / (double)nlines / ((end - start) / 1e9) : 0.0,
+	       (ru1.ru_stime.tv_sec - ru0.ru_stime.tv_sec) * 1000000LL +
+	       ru1.ru_stime.tv_usec - ru0.ru_stime.tv_usec);
 	return 0;
 }
