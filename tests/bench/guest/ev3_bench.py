@@ -280,7 +280,8 @@ def bench_stream(binary, work, nsensors, seconds):
     try:
         # Connect with NACK-only answers, then stream.
         # Connected, the sensors answer NACKs (value 0xffff) until SIGUSR1.
-        p = start_stream(binary, work, 'gyro', range(nsensors), '-r', 1000, '-g', '-d', seconds)
+        p = start_stream(binary, work, 'gyro', range(nsensors), '-r', 1000, '-g', '-d', seconds,
+                         '-n', 20)
         deadline = time.monotonic() + 30
         while len(glob.glob('/sys/bus/iio/devices/iio:device*')) < nsensors:
             if time.monotonic() > deadline or p.poll() is not None:
@@ -373,7 +374,8 @@ def bench_stream(binary, work, nsensors, seconds):
 def bench_idle(binary, work, nsensors, seconds):
     """Kernel CPU (ticks/s) with the sensors connected, answering NACKs only."""
     fds = [attach(p) for p in range(nsensors)]
-    p = start_stream(binary, work, 'gyro', range(nsensors), '-r', 0, '-d', seconds + 3.0)
+    p = start_stream(binary, work, 'gyro', range(nsensors), '-r', 0, '-d', seconds + 30.0,
+                     '-n', 20)
     try:
         deadline = time.monotonic() + 30
         while len(glob.glob('/sys/bus/iio/devices/iio:device*')) < nsensors:
@@ -384,6 +386,7 @@ def bench_idle(binary, work, nsensors, seconds):
         s0, t0 = proc_stat(), time.monotonic()
         time.sleep(seconds)
         s1, t1 = proc_stat(), time.monotonic()
+        p.send_signal(signal.SIGUSR2)
         p.communicate(timeout=30)
     finally:
         if p.poll() is None:
@@ -414,7 +417,8 @@ def stream_figures(r, idle_rate):
                % tuple('%.3f' % x if x is not None else 'n/a'
                        for x in (r['p50'], r['p99'], r['max']))),
         figure('%d sensors at 1 kHz: kernel CPU per sample' % n, round(per_sample, 1), 'us',
-               'idle baseline subtracted', round(idle_rate / hz * 1e6 / 1000, 1), None, None,
+               'idle kernel CPU, %% of one CPU (subtracted)', round(idle_rate / hz * 100, 2),
+               None, None,
                '/proc/stat system+irq+softirq over %.1f s: %d ticks at %d Hz, minus the idle '
                'baseline (%.2f ticks/s, sensors connected, NACK replies only) and the sender\'s '
                'own system time (%.1f ticks, its write() calls); divided by %d samples read. '
