@@ -209,7 +209,7 @@ def bench_handshake(binary, work, runs):
             sdef = ev3_sensor.SENSORS[kind]
             nbytes = len(ev3_sensor.handshake(sdef))
             wire_ms = nbytes * BYTE_NS_2400 / 1e6
-            lat, over, acks, retries = [], [], [], 0
+            lat, over, acks, drained, retries = [], [], [], [], 0
             for _ in range(runs):
                 fd = attach(0)
                 try:
@@ -218,7 +218,7 @@ def bench_handshake(binary, work, runs):
                     if p.returncode:
                         raise BenchError('ev3_stream failed: %s' % err.strip())
                     res = parse(out)
-                    t_write, _, t_ack, _, tries = res['hs'][0]
+                    t_write, t_drained, t_ack, _, tries = res['hs'][0]
                     if not t_ack:
                         raise BenchError('%s: handshake never acked (%s)' % (kind, out.strip()))
                     retries += tries - 1    # measured from the last, acked, try
@@ -231,6 +231,7 @@ def bench_handshake(binary, work, runs):
                     lat.append((t_reg - t_write) / 1e6)
                     over.append((t_reg - t_write) / 1e6 - wire_ms)
                     acks.append((t_ack - t_write) / 1e6 - wire_ms)
+                    drained.append((t_drained - t_write) / 1e6)
                 finally:
                     os.close(fd)
                 wait_sensor_gone()
@@ -244,9 +245,10 @@ def bench_handshake(binary, work, runs):
                 max(over) <= 30,
                 'median %.1f ms, max %.1f ms over %d runs (median %.1f ms, max %.1f ms beyond the '
                 'wire time); the host ACK was read by the sensor a median %.1f ms after its own '
-                'ACK left; %d handshakes sent again for want of an ACK in 80 ms'
+                'ACK left; %d handshakes sent again for want of an ACK in 80 ms; pacing check: '
+                'tcdrain() on the sensor end returned a median %.1f ms after the write'
                 % (med, worst, runs, statistics.median(over), max(over),
-                   statistics.median(acks), retries)))
+                   statistics.median(acks), retries, statistics.median(drained))))
     finally:
         ue.close()
     notes.append('Handshake: the sensor (ev3_stream) writes the handshake bytes TYPE..ACK in one '
