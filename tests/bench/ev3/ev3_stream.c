@@ -46,6 +46,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/ioctl.h>
 #include <sys/resource.h>
 #include <termios.h>
 #include <time.h>
@@ -227,88 +228,79 @@ static void host_input(struct line *l, int64_t t, int answer_nack, int64_t delay
 	}
 }
 
+/*
+ * Every line on its own, as separate sensors: (re)send the handshake, wait
+ * for it to leave (TIOCOUTQ empty), then at most @ack_wait for the host's
+ * ACK, else send it again. Lines already connected keep answering NACKs
+ * meanwhile.
+ */
 static int handshake(const unsigned char *hs, size_t hs_len, int64_t ack_wait,
-		     unsigned int tries, speed_t data_speed)
+		     unsigned int tries, speed_t data_speed, int64_t delay)
 {
-	int64_t t_write[MAX_LINES], t_drained[MAX_LINES], t_ack[MAX_LINES];
-	unsigned int try[MAX_LINES], i, pending = nlines;
-	int fresh[MAX_LINES];
+	int64_t t_write[MAX_LINES] = { 0 }, t_drained[MAX_LINES] = { 0 };
+	int64_t t_ack[MAX_LINES] = { 0 };
+	unsigned int try[MAX_LINES] = { 0 }, i;
+	int failed[MAX_LINES] = { 0 };
 
-	for (i = 0; i < nlines; i++) {
-		try[i] = 0;
-		t_ack[i] = 0;
-		t_write[i] = 0;
-		t_drained[i] = 0;
-	}
-	while (pending) {
-		int64_t deadline = 0;
+	for (;;) {
+		struct pollfd p[MAX_LINES];
+		struct timespec ts = { 0, 2000000 };	/* 2 ms: TIOCOUTQ polls */
+		int64_t t = now_ns();
+		unsigned int waiting = 0;
 
-		/* (Re)send to every line still waiting; the lines run in parallel. */
 		for (i = 0; i < nlines; i++) {
-			fresh[i] = 0;
-			if (lines[i].acked || try[i] >= tries)
+			struct line *l = &lines[i];
+			int queued;
+
+			p[i].fd = l->fd;
+			p[i].events = POLLIN;
+			if (l->acked || failed[i])
 				continue;
-			fresh[i] = 1;
-			if (set_speed(lines[i].fd, B2400))
-				return -1;
-			tcflush(lines[i].fd, TCIFLUSH);
-			t_write[i] = now_ns();
-			if (write_all(lines[i].fd, hs, hs_len))
-				return -1;
-			try[i]++;
-		}
-		for (i = 0; i < nlines; i++) {
-			if (!fresh[i])
-				continue;
-			tcdrain(lines[i].fd);
-			t_drained[i] = now_ns();
-			if (t_drained[i] + ack_wait > deadline)
-				deadline = t_drained[i] + ack_wait;
-		}
-		for (;;) {
-			struct pollfd p[MAX_LINES];
-			int64_t t = now_ns();
-			unsigned int n = 0, map[MAX_LINES];
-
-			for (i = 0; i < nlines; i++) {
-				if (lines[i].acked || try[i] == 0 ||
-				    t > t_drained[i] + ack_wait)
+			if (!t_write[i] || (t_drained[i] && t > t_drained[i] + ack_wait)) {
+				if (try[i] >= tries) {
+					failed[i] = 1;
 					continue;
-				p[n].fd = lines[i].fd;
-				p[n].events = POLLIN;
-				map[n++] = i;
-			}
-			if (!n || t >= deadline)
-				break;
-			struct timespec ts = { 0, deadline - t };
-
-			if (ppoll(p, n, &ts, NULL) < 0 && errno != EINTR)
-				return -1;
-			t = now_ns();
-			for (unsigned int k = 0; k < n; k++) {
-				unsigned char buf[64];
-				ssize_t got;
-				struct line *l = &lines[map[k]];
-
-				if (!(p[k].revents & POLLIN))
-					continue;
-				got = read(l->fd, buf, sizeof(buf));
-				if (got > 0 && memchr(buf, ACK, got)) {
-					l->acked = 1;
-					t_ack[map[k]] = t;
-					/* The sensor switches as soon as it has the ACK. */
-					if (set_speed(l->fd, data_speed))
-						return -1;
-					l->live = 1;
-					l->last_nack = t;
-					pending--;
 				}
+				if (set_speed(l->fd, B2400))
+					return -1;
+				tcflush(l->fd, TCIFLUSH);
+				t_write[i] = now_ns();
+				t_drained[i] = 0;
+				if (write_all(l->fd, hs, hs_len))
+					return -1;
+				try[i]++;
+			}
+			if (!t_drained[i] && !ioctl(l->fd, TIOCOUTQ, &queued) && !queued)
+				t_drained[i] = now_ns();
+			waiting++;
+		}
+		if (!waiting)
+			break;
+		if (ppoll(p, nlines, &ts, NULL) < 0 && errno != EINTR)
+			return -1;
+		t = now_ns();
+		for (i = 0; i < nlines; i++) {
+			unsigned char buf[64];
+			struct line *l = &lines[i];
+			ssize_t got;
+
+			if (!(p[i].revents & POLLIN))
+				continue;
+			if (l->acked) {
+				host_input(l, t, 1, delay);
+				continue;
+			}
+			got = read(l->fd, buf, sizeof(buf));
+			if (got > 0 && !failed[i] && memchr(buf, ACK, got)) {
+				l->acked = 1;
+				t_ack[i] = t;
+				/* The sensor switches as soon as it has the ACK. */
+				if (set_speed(l->fd, data_speed))
+					return -1;
+				l->live = 1;
+				l->last_nack = t;
 			}
 		}
-		pending = 0;
-		for (i = 0; i < nlines; i++)
-			if (!lines[i].acked && try[i] < tries)
-				pending++;
 	}
 	for (i = 0; i < nlines; i++) {
 		printf("hs %u %lld %lld %lld %zu %u\n", i, (long long)t_write[i],
@@ -388,12 +380,12 @@ int main(int argc, char **argv)
 	}
 	nlines = i;
 
-	if (handshake(hs, hs_len, (int64_t)(ack_ms * 1e6), tries, code)) {
+	delay = (int64_t)(delay_ms * 1e6);
+	if (handshake(hs, hs_len, (int64_t)(ack_ms * 1e6), tries, code, delay)) {
 		perror("ev3_stream: handshake");
 		return 1;
 	}
 
-	delay = (int64_t)(delay_ms * 1e6);
 	if (rate > 0)
 		period = (int64_t)(1e9 / rate);
 	getrusage(RUSAGE_SELF, &ru0);
