@@ -35,6 +35,9 @@ mkdir -p "$out"
 fail=0
 
 tests/install-deps.sh >/dev/null
+# The guest runs the host's binaries: the EV3 sensor streamer, the NXT client.
+make -s -C tests/bench/ev3
+make -s -C tests/bench/nxt
 echo "==> protocol cores on the host (callgrind)"
 tests/bench/proto/run.sh "$out" $quick || { echo "bench: the protocol-core benchmark failed" >&2; fail=1; }
 
