@@ -249,6 +249,17 @@ static void ev3_uart_ack_work(struct work_struct *work)
 	}
 
 	spin_lock(&port->lock);
+	if (port->closing) {
+		/*
+		 * ev3_uart_close() ran meanwhile and found no sensor to take:
+		 * it waits for this work, then frees the port, so the sensor
+		 * must not outlive this function.
+		 */
+		sd->gone = true;
+		spin_unlock(&port->lock);
+		ev3_uart_sensor_destroy(sd);
+		return;
+	}
 	port->sensor = sd;
 	if (port->requested_mode != EV3_UART_NO_MODE &&
 	    port->requested_type == desc.type &&
