@@ -7,6 +7,7 @@
 #   make checkpatch    checkpatch.pl --strict on every source file
 #   make sparse        the modules with sparse (C=2)
 #   make demo          four emulated EV3 sensors and an NXT brick in the test VM
+#   make soak          the robustness soak in the test VM (~40 min; SOAK_ARGS=--short)
 #   make install       modules (updates/), uapi headers, tools, udev rules and
 #                      systemd units; DESTDIR=, PREFIX=/usr/local, KDIR=
 #   make install-userspace  the same without the modules (with DKMS)
@@ -25,7 +26,7 @@ export LEGO_SRC
 
 KBUILD_ARGS := -C $(KDIR) M=$(CURDIR) W=1
 
-.PHONY: all modules sparse clean checkpatch check deps vm-run demo help
+.PHONY: all modules sparse clean checkpatch check deps vm-run demo help soak
 .PHONY: install install-userspace uninstall modules_install dkms-source dkms-install dkms-remove
 
 all: modules
@@ -51,6 +52,10 @@ check:
 
 demo:
 	@tests/demo/run.sh
+
+# Documentation/lego/soak.rst; SOAK_ARGS=--short for the five-minute version.
+soak:
+	@tests/soak/run.sh $(SOAK_ARGS)
 
 help:
 	@sed -n '3,/^$$/p' Makefile
