@@ -16,7 +16,7 @@ sys.path.insert(0, os.path.join(os.path.dirname(__file__), '..', 'soak'))
 import soak  # noqa: E402
 
 PARAMS = dict(soak.SHORT, cycles=24, fuzz_seconds=45, race_seconds=20, unplugs=24,
-              transactions=100)
+              transactions=60)
 
 
 @pytest.fixture(scope='module', autouse=True)

@@ -62,9 +62,9 @@ CLEAN_UNPLUG = {errno.ENODEV, errno.ESHUTDOWN, errno.EPROTO, errno.EIO, errno.ET
                 errno.EPIPE, errno.ECONNRESET}
 
 FULL = dict(cycles=1000, lines=8, fuzz_seconds=600, fuzz_workers=4, race_seconds=180,
-            unplugs=500, transactions=1000)
-SHORT = dict(cycles=36, lines=4, fuzz_seconds=60, fuzz_workers=3, race_seconds=30,
-             unplugs=30, transactions=150)
+            unplugs=500, transactions=500)
+SHORT = dict(cycles=30, lines=4, fuzz_seconds=60, fuzz_workers=3, race_seconds=20,
+             unplugs=24, transactions=80)
 
 CTX = multiprocessing.get_context('fork')
 
@@ -758,11 +758,21 @@ def brick_unplug_loop(p, udc, serial, cycles, seed, lock):
                 p.fail('%s cycle %d: the node outlived the brick' % (udc, i))
 
 
+def brick_unplug_thread(p, udc, serial, cycles, seed, lock):
+    try:
+        brick_unplug_loop(p, udc, serial, cycles, seed, lock)
+    except Exception:
+        with lock:
+            p.fail('%s: exception: %s' % (udc, traceback.format_exc(limit=6)))
+
+
 def part_unplug(p, unplugs):
     lock = threading.Lock()
+    # The brick emulator installs its signal handler from the main thread.
+    nxt.nxt_brick._ensure_wake_handler()
     half = [unplugs - unplugs // 2, unplugs // 2]
     specs = [('dummy_udc.0', '0016530A0B01'), ('dummy_udc.1', '0016530A0B02')]
-    threads = [threading.Thread(target=brick_unplug_loop,
+    threads = [threading.Thread(target=brick_unplug_thread,
                                 args=(p, udc, serial, n, 5000 + i, lock), daemon=True)
                for i, ((udc, serial), n) in enumerate(zip(specs, half)) if n]
     for t in threads:
@@ -771,6 +781,8 @@ def part_unplug(p, unplugs):
         t.join(60 + 30 * max(half))
         if t.is_alive():
             p.fail('the unplug loop hung')
+    if p.count != unplugs:
+        p.fail('%d unplugs done of %d' % (p.count, unplugs))
 
 
 # ---- part 5: 8 clients on one brick -----------------------------------------
