@@ -12,6 +12,7 @@
 #   make bench         benchmarks; writes tests/bench/results.md (BENCH_ARGS=--quick)
 #   make fuzz          libFuzzer on the EV3 and NXT protocol cores (long run;
 #                      FUZZ_ARGS= passes options to tests/fuzz/run.sh)
+#   make soak          the robustness soak in the test VM (~40 min; SOAK_ARGS=--short)
 #   make install       modules (updates/), uapi headers, tools, udev rules and
 #                      systemd units; DESTDIR=, PREFIX=/usr/local, KDIR=
 #   make install-userspace  the same without the modules (with DKMS)
@@ -30,7 +31,7 @@ export LEGO_SRC
 
 KBUILD_ARGS := -C $(KDIR) M=$(CURDIR) W=1
 
-.PHONY: all modules sparse clean checkpatch check deps vm-run demo bench fuzz help
+.PHONY: all modules sparse clean checkpatch check deps vm-run demo bench fuzz soak help
 .PHONY: install install-userspace uninstall modules_install dkms-source dkms-install dkms-remove
 
 all: modules
@@ -66,6 +67,10 @@ bench:
 
 fuzz:
 	@tests/fuzz/run.sh $(FUZZ_ARGS)
+
+# Documentation/lego/soak.rst; SOAK_ARGS=--short for the five-minute version.
+soak:
+	@tests/soak/run.sh $(SOAK_ARGS)
 
 help:
 	@sed -n '3,/^$$/p' Makefile
