@@ -37,6 +37,8 @@ NETLINK_KOBJECT_UEVENT = 15     # linux/netlink.h; not in Python's socket module
 BYTE_NS_2400 = 10 * 1e9 / 2400
 HANDSHAKE_KINDS = ['color', 'us', 'gyro', 'ir']
 STREAM_PAYLOAD = 2          # GYRO-ANG: one s16, 4-byte DATA messages
+# How long the streamed sensors wait for the host's ACK (a real one: 80 ms).
+STREAM_ACK_MS = 1000
 SELECT_DELAY_MS = 15.0      # the gyro's reply delay (research: 10-15 ms)
 
 
@@ -283,7 +285,7 @@ def bench_stream(binary, work, nsensors, seconds):
         # Connect with NACK-only answers, then stream.
         # Connected, the sensors answer NACKs (value 0xffff) until SIGUSR1.
         p = start_stream(binary, work, 'gyro', range(nsensors), '-r', 1000, '-g', '-d', seconds,
-                         '-n', 20)
+                         '-n', 20, '-t', STREAM_ACK_MS)
         deadline = time.monotonic() + 30
         while len(glob.glob('/sys/bus/iio/devices/iio:device*')) < nsensors:
             if time.monotonic() > deadline or p.poll() is not None:
@@ -377,7 +379,7 @@ def bench_idle(binary, work, nsensors, seconds):
     """Kernel CPU (ticks/s) with the sensors connected, answering NACKs only."""
     fds = [attach(p) for p in range(nsensors)]
     p = start_stream(binary, work, 'gyro', range(nsensors), '-r', 0, '-d', seconds + 30.0,
-                     '-n', 20)
+                     '-n', 20, '-t', STREAM_ACK_MS)
     try:
         deadline = time.monotonic() + 30
         while len(glob.glob('/sys/bus/iio/devices/iio:device*')) < nsensors:
@@ -496,21 +498,31 @@ def main():
         figures += f
         notes += n
         seconds = 5 if args.quick else 60
+        failed = []
         for nsensors in (4, 16):
-            idle = bench_idle(binary, work, nsensors, 2 if args.quick else 5)
-            r = bench_stream(binary, work, nsensors, seconds)
+            try:
+                idle = bench_idle(binary, work, nsensors, 2 if args.quick else 5)
+                r = bench_stream(binary, work, nsensors, seconds)
+            except BenchError as e:
+                failed.append('%d sensors: %s' % (nsensors, e))
+                notes.append('ERROR: %d sensors: %s' % (nsensors, e))
+                continue
             figures += stream_figures(r, idle)
         notes.append('Sample delivery: ev3_stream plays gyros (GYRO-ANG, 4-byte DATA messages at '
                      '57600 baud) on lego_nullmodem lines, each sending a counting s16 value on a '
                      '1 ms absolute schedule for %d s; the bench reads /dev/iio:deviceN of each '
                      '(buffer of 16384 scans) and counts distinct values against what the sender '
                      'wrote. Inside the TCG VM the sender cannot always keep 1 kHz: its real rate '
-                     'is given.' % seconds)
+                     'is given. To connect many lines at once in the slow VM, the sensors wait '
+                     '%d ms for the host\'s ACK instead of the real 80 ms (the handshake figures '
+                     'above keep 80 ms).' % (seconds, STREAM_ACK_MS))
         figures += bench_mode_switch(binary, work, 6 if args.quick else 20)
         notes.append('Mode switch: from the write to the lego-sensor mode attribute to value0 '
                      'showing the new mode\'s value (the sensor sends 1000 x (mode + 1)); the '
                      'emulated sensor answers SELECT after %.0f ms, like the gyro.'
                      % SELECT_DELAY_MS)
+        if failed:
+            raise BenchError('; '.join(failed))
     except (BenchError, OSError, subprocess.SubprocessError) as e:
         print('ev3_bench: %s' % e, file=sys.stderr)
         notes.append('ERROR: %s' % e)
