@@ -279,7 +279,7 @@ def kernel_ticks(a, b):
 def bench_stream(binary, work, nsensors, seconds):
     hz = os.sysconf('SC_CLK_TCK')
     fds = [attach(p) for p in range(nsensors)]
-    devs, iio_fds = [], []
+    devs, iio_fds, tty_of = [], [], {}
     p = None
     try:
         # Connect with NACK-only answers, then stream.
@@ -298,6 +298,8 @@ def bench_stream(binary, work, nsensors, seconds):
             ev3.write_attr(d, 'scan_elements/in_timestamp_en', '1')
             ev3.write_attr(d, 'buffer/length', '16384')
             devs.append(d)
+            # The tty the IIO device hangs off (gone with it after the run).
+            tty_of[d] = os.path.basename(os.path.realpath(os.path.join(d, '..')))
         for d in devs:
             iio_fds.append(os.open('/dev/iio:device' + d.rsplit('iio:device', 1)[1],
                                    os.O_RDONLY | os.O_NONBLOCK))
@@ -342,7 +344,9 @@ def bench_stream(binary, work, nsensors, seconds):
     intervals = []
     stopped = []
     for d, fd in zip(devs, iio_fds):
-        tty = os.path.basename(os.path.realpath(os.path.join(d, '..')))
+        tty = tty_of[d]
+        if not tty.startswith('ttyNM'):
+            raise BenchError('%s hangs off %s, not a null-modem line' % (d, tty))
         line = int(tty[len('ttyNM'):]) // 2
         ln = res['line'][line]
         sent += ln[0]
