@@ -425,7 +425,7 @@ def stream_figures(r, idle_rate):
                % tuple('%.3f' % x if x is not None else 'n/a'
                        for x in (r['p50'], r['p99'], r['max']))),
         figure('%d sensors at 1 kHz: kernel CPU per sample' % n, round(per_sample, 1), 'us',
-               'idle kernel CPU, %% of one CPU (subtracted)', round(idle_rate / hz * 100, 2),
+               'idle kernel CPU (subtracted)', '%.2f %% of one CPU' % (idle_rate / hz * 100),
                None, None,
                '/proc/stat system+irq+softirq over %.1f s: %d ticks at %d Hz, minus the idle '
                'baseline (%.2f ticks/s, sensors connected, NACK replies only) and the sender\'s '
