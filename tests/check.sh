@@ -23,39 +23,8 @@ kver=${KVER:-6.12}
 build=${LEGO_BUILD_DIR:-$top/.build}
 results=$build/results
 console=$build/console.log
-phase_names=()
-phase_times=()
-phase_fail=0
-
-phase() {
-	local name=$1
-	shift
-	local t0=$SECONDS
-	echo "==> $name"
-	"$@"
-	local rc=$?
-	phase_names+=("$name")
-	phase_times+=("$((SECONDS - t0))")
-	if [ $rc -ne 0 ]; then
-		echo "==> $name FAILED (exit $rc)"
-		[ -n "${PHASE_NOCOUNT:-}" ] || phase_fail=$((phase_fail + 1))
-	fi
-	return $rc
-}
-
-summary() {
-	local passed=${1:-0} failed=${2:-0}
-	echo
-	echo "Phase times:"
-	for i in "${!phase_names[@]}"; do
-		printf '  %-34s %5s s\n' "${phase_names[$i]}" "${phase_times[$i]}"
-	done
-	printf '  %-34s %5s s\n' "total" "$SECONDS"
-	failed=$((failed + phase_fail))
-	echo "$passed passed, $failed failed"
-	[ "$failed" -eq 0 ]
-	exit $?
-}
+# shellcheck source=tests/lib/phases.sh
+. "$top/tests/lib/phases.sh"
 
 newest_61_headers() {
 	ls -d /usr/src/linux-headers-6.1.*-amd64 2>/dev/null | sort -V | tail -n 1
@@ -77,15 +46,10 @@ phase "dkms build for $kver (host)" tests/packaging/dkms-prepare.sh "$tree" "$bu
 
 rm -rf "$results"
 mkdir -p "$results"
-# Test failures in the VM are counted from its results; only a VM that
-# failed with no failed test (a crash, a timeout) counts as one more failure.
 PHASE_NOCOUNT=1 LEGO_VM_NO_BUILD=1 phase "VM: KUnit and guest tests" \
 	tests/vm-run --kver "$kver" --log "$console" --share "$results" -- \
 	tests/guest/run-suite.sh "$results" tests/guest
 vm_rc=$?
 phase "console splat scan" tests/scan-console.py "$console"
 
-python3 tests/summarize.py "$results" "$tree" || phase_fail=$((phase_fail + 1))
-read -r passed failed _ < "$results/totals" 2>/dev/null || { passed=0; failed=1; }
-[ "$vm_rc" -ne 0 ] && [ "$failed" -eq 0 ] && phase_fail=$((phase_fail + 1))
-summary "$passed" "$failed"
+vm_totals "$results" "$tree" "$vm_rc"

@@ -31,40 +31,10 @@ results=$build/results-arm64
 console=$build/console-arm64.log
 lock=${LEGO_ARM64_LOCK:-}
 [ -n "$lock" ] || [ ! -d /work/exp ] || lock=/work/exp/vm-arm64.lock
-phase_names=()
-phase_times=()
-phase_fail=0
-
-phase() {
-	local name=$1
-	shift
-	local t0=$SECONDS
-	echo "==> $name"
-	"$@"
-	local rc=$?
-	phase_names+=("$name")
-	phase_times+=("$((SECONDS - t0))")
-	if [ $rc -ne 0 ]; then
-		echo "==> $name FAILED (exit $rc)"
-		[ -n "${PHASE_NOCOUNT:-}" ] || phase_fail=$((phase_fail + 1))
-	fi
-	return $rc
-}
-
-summary() {
-	local passed=${1:-0} failed=${2:-0}
-	echo
-	echo "Phase times (arm64):"
-	for i in "${!phase_names[@]}"; do
-		printf '  %-34s %5s s\n' "${phase_names[$i]}" "${phase_times[$i]}"
-	done
-	printf '  %-34s %5s s\n' "total" "$SECONDS"
-	echo "Skipped on arm64: tests/guest/test_packaging.py (its dkms build is done on the host for x86)"
-	failed=$((failed + phase_fail))
-	echo "$passed passed, $failed failed"
-	[ "$failed" -eq 0 ]
-	exit $?
-}
+# shellcheck source=tests/lib/phases.sh
+. "$top/tests/lib/phases.sh"
+PHASE_TITLE="Phase times (arm64)"
+PHASE_FOOTER="Skipped on arm64: tests/guest/test_packaging.py (its dkms build is done on the host for x86)"
 
 # A phase whose stdout (a path) is not wanted; "==> name" still shows.
 quiet() { "$@" >/dev/null; }
@@ -86,7 +56,4 @@ PHASE_NOCOUNT=1 LEGO_VM_NO_BUILD=1 phase "arm64 VM: KUnit and guest tests" "${vm
 vm_rc=$?
 phase "console splat scan" tests/scan-console.py "$console"
 
-python3 tests/summarize.py "$results" "$tree" || phase_fail=$((phase_fail + 1))
-read -r passed failed _ < "$results/totals" 2>/dev/null || { passed=0; failed=1; }
-[ "$vm_rc" -ne 0 ] && [ "$failed" -eq 0 ] && phase_fail=$((phase_fail + 1))
-summary "$passed" "$failed"
+vm_totals "$results" "$tree" "$vm_rc"

@@ -42,9 +42,12 @@ armhf) karch=arm cross=arm-linux-gnueabihf- defconfig=multi_v7_defconfig ;;
 esac
 series=6.12
 here=$(cd "$(dirname "$0")" && pwd)
+prog=build-cross-tree
+# shellcheck source=tests/kernel/lib.sh
+. "$here/lib.sh"
 fragment=$here/cross-common.config
 tarball=/usr/src/linux-source-$series.tar.xz
-cache=${LEGO_CACHE:-${XDG_CACHE_HOME:-$HOME/.cache}/lego-mindstorms-linux}
+cache=$(kcache_dir)
 
 [ -r "$tarball" ] || { echo "build-cross-tree: $tarball missing (apt-get install linux-source-$series)" >&2; exit 1; }
 command -v "${cross}gcc" >/dev/null || { echo "build-cross-tree: ${cross}gcc missing (tests/install-deps.sh installs it)" >&2; exit 1; }
@@ -55,20 +58,14 @@ key=$( { echo "$arch $series $pkgver $defconfig recipe $recipe"; cat "$fragment"
 entry=$cache/cross-$arch-$key
 tree=$entry/linux
 
-if [ -f "$entry/.done" ]; then
-	echo "$tree"
-	exit 0
-fi
-[ "$tree_only" = 0 ] || exit 1
+kcache_lookup "$entry" "$tree_only"
 
 mkdir -p "$entry"
 exec 3>&2
 log=$entry/build.log
 echo "build-cross-tree: preparing linux-source-$series $pkgver for $arch in $entry (log: $log)" >&3
 start=$(date +%s)
-rm -rf "$tree"
-mkdir -p "$tree"
-tar -xf "$tarball" -C "$tree" --strip-components=1
+kcache_unpack "$tarball" "$tree"
 
 kmake() { nice -n 15 make -C "$tree" ARCH="$karch" CROSS_COMPILE="$cross" "$@"; }
 {
@@ -77,20 +74,7 @@ kmake() { nice -n 15 make -C "$tree" ARCH="$karch" CROSS_COMPILE="$cross" "$@"; 
 	kmake olddefconfig
 } >"$log" 2>&1
 
-# merge_config only warns; a requested option that did not survive is an error here.
-missing=0
-while IFS= read -r line; do
-	case "$line" in
-	CONFIG_*=*)
-		grep -qxF "$line" "$tree/.config" || { echo "build-cross-tree: not set as requested: $line" >&3; missing=1; }
-		;;
-	"# CONFIG_"*" is not set")
-		opt=${line#\# }; opt=${opt%% *}
-		grep -q "^$opt=" "$tree/.config" && { echo "build-cross-tree: should be off: $opt" >&3; missing=1; }
-		;;
-	esac
-done <"$fragment"
-[ "$missing" = 0 ] || exit 1
+kconfig_verify "$tree/.config" "" "$fragment" 2>&3 || exit 1
 
 if ! kmake -j"$(nproc)" modules_prepare >>"$log" 2>&1; then
 	tail -n 40 "$log" >&3

@@ -26,6 +26,9 @@ while [ $# -gt 0 ]; do
 done
 series=${1:-6.12}
 here=$(cd "$(dirname "$0")" && pwd)
+prog=build-kernel
+# shellcheck source=tests/kernel/lib.sh
+. "$here/lib.sh"
 fragment=$here/test.config
 fragments=("$fragment")
 # Per-architecture make variables and the options of test.config that the
@@ -44,7 +47,7 @@ arm64)
 *) echo "build-kernel: unknown --arch $arch (x86 or arm64)" >&2; exit 2 ;;
 esac
 tarball=/usr/src/linux-source-$series.tar.xz
-cache=${LEGO_CACHE:-${XDG_CACHE_HOME:-$HOME/.cache}/lego-mindstorms-linux}
+cache=$(kcache_dir)
 
 [ -r "$tarball" ] || { echo "build-kernel: $tarball missing (apt-get install linux-source-$series)" >&2; exit 1; }
 pkgver=$(dpkg-query -W -f '${Version}' "linux-source-$series")
@@ -60,19 +63,13 @@ else
 fi
 tree=$entry/linux
 
-if [ -f "$entry/.done" ]; then
-	echo "$tree"
-	exit 0
-fi
-[ "$tree_only" = 0 ] || exit 1
+kcache_lookup "$entry" "$tree_only"
 
 mkdir -p "$entry"
 exec 3>&2
 log=$entry/build.log
 echo "build-kernel: building linux-source-$series $pkgver into $entry (log: $log)" >&3
-rm -rf "$tree"
-mkdir -p "$tree"
-tar -xf "$tarball" -C "$tree" --strip-components=1
+kcache_unpack "$tarball" "$tree"
 
 jobs=$(nproc)
 {
@@ -81,21 +78,7 @@ jobs=$(nproc)
 	make -C "$tree" "${makevars[@]}" olddefconfig
 } >"$log" 2>&1
 
-# merge_config only warns; a requested option that did not survive is an error here.
-missing=0
-while IFS= read -r line; do
-	case "$line" in
-	CONFIG_*=*)
-		case " $absent " in *" ${line%%=*} "*) continue ;; esac
-		grep -qxF "$line" "$tree/.config" || { echo "build-kernel: not set as requested: $line" >&3; missing=1; }
-		;;
-	"# CONFIG_"*" is not set")
-		opt=${line#\# }; opt=${opt%% *}
-		grep -q "^$opt=" "$tree/.config" && { echo "build-kernel: should be off: $opt" >&3; missing=1; }
-		;;
-	esac
-done < <(cat "${fragments[@]}")
-[ "$missing" = 0 ] || exit 1
+kconfig_verify "$tree/.config" "$absent" "${fragments[@]}" 2>&3 || exit 1
 
 start=$(date +%s)
 # Print a dot a minute so a long cold build shows progress.
