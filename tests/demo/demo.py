@@ -9,7 +9,6 @@ into a USB port and driven with nxtctl. Every step checks what it shows;
 the exit status is the number of failed steps (0: all passed).
 """
 import contextlib
-import glob
 import io
 import os
 import re
@@ -167,19 +166,9 @@ def _():
         time.sleep(0.3)
 
 
-def iio_of(name):
-    for d in glob.glob('/sys/bus/iio/devices/iio:device*'):
-        try:
-            if ev3.read_attr(d, 'name') == name:
-                return d
-        except OSError:
-            pass
-    return None
-
-
 @step(EV3, 'The same sensors through IIO (scaled to SI units)')
 def _():
-    dev = iio_of('lego-ev3-us')
+    dev = ev3.iio_device('lego-ev3-us')
     check(dev, 'no IIO device for the ultrasonic sensor')
     emu_of('in2').set_values(0, [505])
     raw = ev3.wait_attr_int(dev, 'in_distance0_raw', 505)
@@ -188,7 +177,7 @@ def _():
     say('   %s: in_distance0_raw=%d in_distance0_scale=%s -> %.3f m' % (dev, raw, attr(dev, 'in_distance0_scale'),
                                                                        raw * scale))
     check(abs(raw * scale - 0.505) < 1e-6, 'distance in metres')
-    dev = iio_of('lego-ev3-gyro')
+    dev = ev3.iio_device('lego-ev3-gyro')
     check(dev, 'no IIO device for the gyro')
     emu_of('in3').set_values(0, [-30])
     raw = ev3.wait_attr_int(dev, 'in_angl0_raw', -30)

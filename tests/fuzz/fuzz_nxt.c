@@ -22,20 +22,10 @@
 #include <linux/kernel.h>
 
 #include "nxt_proto.h"
+#include "nxt_ioctls.h"
 #include "fuzz_check.h"
 
 #define REPLY_MAX	80
-
-static const unsigned int ioctls[] = {
-	NXT_IOC_START_PROGRAM, NXT_IOC_STOP_PROGRAM, NXT_IOC_PLAY_SOUND_FILE,
-	NXT_IOC_PLAY_TONE, NXT_IOC_SET_OUTPUT_STATE, NXT_IOC_SET_INPUT_MODE,
-	NXT_IOC_GET_OUTPUT_STATE, NXT_IOC_GET_INPUT_VALUES,
-	NXT_IOC_RESET_INPUT_SCALED_VALUE, NXT_IOC_MESSAGE_WRITE,
-	NXT_IOC_RESET_MOTOR_POSITION, NXT_IOC_GET_BATTERY_LEVEL,
-	NXT_IOC_STOP_SOUND_PLAYBACK, NXT_IOC_KEEP_ALIVE, NXT_IOC_LS_GET_STATUS,
-	NXT_IOC_LS_WRITE, NXT_IOC_LS_READ, NXT_IOC_GET_CURRENT_PROGRAM_NAME,
-	NXT_IOC_MESSAGE_READ,
-};
 
 /* nxt_reply_check() and what its result promises. */
 static int check_reply(const u8 *tg, size_t tg_len, const u8 *reply, size_t len)
@@ -127,7 +117,7 @@ static void typed(unsigned int sel, const u8 *data, size_t size)
 	u8 *arg, *reply;
 	int tg_len, ret;
 
-	cmd = nxt_command_find(ioctls[sel % ARRAY_SIZE(ioctls)]);
+	cmd = nxt_command_find(nxt_test_ioctls[sel % ARRAY_SIZE(nxt_test_ioctls)]);
 	CHECK(cmd);
 	arg_size = _IOC_SIZE(cmd->ioctl);
 	CHECK(arg_size <= NXT_TELEGRAM_MAX && cmd->status_offset < arg_size);

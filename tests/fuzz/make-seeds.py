@@ -129,7 +129,7 @@ def nxt_raw_pairs():
     return pairs
 
 
-# The typed ioctls in fuzz_nxt.c's order, and a telegram for each.
+# The typed ioctls in the order of tests/fuzz/nxt_ioctls.h, and a telegram for each.
 TYPED = [(0x00, b'Demo.rxe'.ljust(20, b'\0')), (0x01, b''),
          (0x02, b'\x00' + b'Woops.rso'.ljust(20, b'\0')), (0x03, b'\xb8\x01\xe8\x03'),
          (0x04, b'\x00\x32\x07\x01\x00\x20\x00\x00\x00\x00'), (0x05, b'\x03\x0b\x00'),

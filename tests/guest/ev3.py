@@ -2,6 +2,7 @@
 import fcntl
 import glob
 import os
+import select
 import struct
 import subprocess
 import sys
@@ -13,6 +14,7 @@ import ev3_sensor  # noqa: E402
 
 N_LEGOEV3 = 29
 CLASS = '/sys/class/lego-sensor'
+IIO = '/sys/bus/iio/devices'
 
 
 def load_nullmodem():
@@ -71,6 +73,39 @@ def wait_attr_int(path, attr, want, timeout=3.0):
 
 def wait_value(path, index, want, timeout=3.0):
     return wait_attr_int(path, 'value%d' % index, want, timeout)
+
+
+def iio_device(name, timeout=5.0):
+    """The IIO device directory named `name`, waiting for it (None: none)."""
+    deadline = time.monotonic() + timeout
+    while True:
+        for d in glob.glob(IIO + '/iio:device*'):
+            try:
+                if read_attr(d, 'name') == name:
+                    return d
+            except OSError:
+                pass
+        if time.monotonic() >= deadline:
+            return None
+        time.sleep(0.05)
+
+
+def drain(fd, seconds):
+    """Read what a non-blocking IIO buffer fd holds, for at most `seconds`."""
+    data = b''
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        r, _, _ = select.select([fd], [], [], 0.05)
+        if not r:
+            break
+        try:
+            chunk = os.read(fd, 1 << 16)
+        except BlockingIOError:
+            break
+        if not chunk:
+            break
+        data += chunk
+    return data
 
 
 class Line:

@@ -1,7 +1,6 @@
 """Each emulated sensor as an IIO device: channels, units, buffered capture
 with timestamps, and libiio's tools."""
 import errno
-import glob
 import os
 import struct
 import subprocess
@@ -10,20 +9,7 @@ import time
 
 import pytest
 
-from ev3 import find_sensor, read_attr, wait_attr_int, write_attr
-
-
-def iio_device(name, timeout=5.0):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        for d in glob.glob('/sys/bus/iio/devices/iio:device*'):
-            try:
-                if read_attr(d, 'name') == name:
-                    return d
-            except OSError:
-                pass
-        time.sleep(0.05)
-    return None
+from ev3 import drain, find_sensor, iio_device, read_attr, wait_attr_int, write_attr
 
 
 def test_iio_ultrasonic_distance_in_metres(line):
@@ -105,13 +91,13 @@ def test_iio_buffer_gets_every_sample(line, record_testsuite_property):
         # Read while the stream runs, until every value is in or it is late.
         deadline = time.monotonic() + STREAM_FRAMES / 1000 + 30
         while time.monotonic() < deadline:
-            data += _drain(fd, 0.2)
+            data += drain(fd, 0.2)
             if not streamer.is_alive() and \
                     sum(1 for v, _ in _samples(data) if v == STREAM_FRAMES - 1):
                 break
         time.sleep(0.1)
         write_attr(dev, 'buffer/enable', '0')   # no more pushes after this
-        data += _drain(fd, 1.0)
+        data += drain(fd, 1.0)
     finally:
         streamer.join(60)
         os.close(fd)
@@ -145,25 +131,6 @@ def test_iio_buffer_gets_every_sample(line, record_testsuite_property):
 def _samples(data):
     """(value, timestamp) of each whole sample: s32 value, padding, s64 timestamp."""
     return [struct.unpack_from('<i4xq', data, i) for i in range(0, len(data) - 15, 16)]
-
-
-def _drain(fd, seconds):
-    """Read what the buffer holds, for at most `seconds`."""
-    import select
-    data = b''
-    deadline = time.monotonic() + seconds
-    while time.monotonic() < deadline:
-        r, _, _ = select.select([fd], [], [], 0.05)
-        if not r:
-            break
-        try:
-            chunk = os.read(fd, 1 << 16)
-        except BlockingIOError:
-            break
-        if not chunk:
-            break
-        data += chunk
-    return data
 
 
 def test_libiio_tools(line):

@@ -188,19 +188,6 @@ def wait_sensor_gone(timeout=5):
         time.sleep(0.05)
 
 
-def iio_device(name, timeout=5.0):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        for d in glob.glob('/sys/bus/iio/devices/iio:device*'):
-            try:
-                if ev3.read_attr(d, 'name') == name:
-                    return d
-            except OSError:
-                pass
-        time.sleep(0.05)
-    return None
-
-
 # ---- 1. handshake ----
 
 def bench_handshake(binary, work, runs):
@@ -318,14 +305,7 @@ def bench_stream(binary, work, nsensors, seconds):
         time.sleep(0.2)
         for d, fd in zip(devs, iio_fds):
             ev3.write_attr(d, 'buffer/enable', '0')
-            while True:
-                try:
-                    chunk = os.read(fd, 1 << 16)
-                except BlockingIOError:
-                    break
-                if not chunk:
-                    break
-                data[fd] += chunk
+            data[fd] += ev3.drain(fd, 5.0)
         out, err = p.communicate(timeout=30)
         if p.returncode:
             raise BenchError('ev3_stream failed: %s' % err.strip())

@@ -18,17 +18,7 @@
 #include <linux/kernel.h>
 
 #include "nxt_proto.h"
-
-static const unsigned int ioctls[] = {
-	NXT_IOC_START_PROGRAM, NXT_IOC_STOP_PROGRAM, NXT_IOC_PLAY_SOUND_FILE,
-	NXT_IOC_PLAY_TONE, NXT_IOC_SET_OUTPUT_STATE, NXT_IOC_SET_INPUT_MODE,
-	NXT_IOC_GET_OUTPUT_STATE, NXT_IOC_GET_INPUT_VALUES,
-	NXT_IOC_RESET_INPUT_SCALED_VALUE, NXT_IOC_MESSAGE_WRITE,
-	NXT_IOC_RESET_MOTOR_POSITION, NXT_IOC_GET_BATTERY_LEVEL,
-	NXT_IOC_STOP_SOUND_PLAYBACK, NXT_IOC_KEEP_ALIVE, NXT_IOC_LS_GET_STATUS,
-	NXT_IOC_LS_WRITE, NXT_IOC_LS_READ, NXT_IOC_GET_CURRENT_PROGRAM_NAME,
-	NXT_IOC_MESSAGE_READ,
-};
+#include "nxt_ioctls.h"
 
 int main(int argc, char **argv)
 {
@@ -61,7 +51,7 @@ int main(int argc, char **argv)
 			len = getc(f);
 		if (len < 0 || len > NXT_TELEGRAM_MAX ||
 		    fread(rec + tg_len, 1, len, f) != (size_t)len ||
-		    kind > (int)ARRAY_SIZE(ioctls)) {
+		    kind > (int)ARRAY_SIZE(nxt_test_ioctls)) {
 			fprintf(stderr, "%s: bad record %lu\n", argv[1], replies);
 			return 1;
 		}
@@ -73,7 +63,7 @@ int main(int argc, char **argv)
 		}
 		accepted++;
 		if (kind) {
-			cmd = nxt_command_find(ioctls[kind - 1]);
+			cmd = nxt_command_find(nxt_test_ioctls[kind - 1]);
 			if (!cmd || nxt_command_decode(cmd, rec + tg_len, len, arg))
 				bad++;
 		} else if (rec[1] == NXT_GET_VERSIONS) {

@@ -30,7 +30,7 @@ spec = importlib.util.spec_from_file_location('make_seeds',
 seeds = importlib.util.module_from_spec(spec)
 spec.loader.exec_module(seeds)
 
-# Typed ioctls by their number in bench_nxt.c's table (1 + index).
+# Typed ioctls by their number in tests/fuzz/nxt_ioctls.h (1 + index).
 SET_OUTPUT_STATE, SET_INPUT_MODE, GET_OUTPUT_STATE, GET_INPUT_VALUES = 5, 6, 7, 8
 BATTERY, KEEP_ALIVE, LS_GET_STATUS, LS_WRITE, LS_READ, MESSAGE_READ = 12, 14, 15, 16, 17, 19
 RAW = 0

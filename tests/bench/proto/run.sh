@@ -45,7 +45,7 @@ mkdir -p "$work"
 # DWARF 4: valgrind 3.19 cannot read clang-14's DWARF 5.
 cflags=(-O2 -gdwarf-4 -std=gnu11 -D_GNU_SOURCE -funsigned-char -fno-strict-aliasing -DLEGO_HAVE_LINUX_UNALIGNED
 	-Wall -Wextra -Werror -Wno-unused-parameter -Wno-sign-compare
-	-I"$top/tests/fuzz/shim" -I"$top/include/uapi" -I"$top/drivers/lego")
+	-I"$top/tests/fuzz/shim" -I"$top/tests/fuzz" -I"$top/include/uapi" -I"$top/drivers/lego")
 "$CC" "${cflags[@]}" -I"$top/drivers/lego/ev3" "$top/tests/bench/proto/bench_ev3.c" \
 	"$top/drivers/lego/ev3/ev3_uart_proto.c" -o "$work/bench_ev3"
 "$CC" "${cflags[@]}" -I"$top/drivers/lego/nxt" "$top/tests/bench/proto/bench_nxt.c" \
