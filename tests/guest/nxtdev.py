@@ -157,6 +157,36 @@ def transact(fd, telegram):
     return err, t['reply'][:t['reply_length']] if not err else b''
 
 
+def mixed_request(fd, index, i):
+    """Request `i` of client `index` in the many-clients tests: each reply
+    depends on what was asked, so a reply given to the wrong client shows.
+
+    Cycles through a ReadIOMap at an offset unique to the client and the
+    request (NXT_IOC_TRANSACT or write()/read()), a typed GET_INPUT_VALUES and
+    a raw GetInputValues. Returns (kind, errno or 0, reply matched).
+    """
+    kind = (index + i) % 3
+    if kind == 0:
+        offset = (index * 131 + i * 7) % 150
+        tg = b'\x01\x94' + struct.pack('<IHH', 0x00030001, offset, 8)
+        if i % 2:
+            err, reply = transact(fd, tg)
+        else:
+            os.write(fd, tg)
+            reply, err = os.read(fd, 64), 0
+        want = b'\x02\x94\x00' + struct.pack('<IH', 0x00030001, 8) + \
+            bytes(nxt_brick.iomap_pattern(0x00030001, offset + k) for k in range(8))
+        return kind, err, not err and reply[:len(want)] == want
+    if kind == 1:
+        port = (index + i) % 4
+        err, v = command(fd, 'GET_INPUT_VALUES', port=port)
+        return kind, err, not err and v['port'] == port
+    port = (index + i) % 3
+    os.write(fd, bytes([0x00, 0x06, port]))
+    reply = os.read(fd, 64)
+    return kind, 0, len(reply) == 25 and reply[:4] == bytes([0x02, 0x06, 0x00, port])
+
+
 def wait_versions(fd, timeout):
     """GetVersions until the brick answers (after a reset, say): (errno, reply)."""
     deadline = time.monotonic() + timeout

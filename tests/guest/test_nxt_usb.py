@@ -393,30 +393,9 @@ def worker(node, index, count, start, out):
     try:
         assert nxt.set_timeout(f, 5000) == 0
         for i in range(count):
-            kind = (index + i) % 3
-            if kind == 0:
-                offset = (index * 7 + i) % 80
-                tg = b'\x01\x94' + struct.pack('<IHH', 0x00030001, offset, 4)
-                if i % 2:
-                    err, reply = nxt.transact(f, tg)
-                else:
-                    os.write(f, tg)
-                    reply, err = os.read(f, 64), 0
-                want = bytes((offset + k + 37 * 3 + 1) & 0xff for k in range(4))
-                if err or reply[:9] != b'\x02\x94\x00' + struct.pack('<IH', 0x00030001, 4) \
-                        or reply[9:13] != want:
-                    bad += 1
-            elif kind == 1:
-                port = (index + i) % 4
-                err, v = nxt.command(f, 'GET_INPUT_VALUES', port=port)
-                if err or v['port'] != port:
-                    bad += 1
-            else:
-                port = (index + i) % 3
-                os.write(f, bytes([0x00, 0x06, port]))
-                reply = os.read(f, 64)
-                if len(reply) != 25 or reply[:4] != bytes([0x02, 0x06, 0x00, port]):
-                    bad += 1
+            _, err, ok = nxt.mixed_request(f, index, i)
+            if err or not ok:
+                bad += 1
     except Exception as e:          # reported, not lost with the process
         bad = repr(e)
     finally:

@@ -794,29 +794,7 @@ def hammer_client(res, node, index, count, start):
     try:
         nxt.set_timeout(f, 5000)
         for i in range(count):
-            kind = (index + i) % 3
-            if kind == 0:
-                # ReadIOMap at an offset unique to this client and request.
-                offset = (index * 131 + i * 7) % 150
-                tg = b'\x01\x94' + struct.pack('<IHH', 0x00030001, offset, 8)
-                if i % 2:
-                    err, reply = nxt.transact(f, tg)
-                else:
-                    os.write(f, tg)
-                    reply, err = os.read(f, 64), 0
-                want = b'\x02\x94\x00' + struct.pack('<IH', 0x00030001, 8) + \
-                    bytes(nxt.nxt_brick.iomap_pattern(0x00030001, offset + k) for k in range(8))
-                ok = not err and reply[:len(want)] == want
-            elif kind == 1:
-                port = (index + i) % 4
-                err, v = nxt.command(f, 'GET_INPUT_VALUES', port=port)
-                ok = not err and v['port'] == port
-            else:
-                port = (index + i) % 3
-                os.write(f, bytes([0x00, 0x06, port]))
-                reply = os.read(f, 64)
-                err = 0
-                ok = len(reply) == 25 and reply[:4] == bytes([0x02, 0x06, 0x00, port])
+            kind, err, ok = nxt.mixed_request(f, index, i)
             if err:
                 bump(res, 'lost_' + errno.errorcode.get(err, str(err)))
                 child_fail(res, 'client %d request %d: %s' % (index, i, os.strerror(err)))
