@@ -28,4 +28,15 @@ mapfile -t files < <(git ls-files -co --exclude-standard -- 'drivers/*.[ch]' 'in
 	echo "checkpatch: not clean" >&2
 	exit 1
 }
-echo "checkpatch: ${#files[@]} files clean"
+# The test programs (fuzz targets, benchmarks, the uapi check) are
+# userspace: C99 types, a volatile sig_atomic_t and libFuzzer's
+# LLVMFuzzerTestOneInput are right there. tests/fuzz/shim/ is left out: it
+# re-implements kernel macros for userspace, in the shape they have.
+mapfile -t progs < <(git ls-files -co --exclude-standard -- 'tests/*.[ch]' |
+	grep -v -e '^tests/kmod/' -e '^tests/fuzz/shim/' | sort)
+"$cp" --strict --no-tree --quiet --show-types --ignore PREFER_KERNEL_TYPES,VOLATILE,CAMELCASE \
+	-f "${progs[@]}" || {
+	echo "checkpatch: test programs not clean" >&2
+	exit 1
+}
+echo "checkpatch: ${#files[@]} files and ${#progs[@]} test programs clean"

@@ -313,7 +313,7 @@ static int handshake(const unsigned char *hs, size_t hs_len, int64_t ack_wait,
 
 static void usage(void)
 {
-	fprintf(stderr, "usage: ev3_stream -H HANDSHAKE [-s BAUD] [-p BYTES] [-r HZ] [-d SECONDS]\n"
+	fprintf(stderr, "Usage: ev3_stream -H HANDSHAKE [-s BAUD] [-p BYTES] [-r HZ] [-d SECONDS]\n"
 		"                  [-D MS] [-c] [-g] [-t MS] [-n TRIES] TTY...\n");
 	exit(2);
 }
@@ -336,17 +336,38 @@ int main(int argc, char **argv)
 
 	while ((opt = getopt(argc, argv, "H:s:p:r:d:D:cgt:n:")) != -1) {
 		switch (opt) {
-		case 'H': hs_path = optarg; break;
-		case 's': baud = atol(optarg); break;
-		case 'p': payload = atoi(optarg); break;
-		case 'r': rate = atof(optarg); break;
-		case 'd': seconds = atof(optarg); break;
-		case 'D': delay_ms = atof(optarg); break;
-		case 'c': constant = 1; break;
-		case 'g': go = 0; break;
-		case 't': ack_ms = atof(optarg); break;
-		case 'n': tries = atoi(optarg); break;
-		default: usage();
+		case 'H':
+			hs_path = optarg;
+			break;
+		case 's':
+			baud = atol(optarg);
+			break;
+		case 'p':
+			payload = atoi(optarg);
+			break;
+		case 'r':
+			rate = atof(optarg);
+			break;
+		case 'd':
+			seconds = atof(optarg);
+			break;
+		case 'D':
+			delay_ms = atof(optarg);
+			break;
+		case 'c':
+			constant = 1;
+			break;
+		case 'g':
+			go = 0;
+			break;
+		case 't':
+			ack_ms = atof(optarg);
+			break;
+		case 'n':
+			tries = atoi(optarg);
+			break;
+		default:
+			usage();
 		}
 	}
 	code = speed_code(baud);
