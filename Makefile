@@ -176,7 +176,9 @@ endif
 #
 # dkms builds a copy of the sources in /usr/src/lego-mindstorms-VERSION:
 # only what the module build needs goes there (no tests, no build output).
-VERSION := $(shell sed -n 's/^PACKAGE_VERSION="\(.*\)"/\1/p' $(CURDIR)/dkms.conf)
+# (A copy of the build files without dkms.conf, as tests/build-modules.sh
+# makes, has no version.)
+VERSION := $(if $(wildcard $(CURDIR)/dkms.conf),$(shell sed -n 's/^PACKAGE_VERSION="\(.*\)"/\1/p' $(CURDIR)/dkms.conf))
 DKMS_NAME := lego-mindstorms
 DKMS_SRC := $(DESTDIR)/usr/src/$(DKMS_NAME)-$(VERSION)
 DKMS_FILES := dkms.conf Makefile Kbuild drivers include

@@ -351,7 +351,6 @@ unsigned int nxt_reply_length(const u8 *tg, size_t len)
 			return n;
 		}
 		return count < 0 ? 0 : n + min(count, cap);
-		return n;
 	default:
 		return 0;
 	}
