@@ -331,15 +331,22 @@ out:
 	mutex_unlock(&nxt->io_mutex);
 }
 
-/* Claims the slot for @x; true when done or when the brick is gone (@err). */
+/*
+ * Claims the slot for @x, queued by nxt_enqueue(), once it is free and @x is
+ * first in the queue. True when done (@x left the queue) or when the brick
+ * is gone (@err).
+ */
 static bool nxt_claim(struct nxt_usb *nxt, struct nxt_xfer *x, int *err)
 {
 	bool done = true;
 
 	spin_lock_irq(&nxt->lock);
 	if (nxt->gone) {
+		list_del_init(&x->queue);
 		*err = -ENODEV;
-	} else if (!nxt->cur) {
+	} else if (!nxt->cur &&
+		   list_first_entry(&nxt->queue, struct nxt_xfer, queue) == x) {
+		list_del_init(&x->queue);
 		nxt->cur = x;
 		x->status = -EINPROGRESS;
 		*err = 0;
@@ -348,6 +355,23 @@ static bool nxt_claim(struct nxt_usb *nxt, struct nxt_xfer *x, int *err)
 	}
 	spin_unlock_irq(&nxt->lock);
 	return done;
+}
+
+/* Puts @x at the end of the queue for the slot. */
+static void nxt_enqueue(struct nxt_usb *nxt, struct nxt_xfer *x)
+{
+	spin_lock_irq(&nxt->lock);
+	list_add_tail(&x->queue, &nxt->queue);
+	spin_unlock_irq(&nxt->lock);
+}
+
+/* Takes @x, interrupted, out of the queue: the next in line may go. */
+static void nxt_dequeue(struct nxt_usb *nxt, struct nxt_xfer *x)
+{
+	spin_lock_irq(&nxt->lock);
+	list_del_init(&x->queue);
+	spin_unlock_irq(&nxt->lock);
+	wake_up_all(&nxt->wait);
 }
 
 /**
@@ -381,14 +405,14 @@ static bool nxt_out_done(struct nxt_usb *nxt, struct nxt_xfer *x)
  * nxt_slot_free() - whether a transaction could start now
  * @nxt: the brick
  *
- * Return: true if no transaction holds the brick.
+ * Return: true if no transaction holds the brick or waits for it.
  */
 bool nxt_slot_free(struct nxt_usb *nxt)
 {
 	bool free;
 
 	spin_lock_irq(&nxt->lock);
-	free = !nxt->cur;
+	free = !nxt->cur && list_empty(&nxt->queue);
 	spin_unlock_irq(&nxt->lock);
 	return free;
 }
@@ -489,6 +513,7 @@ int nxt_xfer_start(struct nxt_usb *nxt, struct nxt_xfer *x, const u8 *tg,
 
 	memset(x, 0, sizeof(*x));
 	x->nxt = nxt;
+	INIT_LIST_HEAD(&x->queue);
 	memcpy(x->tg, tg, len);
 	x->len = len;
 	x->want_reply = want;
@@ -504,10 +529,14 @@ int nxt_xfer_start(struct nxt_usb *nxt, struct nxt_xfer *x, const u8 *tg,
 	}
 	urb->transfer_flags |= URB_FREE_BUFFER;
 
+	nxt_enqueue(nxt, x);
 	if (nonblock) {
-		if (!nxt_claim(nxt, x, &err))
+		if (!nxt_claim(nxt, x, &err)) {
+			nxt_dequeue(nxt, x);
 			err = -EAGAIN;
+		}
 	} else if (wait_event_interruptible(nxt->wait, nxt_claim(nxt, x, &err))) {
+		nxt_dequeue(nxt, x);
 		err = -ERESTARTSYS;
 	}
 	if (err) {
@@ -679,6 +708,7 @@ static int nxt_usb_probe(struct usb_interface *intf,
 	kref_init(&nxt->kref);
 	mutex_init(&nxt->io_mutex);
 	spin_lock_init(&nxt->lock);
+	INIT_LIST_HEAD(&nxt->queue);
 	init_waitqueue_head(&nxt->wait);
 	init_usb_anchor(&nxt->out_anchor);
 	timer_setup(&nxt->timer, nxt_timer_fn, 0);

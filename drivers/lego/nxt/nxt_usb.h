@@ -8,7 +8,9 @@
  * The brick answers one command at a time and its replies carry no sequence
  * number, so a brick has one transaction slot, @cur: a transaction claims
  * it, sends its telegram, and holds it until its reply has arrived, its
- * timeout has passed or it was cancelled. A 64-byte IN transfer is kept
+ * timeout has passed or it was cancelled. Callers waiting for the slot get
+ * it in the order they came (@queue), so no client of a busy brick starves.
+ * A 64-byte IN transfer is kept
  * pending from the first transaction on (the "reader"), so the brick never
  * freezes waiting for a host to collect a reply; a packet that does not
  * answer the transaction in the slot is dropped as stale. After a timeout,
@@ -23,7 +25,8 @@
  * post_reset().
  *
  * @lock (spinlock, taken in URB completions and the timer) protects the
- * slot @cur and the state of the transaction in it, @reader_running,
+ * slot @cur and the state of the transaction in it, the @queue of waiters
+ * for it, @reader_running,
  * @drain_until, @gone and the reply hand-off. Order: @io_mutex, then @lock.
  *
  * Lifetime
@@ -38,6 +41,7 @@
 #define _NXT_USB_H
 
 #include <linux/kref.h>
+#include <linux/list.h>
 #include <linux/mutex.h>
 #include <linux/spinlock.h>
 #include <linux/timer.h>
@@ -94,6 +98,7 @@ struct nxt_info {
  * @reader_wanted: the reader was started and runs when not suspended (@io_mutex)
  * @lock: see the comment at the top of this file
  * @cur: the transaction in the slot, or NULL (@lock)
+ * @queue: transactions waiting for the slot, first come first (@lock)
  * @gone: disconnected; set with @intf cleared (@lock)
  * @reader_running: @in_urb is submitted (@lock)
  * @drain_until: jiffies until which no telegram is sent (@lock)
@@ -121,6 +126,7 @@ struct nxt_usb {
 
 	spinlock_t lock;	/* see the comment at the top */
 	struct nxt_xfer *cur;
+	struct list_head queue;
 	bool gone;
 	bool reader_running;
 	unsigned long drain_until;
@@ -140,6 +146,7 @@ struct nxt_usb {
 /**
  * struct nxt_xfer - one telegram and its reply
  * @nxt: the brick it is sent to
+ * @queue: its entry in the brick's queue while it waits for the slot (@lock)
  * @tg: the telegram
  * @len: its length
  * @want_reply: the telegram's type asks for a reply
@@ -157,6 +164,7 @@ struct nxt_usb {
  */
 struct nxt_xfer {
 	struct nxt_usb *nxt;
+	struct list_head queue;
 	u8 tg[NXT_TELEGRAM_MAX];
 	unsigned int len;
 	bool want_reply;
