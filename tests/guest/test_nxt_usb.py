@@ -379,6 +379,39 @@ def test_stale_reply_after_timeout_is_drained(brick, fd):
     assert nxt.ok(fd, 'GET_BATTERY_LEVEL')['millivolts'] == brick.fw.battery_mv
 
 
+def test_waiters_get_the_brick_in_order(brick, fd):
+    # DeleteUserFlash holds the brick for about a second; clients that come
+    # meanwhile must get it in the order they came, whatever the scheduler
+    # wakes first.
+    assert nxt.set_timeout(fd, 5000) == 0
+    t0 = time.monotonic()
+    os.write(fd, b'\x01\xa0')
+
+    def client(index, f):
+        os.write(f, bytes([0x00, 0x06, index]))     # GetInputValues, port index
+        assert os.read(f, 64)[:4] == bytes([0x02, 0x06, 0x00, index])
+
+    files = [brick.open() for _ in range(4)]
+    threads = []
+    try:
+        for i, f in enumerate(files):
+            t = threading.Thread(target=client, args=(i, f))
+            t.start()
+            threads.append(t)
+            time.sleep(0.15)        # each one surely waiting before the next
+        assert os.read(fd, 64)[:3] == b'\x02\xa0\x00'
+        for t in threads:
+            t.join(10)
+        assert not any(t.is_alive() for t in threads)
+    finally:
+        for f in files:
+            os.close(f)
+    # The order the brick received them in.
+    order = [bytes.fromhex(what.split()[1])[2] for t, what in list(brick.emu.events)
+             if t > t0 and what.startswith('command 0006')]
+    assert order == [0, 1, 2, 3]
+
+
 def worker(node, index, count, start, out):
     """Transactions whose replies depend on what was asked; counts mismatches.
 
