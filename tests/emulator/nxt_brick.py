@@ -1274,6 +1274,21 @@ class RawGadgetBrick:
         etype, length = struct.unpack_from('<II', buf.raw)
         return etype, buf.raw[8:8 + min(length, 8)]
 
+    def _after_flush(self, e, gen):
+        """A bulk transfer failed with `e`; `gen` is times_configured when it
+        was queued. After a bus reset or an unplug flushed it (ESHUTDOWN),
+        queue nothing until the host has configured the brick again: until
+        the port is enabled again, queueing fails, and raw-gadget in 6.1
+        (which reports no reset event) then marks the whole device failed.
+        """
+        if e.errno == errno.EINTR or self._stopping.is_set():
+            return
+        if e.errno != errno.ESHUTDOWN:
+            self._stopping.wait(0.01)
+            return
+        while self.times_configured == gen and not self._stopping.is_set():
+            self._stopping.wait(0.01)
+
     # ---- ep0 ----
 
     def _ep0_loop(self):
@@ -1365,12 +1380,12 @@ class RawGadgetBrick:
         while not self._stopping.is_set():
             if not self.configured.wait(0.1):
                 continue
+            gen = self.times_configured
             try:
                 packet = self._io(USB_RAW_IOCTL_EP_READ, self._ep_out, length=64)
             except OSError as e:
-                if e.errno != errno.EINTR and not self._stopping.is_set():
-                    # Reset or disconnect: the request was flushed.
-                    self._stopping.wait(0.01)
+                # Reset or disconnect: the request was flushed.
+                self._after_flush(e, gen)
                 continue
             self.commands += 1
             self.log('command %s' % packet.hex())
@@ -1440,13 +1455,15 @@ class RawGadgetBrick:
         waits for ever, until a reset or disconnect flushes both.
         """
         while not self._stopping.is_set():
+            if not self.configured.wait(0.1):
+                continue
+            gen = self.times_configured
             try:
                 self._io(USB_RAW_IOCTL_EP_WRITE, self._ep_hidden, b'\0')
                 self._parked.set()
             except OSError as e:
                 self._parked.clear()
-                if e.errno != errno.EINTR and not self._stopping.is_set():
-                    self._stopping.wait(0.01)
+                self._after_flush(e, gen)
 
     def _in_loop(self):
         while not self._stopping.is_set():
@@ -1457,6 +1474,7 @@ class RawGadgetBrick:
                     return
                 item = self._banks[0]
             self._parked.wait(USB_REPLY_TIMEOUT)
+            gen = self.times_configured
             try:
                 self._io(USB_RAW_IOCTL_EP_WRITE, self._ep_in, item.data)
             except OSError as e:
@@ -1468,7 +1486,7 @@ class RawGadgetBrick:
                         dropped = len(self._banks)
                         self._banks.clear()
                     self.log('IN endpoint flushed (%s), %d replies dropped' % (e, dropped))
-                    self._stopping.wait(0.01)
+                    self._after_flush(e, gen)
                 continue
             with self._cond:
                 if self._banks and self._banks[0] is item:

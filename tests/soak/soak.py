@@ -198,18 +198,29 @@ def read_attr(path, name):
 
 def check_sensor(path, res):
     """Read every attribute of one sensor; insane values are failures. The
-    sensor may vanish meanwhile (ENODEV, ENOENT): that ends the check."""
+    sensor may vanish meanwhile (ENODEV, ENOENT): that ends the check.
+
+    The attributes are read through one descriptor of the sensor's directory:
+    a sensor that goes away and a new one that takes its name meanwhile must
+    not mix (the old directory then holds nothing)."""
+    dfd = None
+
+    def attr(name, mode='r'):
+        fd = os.open(name, os.O_RDONLY, dir_fd=dfd)
+        with open(fd, mode) as f:
+            return f.read() if 'b' in mode else f.read().strip()
+
     try:
-        driver = read_attr(path, 'driver_name')
-        address = read_attr(path, 'address')
-        modes = read_attr(path, 'modes').split()
-        mode = read_attr(path, 'mode')
-        num = int(read_attr(path, 'num_values'))
-        dec = int(read_attr(path, 'decimals'))
-        read_attr(path, 'units')
-        values = [int(read_attr(path, 'value%d' % i)) for i in range(num)]
-        with open(os.path.join(path, 'bin_data'), 'rb') as f:
-            f.read()
+        dfd = os.open(path, os.O_RDONLY | os.O_DIRECTORY)
+        driver = attr('driver_name')
+        address = attr('address')
+        modes = attr('modes').split()
+        mode = attr('mode')
+        num = int(attr('num_values'))
+        dec = int(attr('decimals'))
+        attr('units')
+        values = [int(attr('value%d' % i)) for i in range(num)]
+        attr('bin_data', 'rb')
     except OSError as e:
         if e.errno in GONE:
             bump(res, 'reads_raced_removal')
@@ -219,6 +230,9 @@ def check_sensor(path, res):
     except ValueError as e:
         child_fail(res, '%s: not a number: %s' % (path, e))
         return None
+    finally:
+        if dfd is not None:
+            os.close(dfd)
     bad = []
     if not driver or not address:
         bad.append('empty driver_name or address')
