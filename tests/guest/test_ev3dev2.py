@@ -14,6 +14,13 @@ import ev3
 from conftest import module_path
 from ev3 import find_sensor
 
+# Imported here, at collection, not while the emulated sensors run: in a
+# slow emulated machine, compiling these modules holds the interpreter long
+# enough for the emulators (threads of this process) to miss keep-alives.
+from ev3dev2 import get_current_platform
+from ev3dev2.sensor import INPUT_1, INPUT_2, INPUT_3, INPUT_4
+from ev3dev2.sensor.lego import ColorSensor, GyroSensor, InfraredSensor, UltrasonicSensor
+
 RULE = os.path.join(os.path.dirname(__file__), '..', '..', 'tools', 'udev',
                     '90-lego-ev3-sensors.rules')
 
@@ -75,10 +82,6 @@ def eventually(fn, want, timeout=3.0):
 
 
 def test_python_ev3dev2(four_sensors):
-    from ev3dev2 import get_current_platform
-    from ev3dev2.sensor import INPUT_1, INPUT_2, INPUT_3, INPUT_4
-    from ev3dev2.sensor.lego import ColorSensor, GyroSensor, InfraredSensor, UltrasonicSensor
-
     color, us, gyro, ir = four_sensors
     assert get_current_platform() == 'fake'
 

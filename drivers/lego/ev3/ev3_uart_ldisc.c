@@ -156,7 +156,12 @@ static void ev3_uart_event(struct ev3_uart_port *port,
 	case EV3_UART_EV_DATA:
 		if (!sd)
 			break;
-		if (ev->mode_changed) {
+		/*
+		 * Not only on ev->mode_changed: a SELECT written through sysfs
+		 * between the sensor's registration and ack_work publishing it
+		 * in port->sensor is confirmed by DATA nobody passed on.
+		 */
+		if (ev->mode != sd->mode) {
 			sd->mode = ev->mode;
 			sd->settle_until = jiffies +
 				msecs_to_jiffies(ev3_uart_settle_ms(sd->desc.type));
