@@ -10,9 +10,9 @@
  * it, sends its telegram, and holds it until its reply has arrived, its
  * timeout has passed or it was cancelled. Callers waiting for the slot get
  * it in the order they came (@queue), so no client of a busy brick starves.
- * A 64-byte IN transfer is kept
- * pending from the first transaction on (the "reader"), so the brick never
- * freezes waiting for a host to collect a reply; a packet that does not
+ * A 64-byte IN transfer is kept pending from the first transaction on (the
+ * "reader"), so the brick never freezes waiting for a host to collect a
+ * reply; a packet that does not
  * answer the transaction in the slot is dropped as stale. After a timeout,
  * and when the reader starts, packets are drained for NXT_DRAIN_MS before
  * the next telegram goes out.
@@ -26,8 +26,8 @@
  *
  * @lock (spinlock, taken in URB completions and the timer) protects the
  * slot @cur and the state of the transaction in it, the @queue of waiters
- * for it, @reader_running,
- * @drain_until, @gone and the reply hand-off. Order: @io_mutex, then @lock.
+ * for it, @reader_running, @drain_until, @gone and the reply hand-off.
+ * Order: @io_mutex, then @lock.
  *
  * Lifetime
  * --------
