@@ -12,10 +12,9 @@
  * it in the order they came (@queue), so no client of a busy brick starves.
  * A 64-byte IN transfer is kept pending from the first transaction on (the
  * "reader"), so the brick never freezes waiting for a host to collect a
- * reply; a packet that does not
- * answer the transaction in the slot is dropped as stale. After a timeout,
- * and when the reader starts, packets are drained for NXT_DRAIN_MS before
- * the next telegram goes out.
+ * reply; a packet that does not answer the transaction in the slot is
+ * dropped as stale. After a timeout, and when the reader starts, packets
+ * are drained for NXT_DRAIN_MS before the next telegram goes out.
  *
  * Locking
  * -------
