@@ -387,9 +387,11 @@ def test_waiters_get_the_brick_in_order(brick, fd):
     t0 = time.monotonic()
     os.write(fd, b'\x01\xa0')
 
+    replies = {}
+
     def client(index, f):
-        os.write(f, bytes([0x00, 0x06, index]))     # GetInputValues, port index
-        assert os.read(f, 64)[:4] == bytes([0x02, 0x06, 0x00, index])
+        os.write(f, bytes([0x00, 0x07, index]))     # GetInputValues, port index
+        replies[index] = os.read(f, 64)
 
     files = [brick.open() for _ in range(4)]
     threads = []
@@ -406,9 +408,11 @@ def test_waiters_get_the_brick_in_order(brick, fd):
     finally:
         for f in files:
             os.close(f)
+    for i in range(4):
+        assert replies.get(i, b'')[:4] == bytes([0x02, 0x07, 0x00, i])
     # The order the brick received them in.
     order = [bytes.fromhex(what.split()[1])[2] for t, what in list(brick.emu.events)
-             if t > t0 and what.startswith('command 0006')]
+             if t > t0 and what.startswith('command 0007')]
     assert order == [0, 1, 2, 3]
 
 
