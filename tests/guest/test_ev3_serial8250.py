@@ -39,7 +39,7 @@ def connect(ln, kind):
     return emu, path
 
 
-def wait_handshakes(emu, n, timeout=2.0):
+def wait_handshakes(emu, n, timeout=10.0):
     """The host registers the sensor as soon as it has sent its ACK; the
     emulator counts the handshake once it has read that ACK."""
     deadline = time.monotonic() + timeout
