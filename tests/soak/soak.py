@@ -314,6 +314,24 @@ def good_sensor_works(res, kind='us', value=123):
 KINDS = ['color', 'us', 'gyro', 'ir', 'fcl-humidity', 'gyro-old']
 
 
+def wait_dir_gone(dfd, timeout):
+    """Wait until the sysfs directory open as `dfd` is removed (its
+    attributes go with it); closes `dfd`."""
+    deadline = time.monotonic() + timeout
+    try:
+        while time.monotonic() < deadline:
+            try:
+                os.stat('address', dir_fd=dfd)
+            except OSError as e:
+                if e.errno in GONE:
+                    return True
+                raise
+            time.sleep(0.02)
+        return False
+    finally:
+        os.close(dfd)
+
+
 def plug_worker(res, pair, cycles, seed):
     line = ev3.Line(pair)
     rng = random.Random(seed)
@@ -349,8 +367,16 @@ def plug_worker(res, pair, cycles, seed):
             # Sometimes read and switch mode before pulling the cable.
             if rng.random() < 0.2:
                 check_sensor(path, res)
+            # The name may be taken by another line's sensor before we
+            # look: wait for this sensor's own directory to empty.
+            try:
+                dfd = os.open(path, os.O_RDONLY | os.O_DIRECTORY)
+            except OSError as e:
+                if e.errno not in GONE:
+                    raise
+                dfd = None
             emu.unplug()
-            if not ev3.wait_gone(path, 10):
+            if dfd is not None and not wait_dir_gone(dfd, 10):
                 child_fail(res, '%s cycle %d: %s still there 10 s after unplug'
                            % (line.address, i, path))
             res['count'] += 1
