@@ -47,6 +47,73 @@ def find_sensor(address, timeout=10.0, gone_from=None):
     return None
 
 
+class SensorDir:
+    """One sensor's sysfs directory, held open.
+
+    A sensorN name is given to the next sensor as soon as its holder goes, so
+    reads by path can mix two sensors when one is unplugged and another
+    plugged meanwhile. Reads through the held directory see only this
+    sensor, and fail with ENOENT once it has gone.
+    """
+
+    def __init__(self, path):
+        self.path = path
+        self.fd = os.open(path, os.O_RDONLY | os.O_DIRECTORY)
+
+    def read(self, name, binary=False):
+        fd = os.open(name, os.O_RDONLY, dir_fd=self.fd)
+        with open(fd, 'rb' if binary else 'r') as f:
+            return f.read() if binary else f.read().strip()
+
+    def write(self, name, value):
+        fd = os.open(name, os.O_WRONLY, dir_fd=self.fd)
+        with open(fd, 'w') as f:
+            f.write(value)
+
+    def wait_gone(self, timeout):
+        """Wait until the directory is removed (its attributes with it)."""
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            try:
+                os.stat('address', dir_fd=self.fd)
+            except FileNotFoundError:
+                return True
+            time.sleep(0.02)
+        return False
+
+    def close(self):
+        if self.fd is not None:
+            os.close(self.fd)
+            self.fd = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+def open_sensor(address, timeout=10.0):
+    """The held directory (SensorDir) of the sensor at `address`, waiting
+    for it; None if none turns up."""
+    deadline = time.monotonic() + timeout
+    while True:
+        for d in glob.glob(CLASS + '/sensor*'):
+            try:
+                sd = SensorDir(d)
+            except OSError:
+                continue
+            try:
+                if sd.read('address') == address:
+                    return sd
+            except OSError:
+                pass
+            sd.close()
+        if time.monotonic() >= deadline:
+            return None
+        time.sleep(0.05)
+
+
 def wait_gone(path, timeout):
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:

@@ -163,7 +163,9 @@ def mixed_request(fd, index, i):
 
     Cycles through a ReadIOMap at an offset unique to the client and the
     request (NXT_IOC_TRANSACT or write()/read()), a typed GET_INPUT_VALUES and
-    a raw GetInputValues. Returns (kind, errno or 0, reply matched).
+    a raw GetOutputState (opcode 0x06) by write()/read(), each for a port
+    that depends on the client and the request. Returns (kind, errno or 0,
+    reply matched).
     """
     kind = (index + i) % 3
     if kind == 0:

@@ -191,27 +191,27 @@ def nullmodem_pairs():
 
 # ---- sanity of what the EV3 driver reports ---------------------------------
 
-def read_attr(path, name):
-    with open(os.path.join(path, name)) as f:
-        return f.read().strip()
-
-
 def check_sensor(path, res):
-    """Read every attribute of one sensor; insane values are failures. The
-    sensor may vanish meanwhile (ENODEV, ENOENT): that ends the check.
-
-    The attributes are read through one descriptor of the sensor's directory:
-    a sensor that goes away and a new one that takes its name meanwhile must
-    not mix (the old directory then holds nothing)."""
-    dfd = None
-
-    def attr(name, mode='r'):
-        fd = os.open(name, os.O_RDONLY, dir_fd=dfd)
-        with open(fd, mode) as f:
-            return f.read() if 'b' in mode else f.read().strip()
-
+    """check_sensor_dir() on the sensor now called `path`."""
     try:
-        dfd = os.open(path, os.O_RDONLY | os.O_DIRECTORY)
+        sd = ev3.SensorDir(path)
+    except OSError as e:
+        if e.errno in GONE:
+            bump(res, 'reads_raced_removal')
+            return None
+        raise
+    with sd:
+        return check_sensor_dir(sd, res)
+
+
+def check_sensor_dir(sd, res):
+    """Read every attribute of one sensor (an ev3.SensorDir, so that a
+    sensor that goes and a new one that takes its name cannot mix); insane
+    values are failures. The sensor may vanish meanwhile (ENODEV, ENOENT):
+    that ends the check."""
+    path = sd.path
+    attr = sd.read
+    try:
         driver = attr('driver_name')
         address = attr('address')
         modes = attr('modes').split()
@@ -220,7 +220,7 @@ def check_sensor(path, res):
         dec = int(attr('decimals'))
         attr('units')
         values = [int(attr('value%d' % i)) for i in range(num)]
-        attr('bin_data', 'rb')
+        attr('bin_data', binary=True)
     except OSError as e:
         if e.errno in GONE:
             bump(res, 'reads_raced_removal')
@@ -230,9 +230,6 @@ def check_sensor(path, res):
     except ValueError as e:
         child_fail(res, '%s: not a number: %s' % (path, e))
         return None
-    finally:
-        if dfd is not None:
-            os.close(dfd)
     bad = []
     if not driver or not address:
         bad.append('empty driver_name or address')
@@ -253,7 +250,7 @@ def check_sensor(path, res):
 def check_iio(dev, res):
     name = '?'
     try:
-        name = read_attr(dev, 'name')
+        name = ev3.read_attr(dev, 'name')
         for raw in glob.glob(dev + '/in_*_raw'):
             with open(raw) as f:
                 int(f.read())
@@ -314,24 +311,6 @@ def good_sensor_works(res, kind='us', value=123):
 KINDS = ['color', 'us', 'gyro', 'ir', 'fcl-humidity', 'gyro-old']
 
 
-def wait_dir_gone(dfd, timeout):
-    """Wait until the sysfs directory open as `dfd` is removed (its
-    attributes go with it); closes `dfd`."""
-    deadline = time.monotonic() + timeout
-    try:
-        while time.monotonic() < deadline:
-            try:
-                os.stat('address', dir_fd=dfd)
-            except OSError as e:
-                if e.errno in GONE:
-                    return True
-                raise
-            time.sleep(0.02)
-        return False
-    finally:
-        os.close(dfd)
-
-
 def plug_worker(res, pair, cycles, seed):
     line = ev3.Line(pair)
     rng = random.Random(seed)
@@ -342,16 +321,19 @@ def plug_worker(res, pair, cycles, seed):
     last = None
     try:
         for i in range(cycles):
-            path = ev3.find_sensor(line.address, timeout=20)
-            if not path:
+            # Held open: the name may be taken by another line's sensor
+            # as soon as this one goes.
+            sd = ev3.open_sensor(line.address, timeout=20)
+            if not sd:
                 child_fail(res, '%s cycle %d: %s did not register (%s)'
                            % (line.address, i, kind, emu.events[-4:]))
                 emu.unplug()
                 time.sleep(1.5)
                 emu.plug()
                 continue
+            path = sd.path
             try:
-                driver = ev3.read_attr(path, 'driver_name')
+                driver = sd.read('driver_name')
             except OSError as e:
                 if e.errno not in GONE:
                     raise
@@ -366,19 +348,12 @@ def plug_worker(res, pair, cycles, seed):
                 bump(res, 'same_name_reused')
             # Sometimes read and switch mode before pulling the cable.
             if rng.random() < 0.2:
-                check_sensor(path, res)
-            # The name may be taken by another line's sensor before we
-            # look: wait for this sensor's own directory to empty.
-            try:
-                dfd = os.open(path, os.O_RDONLY | os.O_DIRECTORY)
-            except OSError as e:
-                if e.errno not in GONE:
-                    raise
-                dfd = None
+                check_sensor_dir(sd, res)
             emu.unplug()
-            if dfd is not None and not wait_dir_gone(dfd, 10):
-                child_fail(res, '%s cycle %d: %s still there 10 s after unplug'
-                           % (line.address, i, path))
+            with sd:
+                if not sd.wait_gone(10):
+                    child_fail(res, '%s cycle %d: %s still there 10 s after unplug'
+                               % (line.address, i, path))
             res['count'] += 1
             last = path
             emu.plug()
@@ -589,10 +564,11 @@ def checker_worker(res, seconds):
                 check_sensor(path, res)
             for dev in glob.glob(IIO + '/iio:device*'):
                 check_iio(dev, res)
-            path = ev3.find_sensor(address, timeout=0.2)
-            if path:
+            sd = ev3.open_sensor(address, timeout=0.2)
+            if sd:
                 try:
-                    got = int(read_attr(path, 'value0'))
+                    with sd:
+                        got = int(sd.read('value0'))
                 except OSError as e:
                     if e.errno not in GONE:
                         child_fail(res, 'good sensor: value0: %s' % os.strerror(e.errno))
@@ -693,19 +669,22 @@ def switcher(res, seconds, seed):
             time.sleep(0.02)
             continue
         path = rng.choice(paths)
+        sd = None
         try:
-            modes = read_attr(path, 'modes').split()
-            with open(os.path.join(path, 'mode'), 'w') as f:
-                f.write(rng.choice(modes))
+            # Held open, so the modes read and the mode written are of
+            # one sensor even if its name is reused meanwhile.
+            sd = ev3.SensorDir(path)
+            modes = sd.read('modes').split()
+            sd.write('mode', rng.choice(modes))
             bump(res, 'mode_switches')
         except OSError as e:
             if e.errno in GONE or e.errno in (errno.ETIMEDOUT, errno.EINTR):
                 bump(res, 'switch_' + errno.errorcode[e.errno])
-            elif e.errno == errno.EINVAL:
-                # The name went to another sensor between the two accesses.
-                bump(res, 'switch_EINVAL_stale')
             else:
                 child_fail(res, '%s: mode write: %s' % (path, os.strerror(e.errno)))
+        finally:
+            if sd:
+                sd.close()
 
 
 def part_race(p, seconds):
