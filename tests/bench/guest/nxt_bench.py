@@ -291,10 +291,11 @@ def main():
             'whole run %.0f s on %s, kernel %s.' % (BATTERY_MV, args.seconds,
                                                       time.monotonic() - started,
                                                       platform.machine(), platform.release()),
-            'Guest clocksource: %s. With refined-jiffies (no ACPI in the test kernel, so no '
-            'HPET/PM timer to calibrate the TSC) high-resolution timers are off and '
-            'dummy_hcd\'s 1 ms frame timer, like every timer, fires on 4 ms jiffies: '
-            'latencies come in multiples of 4 ms.' % clocksource(),
+            'Guest clocksource: %s.' % clocksource() + (
+                ' On refined-jiffies (the TSC rate unknown: vm-run gives it as tsc_early_khz=) '
+                'high-resolution timers are off and dummy_hcd\'s 1 ms frame timer, like every '
+                'timer, fires on 4 ms jiffies: latencies come in multiples of 4 ms.'
+                if 'jiffies' in clocksource() else ''),
         ],
     }
     path = os.path.join(args.out, 'nxt.json')
