@@ -497,9 +497,10 @@ def main():
             try:
                 idle = bench_idle(binary, work, nsensors, 2 if args.quick else 5)
                 r = bench_stream(binary, work, nsensors, seconds)
-            except BenchError as e:
+            except (BenchError, OSError) as e:
+                # A sensor lost mid-run (its device gone: ENODEV, ENOENT)
+                # spoils this figure, not the ones after it.
                 failed.append('%d sensors: %s' % (nsensors, e))
-                notes.append('ERROR: %d sensors: %s' % (nsensors, e))
                 continue
             figures += stream_figures(r, idle)
         notes.append('Sample delivery: ev3_stream plays gyros (GYRO-ANG, 4-byte DATA messages at '

@@ -155,7 +155,7 @@ def clocksource():
             res = next((int(line.split()[1]) for line in f if '.resolution:' in line), 0)
     except (OSError, ValueError, IndexError):
         return 'unknown'
-    return '%s, timer resolution %g ms' % (cs, res / 1e6)
+    return '%s, timer resolution %s' % (cs, '%d ns' % res if res < 1000 else '%g ms' % (res / 1e6))
 
 
 def wait_for(cond, timeout, what):
