@@ -35,16 +35,11 @@ def write_attr(path, name, value):
 
 def find_sensor(address, timeout=10.0, gone_from=None):
     """The sensorN directory whose address is `address`, waiting for it."""
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        for d in glob.glob(CLASS + '/sensor*'):
-            try:
-                if read_attr(d, 'address') == address and d != gone_from:
-                    return d
-            except OSError:
-                pass
-        time.sleep(0.05)
-    return None
+    sd = open_sensor(address, timeout, gone_from)
+    if sd is None:
+        return None
+    sd.close()
+    return sd.path
 
 
 class SensorDir:
@@ -93,12 +88,14 @@ class SensorDir:
         self.close()
 
 
-def open_sensor(address, timeout=10.0):
-    """The held directory (SensorDir) of the sensor at `address`, waiting
-    for it; None if none turns up."""
+def open_sensor(address, timeout=10.0, gone_from=None):
+    """The held directory (SensorDir) of the sensor at `address`, other
+    than the directory `gone_from`, waiting for it; None if none turns up."""
     deadline = time.monotonic() + timeout
     while True:
         for d in glob.glob(CLASS + '/sensor*'):
+            if d == gone_from:
+                continue
             try:
                 sd = SensorDir(d)
             except OSError:

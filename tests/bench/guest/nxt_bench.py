@@ -271,6 +271,7 @@ def main():
         results = measure(args)
     except (SetupError, OSError, subprocess.SubprocessError) as e:
         sys.exit('nxt_bench: %s' % e)
+    clock = clocksource()
     out = {
         'section': 'NXT: transactions through /dev/nxtN, nxt-python and libusb',
         'figures': figures(results, args),
@@ -291,11 +292,11 @@ def main():
             'whole run %.0f s on %s, kernel %s.' % (BATTERY_MV, args.seconds,
                                                       time.monotonic() - started,
                                                       platform.machine(), platform.release()),
-            'Guest clocksource: %s.' % clocksource() + (
+            'Guest clocksource: %s.' % clock + (
                 ' On refined-jiffies (the TSC rate unknown: vm-run gives it as tsc_early_khz=) '
                 'high-resolution timers are off and dummy_hcd\'s 1 ms frame timer, like every '
                 'timer, fires on 4 ms jiffies: latencies come in multiples of 4 ms.'
-                if 'jiffies' in clocksource() else ''),
+                if 'jiffies' in clock else ''),
         ],
     }
     path = os.path.join(args.out, 'nxt.json')
