@@ -3,7 +3,7 @@
  * ev3_stream - play EV3 UART sensors on the far ends of tty lines, fast.
  *
  *   ev3_stream -H HANDSHAKE [-s BAUD] [-p BYTES] [-r HZ] [-d SECONDS]
- *              [-D MS] [-c] [-g] [-t MS] [-n TRIES] TTY...
+ *              [-D MS] [-c] [-g] [-k] [-t MS] [-n TRIES] TTY...
  *
  * A benchmark aid for tests/bench/guest/ev3_bench.py (the Python emulator
  * cannot send thousands of messages a second inside the TCG test VM). Per
@@ -25,6 +25,10 @@
  *  - with -g, only answers NACKs (value 0xffff, not counted) until it gets
  *    SIGUSR1, then starts the -d SECONDS of its schedule;
  *  - ends its schedule early on SIGUSR2;
+ *  - with -k, answers NACKs only again (value 0xffff, not counted) once
+ *    its schedule is over, so that the host can stop reading while the
+ *    sensors are still there, until SIGTERM;
+ *  - ends at once, with its report, on SIGTERM;
  *  - stops, as a sensor resets, when no NACK came for a second, and stops
  *    after -d SECONDS of data phase (all lines).
  *
@@ -83,13 +87,16 @@ static int constant;
 static volatile sig_atomic_t go = 1;
 
 static volatile sig_atomic_t stop;
+static volatile sig_atomic_t quit;
 
 static void on_signal(int sig)
 {
 	if (sig == SIGUSR1)
 		go = 1;
-	else
+	else if (sig == SIGUSR2)
 		stop = 1;
+	else
+		quit = 1;
 }
 
 static int64_t now_ns(void)
@@ -314,7 +321,7 @@ static int handshake(const unsigned char *hs, size_t hs_len, int64_t ack_wait,
 static void usage(void)
 {
 	fprintf(stderr, "Usage: ev3_stream -H HANDSHAKE [-s BAUD] [-p BYTES] [-r HZ] [-d SECONDS]\n"
-		"                  [-D MS] [-c] [-g] [-t MS] [-n TRIES] TTY...\n");
+		"                  [-D MS] [-c] [-g] [-k] [-t MS] [-n TRIES] TTY...\n");
 	exit(2);
 }
 
@@ -325,16 +332,16 @@ int main(int argc, char **argv)
 	long baud = 57600;
 	double rate = 0, seconds = 5, delay_ms = 15, ack_ms = 80;
 	unsigned int tries = 3, i;
-	int64_t period = 0, next, end, start, delay;
+	int64_t period = 0, next, end, start, delay, done = 0;
 	unsigned long total = 0;
-	int started;
+	int started, linger = 0, lingering = 0;
 	struct rusage ru0, ru1;
 	size_t hs_len;
 	speed_t code;
 	FILE *f;
 	int opt;
 
-	while ((opt = getopt(argc, argv, "H:s:p:r:d:D:cgt:n:")) != -1) {
+	while ((opt = getopt(argc, argv, "H:s:p:r:d:D:cgkt:n:")) != -1) {
 		switch (opt) {
 		case 'H':
 			hs_path = optarg;
@@ -359,6 +366,9 @@ int main(int argc, char **argv)
 			break;
 		case 'g':
 			go = 0;
+			break;
+		case 'k':
+			linger = 1;
 			break;
 		case 't':
 			ack_ms = atof(optarg);
@@ -390,6 +400,7 @@ int main(int argc, char **argv)
 	started = go;
 	signal(SIGUSR1, on_signal);
 	signal(SIGUSR2, on_signal);
+	signal(SIGTERM, on_signal);
 	for (i = 0; optind < argc; i++, optind++) {
 		lines[i].path = argv[optind];
 		lines[i].fd = open(argv[optind], O_RDWR | O_NOCTTY | O_NONBLOCK);
@@ -449,8 +460,19 @@ int main(int argc, char **argv)
 			p[n].events = POLLIN;
 			map[n++] = i;
 		}
-		if (!n || t >= end || stop)
+		if (!n || quit)
 			break;
+		if ((t >= end || stop) && !lingering) {
+			getrusage(RUSAGE_SELF, &ru1);
+			done = t;
+			if (!linger || !started)
+				break;
+			/* -k: the schedule is over; keep the sensors alive. */
+			lingering = 1;
+			go = 0;
+			end = t + 600000000000LL;
+			continue;
+		}
 		if (period && go && t >= next) {
 			for (i = 0; i < nlines; i++)
 				if (lines[i].live && !lines[i].reply_at)
@@ -477,7 +499,10 @@ int main(int argc, char **argv)
 			if (p[k].revents & POLLIN)
 				host_input(&lines[map[k]], t, !period, delay);
 	}
-	getrusage(RUSAGE_SELF, &ru1);
+	if (!done) {
+		getrusage(RUSAGE_SELF, &ru1);
+		done = now_ns();
+	}
 	/* Let the last messages leave before the lines close. */
 	for (i = 0; i < nlines; i++) {
 		struct line *l = &lines[i];
@@ -488,7 +513,7 @@ int main(int argc, char **argv)
 		total += l->sent;
 	}
 	printf("total %lu %.3f %.1f %lld\n", total, (now_ns() - start) / 1e9,
-	       nlines ? total / (double)nlines / ((end - start) / 1e9) : 0.0,
+	       nlines ? total / (double)nlines / ((done - start) / 1e9) : 0.0,
 	       (ru1.ru_stime.tv_sec - ru0.ru_stime.tv_sec) * 1000000LL +
 	       ru1.ru_stime.tv_usec - ru0.ru_stime.tv_usec);
 	return 0;
