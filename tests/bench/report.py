@@ -90,14 +90,15 @@ def cell(text):
     return str(text).replace("|", "\\|").replace("\n", " ")
 
 
-def markdown(sections, quick, stamp):
+def markdown(sections, quick, stamp, kernel):
     commit = run(["git", "describe", "--always", "--dirty"]) or "unknown"
     lines = ["# Benchmark results", "",
-             f"Measured {stamp} on: {machine()}.",
+             f"Measured {stamp} on: {machine()}."] + \
+        ([f"Guest: the {kernel}."] if kernel else []) + [
              f"Commit `{commit}`" + (" -- **quick run** (short durations; not for comparison)." if quick else "."),
              "",
              "Reproduce with `make bench` (all of it: the protocol cores with callgrind on the host, then one",
-             "test VM for the EV3 and NXT figures; `tests/bench/run.sh --help`). Timing figures come from an",
+             "VM for the EV3 and NXT figures; `tests/bench/run.sh --help`). Timing figures come from an",
              "emulated machine and move with the host's load; instruction counts are deterministic.", ""]
     targets = []
     for s in sections:
@@ -153,6 +154,7 @@ def main():
     ap.add_argument("dir")
     ap.add_argument("--out", help="the results file to write (default: print only)")
     ap.add_argument("--quick", action="store_true", help="the figures come from a quick run")
+    ap.add_argument("--kernel", help="the guest kernel the figures come from")
     args = ap.parse_args()
     try:
         sections = load(args.dir)
@@ -162,11 +164,17 @@ def main():
     if not sections:
         print(f"report: no results in {args.dir}", file=sys.stderr)
         return 1
-    stamp = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    # The run's start, from its directory's name (run.sh), else now.
+    try:
+        when = datetime.datetime.strptime(os.path.basename(os.path.normpath(args.dir)),
+                                          "%Y%m%dT%H%M%SZ")
+    except ValueError:
+        when = datetime.datetime.now(datetime.timezone.utc)
+    stamp = when.strftime("%Y-%m-%d %H:%M UTC")
     print(text_tables(sections))
     if args.out:
         with open(args.out, "w", encoding="utf-8") as f:
-            f.write(markdown(sections, args.quick, stamp))
+            f.write(markdown(sections, args.quick, stamp, args.kernel))
     missed = sum(1 for s in sections for f in s["figures"] if f.get("met") is False)
     print(f"report: {sum(len(s['figures']) for s in sections)} figures, {missed} targets missed")
     return 0

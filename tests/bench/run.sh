@@ -2,14 +2,18 @@
 # `make bench`: measure the drivers against their physical limits and their
 # peers, and write the figures, each beside its reference, to the results file.
 #
-#   tests/bench/run.sh [--quick] [--results FILE]
+#   tests/bench/run.sh [--quick] [--debug-kernel] [--results FILE]
 #
 #   --quick          short runs (for trying the benchmarks out; the results file
 #                    then says so)
+#   --debug-kernel   run on the test kernel (KASAN, UBSAN, lockdep, kmemleak)
+#                    instead of the benchmark kernel
 #   --results FILE   where to write the results (default tests/bench/results.md)
 #
 # Steps: the protocol-core cost on the host (callgrind: deterministic), then one
-# test VM running the EV3 and the NXT benchmarks (tests/bench/guest-run.sh).
+# VM running the EV3 and the NXT benchmarks (tests/bench/guest-run.sh) on the
+# benchmark kernel: the test kernel without its debug checks
+# (tests/kernel/bench.config; built once and cached like the test kernel).
 # Each benchmark writes a JSON file of figures into one directory
 # (.build/bench/<time>/); tests/bench/report.py turns them into the results
 # file and prints them. Timing figures depend on the machine: run it on a quiet
@@ -20,10 +24,16 @@ top=$(cd "$(dirname "$0")/../.." && pwd)
 cd "$top"
 
 quick=
+variant=(--variant bench)
+kernel="benchmark kernel (tests/kernel/test.config + bench.config: no KASAN, UBSAN, lockdep or kmemleak)"
 results=$top/tests/bench/results.md
 while [ $# -gt 0 ]; do
 	case "$1" in
 	--quick) quick=--quick; shift ;;
+	--debug-kernel)
+		variant=()
+		kernel="test kernel (tests/kernel/test.config: KASAN, UBSAN, lockdep, kmemleak)"
+		shift ;;
 	--results) results=$2; shift 2 ;;
 	-h|--help) sed -n '2,/^set -e/p' "$0" | sed '$d; s/^# \{0,1\}//'; exit 0 ;;
 	*) echo "bench: unknown option $1 (try --help)" >&2; exit 2 ;;
@@ -42,13 +52,13 @@ echo "==> protocol cores on the host (callgrind)"
 tests/bench/proto/run.sh "$out" $quick || { echo "bench: the protocol-core benchmark failed" >&2; fail=1; }
 
 echo "==> the test VM: EV3 and NXT benchmarks"
-if ! tests/vm-run --timeout 2400 --log "$out/console.log" --share "$out" -- \
+if ! tests/vm-run "${variant[@]}" --timeout 2400 --log "$out/console.log" --share "$out" -- \
 	tests/bench/guest-run.sh "$out" $quick; then
 	echo "bench: the VM benchmarks failed (console: $out/console.log)" >&2
 	fail=1
 fi
 tests/scan-console.py "$out/console.log" || fail=1
 
-python3 tests/bench/report.py --out "$results" $quick "$out" || fail=1
+python3 tests/bench/report.py --out "$results" --kernel "$kernel" $quick "$out" || fail=1
 echo "bench: figures in $out, results file $results"
 exit $fail

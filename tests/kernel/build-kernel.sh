@@ -1,11 +1,13 @@
 #!/usr/bin/env bash
 # Build (or find in the cache) the QEMU test kernel for one kernel series.
 #
-#   tests/kernel/build-kernel.sh [--tree-only] [--arch ARCH] [SERIES]
+#   tests/kernel/build-kernel.sh [--tree-only] [--arch ARCH] [--variant bench] [SERIES]
 #
 # SERIES: 6.12 (default) or 6.1. ARCH: x86 (default) or arm64; arm64 is
 # cross-compiled (CROSS_COMPILE=aarch64-linux-gnu-) with test.config plus
 # arm64.config, and cached as kernel-arm64-SERIES-<key>.
+# --variant bench (x86): test.config plus bench.config, the debug checks off,
+# for `make bench`; cached as kernel-bench-SERIES-<key>.
 # --tree-only prints the cached tree if it is complete and builds nothing.
 #
 # The source comes from Debian's linux-source-SERIES package. The build lives in
@@ -17,10 +19,12 @@ set -euo pipefail
 
 tree_only=0
 arch=x86
+variant=
 while [ $# -gt 0 ]; do
 	case "$1" in
 	--tree-only) tree_only=1; shift ;;
 	--arch) arch=$2; shift 2 ;;
+	--variant) variant=$2; shift 2 ;;
 	*) break ;;
 	esac
 done
@@ -46,6 +50,11 @@ arm64)
 	;;
 *) echo "build-kernel: unknown --arch $arch (x86 or arm64)" >&2; exit 2 ;;
 esac
+case "$arch/$variant" in
+*/) ;;
+x86/bench) fragments+=("$here/bench.config") ;;
+*) echo "build-kernel: unknown --variant $variant for $arch (x86: bench)" >&2; exit 2 ;;
+esac
 tarball=/usr/src/linux-source-$series.tar.xz
 cache=$(kcache_dir)
 
@@ -53,7 +62,10 @@ cache=$(kcache_dir)
 pkgver=$(dpkg-query -W -f '${Version}' "linux-source-$series")
 # Bump when the steps below change in a way that changes the result.
 recipe=1
-if [ "$arch" = x86 ]; then
+if [ -n "$variant" ]; then
+	key=$( { echo "$variant $arch $series $pkgver recipe $recipe"; cat "${fragments[@]}"; } | sha256sum | cut -c1-16)
+	entry=$cache/kernel-$variant-$series-$key
+elif [ "$arch" = x86 ]; then
 	# The x86 key predates --arch: keep it as it was so the cache stays valid.
 	key=$( { echo "$series $pkgver recipe $recipe"; cat "$fragment"; } | sha256sum | cut -c1-16)
 	entry=$cache/kernel-$series-$key

@@ -26,9 +26,21 @@ kcache_unpack() {
 	tar -xf "$1" -C "$2" --strip-components=1
 }
 
+# kconfig_effective FRAGMENT...: each option's setting as merge_config
+# leaves it, the last fragment's winning, in the order options first appear.
+kconfig_effective() {
+	awk '
+	/^CONFIG_[A-Za-z0-9_]+=/ { opt = $0; sub(/=.*/, "", opt) }
+	/^# CONFIG_[A-Za-z0-9_]+ is not set$/ { opt = $2 }
+	opt != "" { if (!(opt in line)) order[n++] = opt; line[opt] = $0; opt = "" }
+	END { for (i = 0; i < n; i++) print line[order[i]] }
+	' "$@"
+}
+
 # kconfig_verify CONFIG "ABSENT OPTIONS" FRAGMENT...: merge_config only
 # warns, so an option of a fragment that did not survive is an error here
 # (options in ABSENT do not exist on this architecture and are skipped).
+# A later fragment may override an earlier one (kconfig_effective).
 # Messages go to stderr; returns 1 if any option is wrong.
 kconfig_verify() {
 	local config=$1 absent=$2 missing=0 line opt
@@ -47,6 +59,6 @@ kconfig_verify() {
 				{ echo "$prog: should be off: $opt" >&2; missing=1; }
 			;;
 		esac
-	done < <(cat "$@")
+	done < <(kconfig_effective "$@")
 	return $missing
 }
