@@ -46,6 +46,22 @@
 #define LEGO_UEVENT_CONST
 #endif
 
+/* 6.13: hrtimer_setup() initialises a timer and sets its callback. */
+#ifndef LEGO_HAVE_HRTIMER_SETUP
+#include <linux/hrtimer.h>
+
+static inline void
+lego_hrtimer_setup(struct hrtimer *timer,
+		   enum hrtimer_restart (*function)(struct hrtimer *),
+		   clockid_t clock_id, enum hrtimer_mode mode)
+{
+	hrtimer_init(timer, clock_id, mode);
+	timer->function = function;
+}
+
+#define hrtimer_setup lego_hrtimer_setup
+#endif
+
 /*
  * KUNIT_EXPECT_MEMEQ() for the KUnit tests, which include <kunit/test.h>:
  * before 6.2, a memcmp() and the names of the two buffers on a failure.

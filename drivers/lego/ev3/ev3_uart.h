@@ -17,7 +17,9 @@
  * WRITE), which all happen in process context.
  *
  * All work items run on the port's ordered workqueue, so a sensor is never
- * registered and unregistered at the same time.
+ * registered and unregistered at the same time. The one timer,
+ * ev3_uart_port.ack_timer, runs in hard interrupt context and takes no
+ * lock: it only queues ack_work.
  *
  * Lifetime
  * --------
@@ -34,6 +36,7 @@
 
 #include <linux/completion.h>
 #include <linux/device.h>
+#include <linux/hrtimer.h>
 #include <linux/mutex.h>
 #include <linux/spinlock.h>
 #include <linux/tty.h>
@@ -89,7 +92,10 @@ struct ev3_uart_sensor_dev {
  * @sensor: the registered sensor, or NULL
  * @closing: close() has started; no work may be queued any more
  * @wq: ordered workqueue for all work of this port
- * @ack_work: answers the sensor's ACK and switches speed (10 ms after it)
+ * @ack_timer: queues @ack_work 10 ms after the sensor's ACK (an hrtimer:
+ *	exact at any HZ; it only queues the work, so it takes no lock)
+ * @ack_work: answers the sensor's ACK, switches speed and registers the
+ *	sensor
  * @keepalive_work: sends NACK every 100 ms and detects a lost sensor
  * @reset_work: drops a lost sensor and goes back to 2400 baud
  * @select_mutex: see "Locking"
@@ -114,7 +120,8 @@ struct ev3_uart_port {
 	struct ev3_uart_sensor_dev *sensor;
 	bool closing;
 	struct workqueue_struct *wq;
-	struct delayed_work ack_work;
+	struct hrtimer ack_timer;
+	struct work_struct ack_work;
 	struct delayed_work keepalive_work;
 	struct work_struct reset_work;
 	struct mutex select_mutex;	/* one mode change at a time */

@@ -10,9 +10,10 @@
  * Life of a connection:
  *  - at 2400 baud the parser hunts for a TYPE message and reads the
  *    handshake;
- *  - on the sensor's ACK, ack_work answers ACK 10 ms later (the sensor waits
- *    80 ms at most), switches the tty to the sensor's speed and registers
- *    the sensor;
+ *  - on the sensor's ACK, ack_timer fires 10 ms later (the sensor waits
+ *    80 ms at most; a delayed work would wait 0 to 10 ms at HZ=100) and
+ *    ack_work answers ACK, switches the tty to the sensor's speed and
+ *    registers the sensor;
  *  - keepalive_work sends NACK every 100 ms (the sensor resets itself after
  *    about a second without one) and declares the sensor lost after about
  *    700 ms without data;
@@ -28,6 +29,7 @@
 
 #include <linux/capability.h>
 #include <linux/ctype.h>
+#include <linux/hrtimer.h>
 #include <linux/jiffies.h>
 #include <linux/module.h>
 #include <linux/moduleparam.h>
@@ -150,8 +152,9 @@ static void ev3_uart_event(struct ev3_uart_port *port,
 		break;
 	case EV3_UART_EV_HANDSHAKE:
 		if (!port->closing)
-			queue_delayed_work(port->wq, &port->ack_work,
-					   msecs_to_jiffies(EV3_UART_ACK_DELAY_MS));
+			hrtimer_start(&port->ack_timer,
+				      ms_to_ktime(EV3_UART_ACK_DELAY_MS),
+				      HRTIMER_MODE_REL);
 		break;
 	case EV3_UART_EV_DATA:
 		if (!sd)
@@ -219,10 +222,23 @@ static void ev3_uart_receive_buf(struct tty_struct *tty, const u8 *cp,
 	spin_unlock(&port->lock);
 }
 
+/*
+ * Hard interrupt context: only queue the work. close() cancels the timer
+ * before the work, so the work queue still exists here.
+ */
+static enum hrtimer_restart ev3_uart_ack_timer(struct hrtimer *timer)
+{
+	struct ev3_uart_port *port = container_of(timer, struct ev3_uart_port,
+						  ack_timer);
+
+	queue_work(port->wq, &port->ack_work);
+	return HRTIMER_NORESTART;
+}
+
 static void ev3_uart_ack_work(struct work_struct *work)
 {
-	struct ev3_uart_port *port = container_of(to_delayed_work(work),
-						  struct ev3_uart_port, ack_work);
+	struct ev3_uart_port *port = container_of(work, struct ev3_uart_port,
+						  ack_work);
 	struct tty_struct *tty = port->tty;
 	struct ev3_uart_sensor_dev *sd;
 	struct ev3_uart_sensor desc;
@@ -647,7 +663,9 @@ static int ev3_uart_open(struct tty_struct *tty)
 	mutex_init(&port->select_mutex);
 	mutex_init(&port->tx_mutex);
 	init_completion(&port->select_done);
-	INIT_DELAYED_WORK(&port->ack_work, ev3_uart_ack_work);
+	hrtimer_setup(&port->ack_timer, ev3_uart_ack_timer, CLOCK_MONOTONIC,
+		      HRTIMER_MODE_REL);
+	INIT_WORK(&port->ack_work, ev3_uart_ack_work);
 	INIT_DELAYED_WORK(&port->keepalive_work, ev3_uart_keepalive_work);
 	INIT_WORK(&port->reset_work, ev3_uart_reset_work);
 	ev3_uart_parser_init(&port->parser);
@@ -679,9 +697,12 @@ static void ev3_uart_close(struct tty_struct *tty)
 	/*
 	 * An ack_work already running registers its sensor whatever
 	 * @closing says, and a pending reset_work still runs: take the
-	 * sensor only once no work can run any more.
+	 * sensor only once no work can run any more. @closing keeps the
+	 * receive path from starting the timer again; a timer that fired
+	 * has queued its work before hrtimer_cancel() returns.
 	 */
-	cancel_delayed_work_sync(&port->ack_work);
+	hrtimer_cancel(&port->ack_timer);
+	cancel_work_sync(&port->ack_work);
 	cancel_delayed_work_sync(&port->keepalive_work);
 	destroy_workqueue(port->wq);
 
