@@ -46,8 +46,12 @@
 #define LEGO_UEVENT_CONST
 #endif
 
-/* 6.13: hrtimer_setup() initialises a timer and sets its callback. */
-#ifndef LEGO_HAVE_HRTIMER_SETUP
+/*
+ * 6.13: hrtimer_setup() initialises a timer and sets its callback. Kernel
+ * builds only: the userspace builds of the protocol cores (fuzzing,
+ * benchmarks) include this file too, and have no timers.
+ */
+#if defined(__KERNEL__) && !defined(LEGO_HAVE_HRTIMER_SETUP)
 #include <linux/hrtimer.h>
 
 static inline void
