@@ -90,8 +90,16 @@ def cell(text):
     return str(text).replace("|", "\\|").replace("\n", " ")
 
 
-def markdown(sections, quick, stamp, kernel):
-    commit = run(["git", "describe", "--always", "--dirty"]) or "unknown"
+def run_file(directory, name):
+    """A line run.sh wrote into the run's directory, or None."""
+    try:
+        with open(os.path.join(directory, name), encoding="utf-8") as f:
+            return f.read().strip() or None
+    except OSError:
+        return None
+
+
+def markdown(sections, quick, stamp, kernel, commit):
     lines = ["# Benchmark results", "",
              f"Measured {stamp} on: {machine()}."] + \
         ([f"Guest: the {kernel}."] if kernel else []) + [
@@ -154,7 +162,6 @@ def main():
     ap.add_argument("dir")
     ap.add_argument("--out", help="the results file to write (default: print only)")
     ap.add_argument("--quick", action="store_true", help="the figures come from a quick run")
-    ap.add_argument("--kernel", help="the guest kernel the figures come from")
     args = ap.parse_args()
     try:
         sections = load(args.dir)
@@ -173,8 +180,13 @@ def main():
     stamp = when.strftime("%Y-%m-%d %H:%M UTC")
     print(text_tables(sections))
     if args.out:
+        # The commit and the guest kernel as run.sh noted them when the run
+        # began (the results file itself is part of the tree).
+        commit = run_file(args.dir, "commit") or run(["git", "describe", "--always", "--dirty"]) \
+            or "unknown"
+        text = markdown(sections, args.quick, stamp, run_file(args.dir, "kernel"), commit)
         with open(args.out, "w", encoding="utf-8") as f:
-            f.write(markdown(sections, args.quick, stamp, args.kernel))
+            f.write(text)
     missed = sum(1 for s in sections for f in s["figures"] if f.get("met") is False)
     print(f"report: {sum(len(s['figures']) for s in sections)} figures, {missed} targets missed")
     return 0

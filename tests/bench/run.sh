@@ -43,6 +43,9 @@ done
 out=${LEGO_BUILD_DIR:-$top/.build}/bench/$(date -u +%Y%m%dT%H%M%SZ)
 mkdir -p "$out"
 fail=0
+# What the figures come from, noted before anything runs (report.py).
+git describe --always --dirty > "$out/commit" 2>/dev/null || true
+echo "$kernel" > "$out/kernel"
 
 tests/install-deps.sh >/dev/null
 # The guest runs the host's binaries: the EV3 sensor streamer, the NXT client.
@@ -59,6 +62,6 @@ if ! tests/vm-run "${variant[@]}" --timeout 2400 --log "$out/console.log" --shar
 fi
 tests/scan-console.py "$out/console.log" || fail=1
 
-python3 tests/bench/report.py --out "$results" --kernel "$kernel" $quick "$out" || fail=1
+python3 tests/bench/report.py --out "$results" $quick "$out" || fail=1
 echo "bench: figures in $out, results file $results"
 exit $fail
