@@ -97,7 +97,7 @@ def test_sensor_on_8250(sline, kind):
     emu.plug()
     again = find_sensor(sline.address, timeout=15)
     assert again, emu.events
-    assert wait_handshakes(emu, 2) == 2
+    assert wait_handshakes(emu, 2) == 2, emu.events
     assert wait_speed(sline, 57600) == 57600
     deadline = time.monotonic() + 3
     while read_attr(again, 'mode') != m.name and time.monotonic() < deadline:
@@ -122,7 +122,7 @@ def test_speed_mismatch_garbles_the_line(sline):
     assert emu.garbled > 0
     again = find_sensor(sline.address, timeout=15)
     assert again, emu.events
-    assert wait_handshakes(emu, 2) == 2
+    assert wait_handshakes(emu, 2) == 2, emu.events
     assert wait_speed(sline, 57600) == 57600
     emu.set_values(0, [-17])
     assert wait_value(again, 0, -17) == -17

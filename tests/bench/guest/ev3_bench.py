@@ -39,6 +39,7 @@ HANDSHAKE_KINDS = ['color', 'us', 'gyro', 'ir']
 STREAM_PAYLOAD = 2          # GYRO-ANG: one s16, 4-byte DATA messages
 # How long the streamed sensors wait for the host's ACK (a real one: 80 ms).
 STREAM_ACK_MS = 1000
+IIO_DEVICES = '/sys/bus/iio/devices/iio:device*'
 GROUP = 4                   # sensors connected together (one ev3_stream each)
 SETTLE_S = 2.0              # all connected sensors must still be there this long after
 TAIL_S = 1.5                # read this long after the senders' schedules end
@@ -274,16 +275,17 @@ def kernel_ticks(a, b):
 
 
 def iio_count():
-    return len(glob.glob('/sys/bus/iio/devices/iio:device*'))
+    return len(glob.glob(IIO_DEVICES))
 
 
 def connect(binary, work, nsensors, *args):
     """Start gyros on lines 0..nsensors-1, GROUP lines to an ev3_stream.
 
     A group handshakes only once the group before it is registered: the
-    one guest CPU (PREEMPT_NONE, KASAN) is held about 70 ms by each
-    registration, and a sender starved through 16 of them back to back
-    misses its ACK or keep-alive and is rightly dropped. Returns
+    guest has one CPU, each registration holds it a few ms (about 70 ms on
+    the test kernel, with KASAN: run.sh --debug-kernel), and a sender
+    starved through 16 of them back to back misses its ACK or keep-alive
+    and is rightly dropped. Returns
     [(process, pairs)].
     """
     procs = []
@@ -348,7 +350,7 @@ def bench_stream(binary, work, nsensors, seconds):
         # sensor is still there when its buffer is drained and disabled.
         procs = connect(binary, work, nsensors, '-r', 1000, '-g', '-k', '-d', seconds,
                         '-n', 20, '-t', STREAM_ACK_MS)
-        for d in sorted(glob.glob('/sys/bus/iio/devices/iio:device*')):
+        for d in sorted(glob.glob(IIO_DEVICES)):
             ev3.write_attr(d, 'current_timestamp_clock', 'monotonic')
             ev3.write_attr(d, 'scan_elements/in_angl0_en', '1')
             ev3.write_attr(d, 'scan_elements/in_timestamp_en', '1')
