@@ -20,6 +20,7 @@ from conftest import module_path
 
 SERIAL = '001653A0B1C2'
 SERIAL2 = '0016530D0E0F'
+STALL_ROUNDS = 30
 VERSIONS_REPLY = b'\x02\x88\x00\x7c\x01\x1d\x01'     # firmware 1.29
 
 
@@ -594,6 +595,26 @@ def test_unplug_during_io():
     os.close(g)
     b.unplug()
     assert b.wait_gone()
+
+
+def test_every_stall_is_reported():
+    """A brick that halts its IN endpoint instead of each reply: each
+    command, sent right after the last one's EPIPE, gets EPIPE too. The
+    driver clears the stall before it sends the next telegram; a clear
+    left to its work item could come after that telegram and clear the
+    stall meant for it, whose reply then never came (ETIMEDOUT)."""
+    b = nxt.Brick('dummy_udc.1', SERIAL2, hostile='stall')
+    b.plug()
+    f = b.open()
+    try:
+        assert nxt.set_timeout(f, 3000) == 0
+        got = [nxt.transact(f, b'\x00\x0b')[0] for _ in range(STALL_ROUNDS)]
+        bad = [(i, errno.errorcode.get(e, e)) for i, e in enumerate(got) if e != errno.EPIPE]
+        assert not bad, 'of %d commands, not EPIPE: %s' % (STALL_ROUNDS, bad)
+    finally:
+        os.close(f)
+        b.unplug()
+        assert b.wait_gone()
 
 
 @pytest.mark.parametrize('mode,want', [

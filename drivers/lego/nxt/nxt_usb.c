@@ -301,17 +301,16 @@ int nxt_reader_ensure(struct nxt_usb *nxt)
 	return ret;
 }
 
-/* Clears stalls and restarts the reader, in process context. */
-static void nxt_recover_work(struct work_struct *work)
+/*
+ * Clears the stalls seen and (re)starts the reader. @io_mutex held. Only the
+ * flags read here are cleared: a stall flagged meanwhile by a running reader
+ * stays flagged, for the next call.
+ */
+static int nxt_recover_locked(struct nxt_usb *nxt)
 {
-	struct nxt_usb *nxt = container_of(to_delayed_work(work), struct nxt_usb,
-					   recover_work);
 	bool in, out;
 
-	mutex_lock(&nxt->io_mutex);
-	if (!nxt->intf || nxt->suspended)
-		goto out;
-
+	lockdep_assert_held(&nxt->io_mutex);
 	spin_lock_irq(&nxt->lock);
 	in = nxt->halted_in;
 	out = nxt->halted_out;
@@ -323,11 +322,23 @@ static void nxt_recover_work(struct work_struct *work)
 		dev_warn_ratelimited(&nxt->udev->dev, "cannot clear the IN stall\n");
 
 	spin_lock_irq(&nxt->lock);
-	nxt->halted_in = false;
-	nxt->halted_out = false;
+	if (in)
+		nxt->halted_in = false;
+	if (out)
+		nxt->halted_out = false;
 	spin_unlock_irq(&nxt->lock);
-	nxt_reader_start_locked(nxt);
-out:
+	return nxt_reader_start_locked(nxt);
+}
+
+/* Clears stalls and restarts the reader, in process context. */
+static void nxt_recover_work(struct work_struct *work)
+{
+	struct nxt_usb *nxt = container_of(to_delayed_work(work), struct nxt_usb,
+					   recover_work);
+
+	mutex_lock(&nxt->io_mutex);
+	if (nxt->intf && !nxt->suspended)
+		nxt_recover_locked(nxt);
 	mutex_unlock(&nxt->io_mutex);
 }
 
@@ -451,7 +462,13 @@ static int nxt_send(struct nxt_usb *nxt, struct nxt_xfer *x, struct urb *urb,
 		goto out;
 	}
 	nxt->reader_wanted = true;
-	ret = nxt_reader_start_locked(nxt);
+	/*
+	 * A stall from the last transaction may not be cleared yet: its work
+	 * item can run after this telegram has gone, and would then clear the
+	 * stall the brick sets instead of this telegram's reply, which never
+	 * comes. Clear it first.
+	 */
+	ret = nxt_recover_locked(nxt);
 	if (ret)
 		goto out;
 

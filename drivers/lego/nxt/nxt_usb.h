@@ -107,7 +107,8 @@ struct nxt_info {
  * @in_buf: its 64-byte buffer
  * @out_anchor: telegrams in flight, killed on disconnect, reset, suspend
  * @timer: ends the transaction in the slot when its time is up
- * @recover_work: clears a halted endpoint and restarts the reader
+ * @recover_work: clears a halted endpoint and restarts the reader; sending a
+ *	telegram does the same first (nxt_recover_locked())
  * @halted_in: the IN endpoint stalled (@lock)
  * @halted_out: the OUT endpoint stalled (@lock)
  * @info: the cached brick information behind the sysfs attributes
