@@ -17,6 +17,17 @@ def loaded(name):
     return os.path.isdir(f'/sys/module/{name}')
 
 
+def pid_alive(pid):
+    """True while pid runs. A zombie (the VM's init may not reap a daemon
+    that is not our child) counts as gone, and so does a process that ends
+    between the open and the read of its stat file (ESRCH)."""
+    try:
+        with open('/proc/%d/stat' % pid) as f:
+            return f.read().rsplit(')', 1)[1].split()[0] != 'Z'
+    except OSError:
+        return False
+
+
 @pytest.fixture(autouse=True)
 def in_vm():
     if os.environ.get('LEGO_IN_VM') != '1':

@@ -17,7 +17,7 @@ import time
 
 import pytest
 
-from conftest import loaded, module_path
+from conftest import loaded, module_path, pid_alive
 from ev3 import (CLASS, N_LEGOEV3, Line, SerialLine, find_sensor, glob, read_attr,
                  wait_gone)
 
@@ -83,17 +83,6 @@ def wait_exit(proc, timeout=10.0):
         return proc.wait(timeout)
     except subprocess.TimeoutExpired:
         return None
-
-
-def pid_alive(pid):
-    """True while pid runs; a zombie (the VM's init may not reap the
-    daemon, which is not our child) counts as gone."""
-    try:
-        with open('/proc/%d/stat' % pid) as f:
-            state = f.read().rsplit(')', 1)[1].split()[0]
-    except FileNotFoundError:
-        return False
-    return state != 'Z'
 
 
 def wait_pid_gone(pid, timeout=10.0):

@@ -35,7 +35,7 @@ import time
 
 import pytest
 
-from conftest import loaded, module_path
+from conftest import loaded, module_path, pid_alive
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), '..', 'emulator'))
 
@@ -207,15 +207,6 @@ def test_ldisc_29_loads_lego_ev3_uart(kernel_modprobe):
     run(['rmmod', 'lego_ev3_uart'])
 
 
-def alive(pid):
-    """Running (not gone, and not a zombie its new parent never reaps)."""
-    try:
-        with open('/proc/%d/stat' % pid) as f:
-            return f.read().rsplit(')', 1)[1].split()[0] != 'Z'
-    except OSError:
-        return False
-
-
 @pytest.fixture
 def udevd(installed):
     """systemd-udevd with tools/udev/90-lego-nxt.rules, the group lego in a
@@ -244,7 +235,7 @@ def udevd(installed):
         pids = [int(p) for p in out.split()]
         for pid in pids:
             os.kill(pid, signal.SIGTERM)
-        if not wait_for(lambda: not any(alive(p) for p in pids), 20):
+        if not wait_for(lambda: not any(pid_alive(p) for p in pids), 20):
             for pid in pids:
                 os.kill(pid, signal.SIGKILL)
         os.unlink(os.path.join(rules, '90-lego-nxt.rules'))
