@@ -422,7 +422,7 @@ class EmulatedSensor(threading.Thread):
         A real sensor's UART holds the ACK the moment it arrives, whatever
         the host does next. This emulator only sees it once the guest has
         run the tty's receive work and this thread, and the host's driver
-        registers the sensor right after its ACK: on one guest CPU under
+        registers the sensor right after its ACK: on a one-CPU guest under
         KASAN that takes ~70 ms in a kernel thread that does not yield, and
         the ACK reached this thread 83-237 ms after our last byte left.
         So the 80 ms are counted in short waits, each counting for no more

@@ -158,6 +158,12 @@ def clocksource():
     return '%s, timer resolution %s' % (cs, '%d ns' % res if res < 1000 else '%g ms' % (res / 1e6))
 
 
+def guest_cpus():
+    """"one CPU" or "N CPUs": the CPUs the guest runs on."""
+    n = len(os.sched_getaffinity(0))
+    return 'one CPU' if n == 1 else '%d CPUs' % n
+
+
 def wait_for(cond, timeout, what):
     deadline = time.monotonic() + timeout
     while not cond():
@@ -280,7 +286,7 @@ def main():
             'in its own process) answers GetBatteryLevel (00 0B) with no modelled firmware '
             'delay: the real brick handles at most one command per 1 ms scheduler tick, and '
             'aNXT waits 6 ms per direct command; the rates here are the emulated bus, the '
-            'emulator and each host stack, under QEMU TCG with one CPU.',
+            'emulator and each host stack, under QEMU TCG with %s.' % guest_cpus(),
             '/dev/nxtN: the C client, one open file per client thread, the typed ioctl '
             'NXT_IOC_GET_BATTERY_LEVEL (the driver serialises the brick).',
             'libusb: lego_nxt_usb unbound through sysfs; the C client claims interface 0 once '
