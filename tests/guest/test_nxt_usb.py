@@ -213,16 +213,13 @@ def test_transact_system_commands_and_file_upload(brick, fd):
     nxt.transact(fd, b'\x01\x84' + bytes([handle]))
     assert data == program
 
-    # Start it, see it run, stop it; then delete it.
+    # Start it, see it run, stop it; then delete it. The firmware stops a
+    # program a moment after it has answered StopProgram, and a running
+    # program's file is busy (0x8B): wait until no program runs.
     assert nxt.ok(fd, 'START_PROGRAM', name=name)['status'] == 0
-    deadline = time.monotonic() + 3
-    while time.monotonic() < deadline:
-        err, out = nxt.command(fd, 'GET_CURRENT_PROGRAM_NAME')
-        if err == 0:
-            break
-        time.sleep(0.05)
-    assert err == 0 and nxt.cstr(out['name']) == 'upload.rxe'
+    assert nxt.cstr(wait_program(fd, True)['name']) == 'upload.rxe'
     nxt.ok(fd, 'STOP_PROGRAM')
+    wait_program(fd, False)
     err, reply = nxt.transact(fd, b'\x01\x85' + name)
     assert err == 0 and reply[2] == 0
     assert 'upload.rxe' not in brick.fw.files
