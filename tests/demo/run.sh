@@ -17,7 +17,7 @@ mkdir -p "$build"
 t0=$SECONDS
 echo "==> [1/4] packages (Debian and PyPI; nothing to do when all are there)"
 tests/install-deps.sh
-echo "==> [2/4] the $kver test kernel (cached; the first build takes 15-20 minutes on 2 cores: a dot a minute)"
+echo "==> [2/4] the $kver test kernel (cached; the first build takes 5-20 minutes on 2 cores: a dot a minute)"
 tree=$(tests/kernel/build-kernel.sh "$kver")
 echo "    $tree"
 echo "==> [3/4] the modules and tools against it"
