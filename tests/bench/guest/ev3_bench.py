@@ -282,11 +282,10 @@ def connect(binary, work, nsensors, *args):
     """Start gyros on lines 0..nsensors-1, GROUP lines to an ev3_stream.
 
     A group handshakes only once the group before it is registered: the
-    bench's guest has one CPU (run.sh), each registration holds it a few ms (about 70 ms on
-    the test kernel, with KASAN: run.sh --debug-kernel), and a sender
-    starved through 16 of them back to back misses its ACK or keep-alive
-    and is rightly dropped. Returns
-    [(process, pairs)].
+    bench's guest has one CPU (run.sh), each registration holds it a few
+    ms (about 70 ms on the test kernel, with KASAN: run.sh --debug-kernel),
+    and a sender starved through 16 of them back to back misses its ACK or
+    keep-alive and is rightly dropped. Returns [(process, pairs)].
     """
     procs = []
     try:
