@@ -17,11 +17,15 @@
 #include <errno.h>
 #include <string.h>
 
+#include "ev3_uart_chan.h"
 #include "ev3_uart_proto.h"
 #include "fuzz_check.h"
 
 struct host {
 	struct ev3_uart_parser *p;
+	/* The IIO channels ev3_uart_iio.c would register for the sensor. */
+	struct ev3_uart_chan chans[EV3_UART_MAX_CHANS + 1];
+	unsigned int num_chans;
 	u32 rng;		/* xorshift32 state; 0: the quiet host */
 	unsigned int acked_wait;	/* batches to receive before start_data */
 	s64 now;
@@ -99,6 +103,57 @@ static void check_parser(const struct ev3_uart_parser *p)
 	}
 }
 
+/*
+ * What ev3_uart_iio.c and the sysfs "modes" and "mode" attributes do with
+ * a new sensor's description: every channel within bounds and showable,
+ * every mode's token unique and selecting its own mode.
+ */
+static void build_chans(struct host *h)
+{
+	const struct ev3_uart_sensor *s = &h->p->sensor;
+	char tok[EV3_UART_MAX_MODES][EV3_UART_TOKEN_LEN + 1];
+	unsigned int i, j, n;
+
+	n = ev3_uart_chans_build(s, NULL, 0);
+	CHECK(n <= EV3_UART_MAX_CHANS);
+	/* A guard after the room given must stay untouched. */
+	memset(&h->chans[n], 0x5a, sizeof(h->chans[n]));
+	CHECK(ev3_uart_chans_build(s, h->chans, n) == n);
+	CHECK(h->chans[n].mode == 0x5a);
+	h->num_chans = n;
+	for (i = 0; i < n; i++) {
+		const struct ev3_uart_chan *c = &h->chans[i];
+		const struct ev3_uart_mode *m;
+		s64 nano;
+
+		CHECK(c->mode < s->num_modes);
+		m = &s->modes[c->mode];
+		CHECK(c->index < m->num_values);
+		CHECK(c->realbits == 8 * ev3_uart_data_size(m->data_type));
+		CHECK(c->decimals <= m->decimals);
+		CHECK(c->decimals == 0 || m->data_type == EV3_UART_DATA_FLOAT);
+		/* The parts of a value have one sign; the scale is shown. */
+		CHECK(c->scale_val2 > -1000000000 && c->scale_val2 < 1000000000);
+		CHECK(c->offset_val2 > -1000000 && c->offset_val2 < 1000000);
+		CHECK((c->scale_val >= 0 && c->scale_val2 >= 0) ||
+		      (c->scale_val <= 0 && c->scale_val2 <= 0));
+		CHECK((c->offset_val >= 0 && c->offset_val2 >= 0) ||
+		      (c->offset_val <= 0 && c->offset_val2 <= 0));
+		nano = (s64)c->scale_val * 1000000000 + c->scale_val2;
+		CHECK(nano >= 1000 || nano <= -1000);
+		for (j = 0; j < i; j++)
+			CHECK(h->chans[j].mode < c->mode ||
+			      (h->chans[j].mode == c->mode && h->chans[j].index < c->index));
+	}
+	for (i = 0; i < s->num_modes; i++) {
+		CHECK(ev3_uart_mode_token(s, i, tok[i], sizeof(tok[i])) >= 1);
+		CHECK(!strchr(tok[i], ' '));
+		CHECK(ev3_uart_find_mode(s, tok[i]) == (int)i);
+		for (j = 0; j < i; j++)
+			CHECK(strcmp(tok[i], tok[j]));
+	}
+}
+
 static void check_description(const struct ev3_uart_parser *p)
 {
 	unsigned int i;
@@ -134,6 +189,13 @@ static void use_data(struct host *h, const struct ev3_uart_event *ev,
 			(void)ev3_uart_scale_value(m, v);
 	}
 	CHECK(ev3_uart_read_value(m, p->data, ev->len, m->num_values, &v) == -ENXIO);
+	/* The IIO buffer's scan and the _raw attributes. */
+	for (i = 0; i < h->num_chans; i++) {
+		if (h->chans[i].mode != ev->mode)
+			continue;
+		ret = ev3_uart_chan_read(&p->sensor, &h->chans[i], p->data, ev->len, &v);
+		CHECK(!ret || (ret == -ERANGE && m->data_type == EV3_UART_DATA_FLOAT));
+	}
 	/* The class's sysfs reads the whole buffer, whatever the length. */
 	for (i = 0; i < m->num_values; i++)
 		if (!ev3_uart_read_value(m, p->data, EV3_UART_MAX_PAYLOAD, i, &v))
@@ -180,6 +242,7 @@ static void event(struct host *h, const struct ev3_uart_event *ev, size_t rest)
 	case EV3_UART_EV_HANDSHAKE:
 		CHECK(p->state == EV3_UART_STATE_ACKED);
 		check_description(p);
+		build_chans(h);
 		h->last_ts = 0;		/* a new IIO device */
 		name = ev3_uart_driver_name(p->sensor.type);
 		CHECK(!name || strncmp(name, "lego-ev3-", 9) == 0 ||

@@ -134,18 +134,3 @@ def test_module_unload_and_reload(ev3_module):
         os.close(master)
     subprocess.run(['insmod', module_path('lego_ev3_uart')], check=True)
     assert registered_ldiscs().get('n_legoev3') == N_LEGOEV3
-
-
-def test_ldisc_number_parameter(ev3_module):
-    subprocess.run(['rmmod', 'lego_ev3_uart'], check=True)
-    try:
-        subprocess.run(['insmod', module_path('lego_ev3_uart'), 'ldisc_num=30'], check=True)
-        assert registered_ldiscs().get('n_legoev3') == 30
-        with open('/sys/module/lego_ev3_uart/parameters/ldisc_num') as f:
-            assert f.read().strip() == '30'
-    finally:
-        subprocess.run(['rmmod', 'lego_ev3_uart'], check=True)
-    r = subprocess.run(['insmod', module_path('lego_ev3_uart'), 'ldisc_num=99'],
-                       capture_output=True)
-    assert r.returncode != 0
-    assert not loaded('lego_ev3_uart')

@@ -13,6 +13,15 @@
  *  - a break (tcsendbreak) arrives as a TTY_BREAK character;
  *  - nothing arrives when the other end is not open.
  *
+ * Two knobs for tests of the line discipline's own behaviour:
+ *  - fifo_room (writable) limits the bytes a port holds before they are on
+ *    the wire, so that writes are taken in part, as from a UART whose
+ *    buffer is full;
+ *  - ack_ns records, per port, when its last burst of bytes at 2400 baud
+ *    that ended in 0x04 (an EV3 ACK) was on the wire, so that a test can
+ *    time the discipline's ACK against the sensor's on the line itself,
+ *    whatever the emulator's thread was doing.
+ *
  * Not meant for anything but tests.
  */
 #include <linux/hrtimer.h>
@@ -32,6 +41,15 @@
 static unsigned int pairs = 4;
 module_param(pairs, uint, 0444);
 MODULE_PARM_DESC(pairs, "number of tty pairs (default 4, at most 16)");
+
+static unsigned int fifo_room;
+module_param(fifo_room, uint, 0644);
+MODULE_PARM_DESC(fifo_room, "bytes a port holds before they are sent (default 0: 4096)");
+
+static unsigned long long ack_ns[32];
+module_param_array(ack_ns, ullong, NULL, 0444);
+MODULE_PARM_DESC(ack_ns,
+		 "per port: ktime_get_ns() when its last 2400-baud burst ending in 0x04 was sent");
 
 /**
  * struct nm_port - one end of a cable
@@ -123,6 +141,8 @@ static enum hrtimer_restart nm_tick(struct hrtimer *timer)
 
 	if (n) {
 		nm_deliver(p, buf, n);
+		if (!more && buf[n - 1] == 0x04 && READ_ONCE(p->baud) == 2400)
+			WRITE_ONCE(ack_ns[p - nm_ports], ktime_get_ns());
 		/* Room in the fifo: let the writer go on. */
 		tty = tty_port_tty_get(&p->port);
 		if (tty) {
@@ -160,6 +180,10 @@ static LEGO_TTY_WRITE_RET nm_write(struct tty_struct *tty, const u8 *buf,
 	unsigned int n;
 
 	spin_lock_irqsave(&p->lock, flags);
+	if (READ_ONCE(fifo_room))
+		count = min_t(unsigned int, count,
+			      READ_ONCE(fifo_room) - min(kfifo_len(&p->fifo),
+							 READ_ONCE(fifo_room)));
 	n = kfifo_in(&p->fifo, buf, count);
 	if (n && !p->running) {
 		p->running = true;
@@ -173,7 +197,12 @@ static LEGO_TTY_WRITE_RET nm_write(struct tty_struct *tty, const u8 *buf,
 
 static unsigned int nm_write_room(struct tty_struct *tty)
 {
-	return kfifo_avail(&nm_ports[tty->index].fifo);
+	struct nm_port *p = &nm_ports[tty->index];
+	unsigned int room = READ_ONCE(fifo_room);
+
+	if (room)
+		return room - min(kfifo_len(&p->fifo), room);
+	return kfifo_avail(&p->fifo);
 }
 
 static unsigned int nm_chars_in_buffer(struct tty_struct *tty)

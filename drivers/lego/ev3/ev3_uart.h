@@ -12,22 +12,37 @@
  * items and the sysfs/IIO readers, never for longer than a copy or a push;
  * nothing sleeps under it.
  *
- * ev3_uart_port.select_mutex serialises mode changes (one SELECT in flight).
+ * ev3_uart_port.select_mutex serialises mode changes (one SELECT in flight):
+ * a user's (sysfs, IIO buffer) and the restore of the user's mode after a
+ * reconnect (ack_work, keepalive_work), which only try it and give way.
  * ev3_uart_port.tx_mutex serialises writes to the tty (ACK, NACK, SELECT,
- * WRITE), which all happen in process context.
+ * WRITE), which all happen in process context, and protects the transmit
+ * queue (see ev3_uart_tx()).
  *
- * All work items run on the port's ordered workqueue, so a sensor is never
- * registered and unregistered at the same time. The one timer,
+ * ev3_uart_port.closing and ev3_uart_sensor_dev.gone are written under the
+ * port lock; the few readers outside it use READ_ONCE().
+ *
+ * The work items that register and unregister sensors (ack_work,
+ * reset_work) run on the port's ordered workqueue, so a sensor is never
+ * registered and unregistered at the same time. keepalive_work runs on
+ * system_highpri_wq, so that NACKs go out while a sensor registers (the
+ * sensor resets after a second without one); it only ticks the parser, sends
+ * and queues reset_work. tx_work runs on the system workqueue. The one timer,
  * ev3_uart_port.ack_timer, runs in hard interrupt context and takes no
  * lock: it only queues ack_work.
  *
  * Lifetime
  * --------
- * A struct ev3_uart_sensor lives from the end of a handshake until the
+ * A struct ev3_uart_sensor_dev lives from the end of a handshake until the
  * sensor is lost or the discipline is closed; its description (modes,
  * ranges) never changes during that time, so readers can never see it
  * half reset. Its memory is freed by the release of its class device, which
- * runs once the last reference (an open sysfs file, the IIO device) is gone.
+ * runs once the last reference (an open sysfs file) is gone.
+ * The IIO device is unregistered first (ev3_uart_sensor_destroy()): from
+ * then on the IIO core calls none of its callbacks, even for a
+ * /dev/iio:deviceN still held open, and what it may still read of its own
+ * (name, label) are copies in the IIO device's private data, which lives
+ * as long as the IIO device.
  * The port outlives every sensor on it: close() unregisters the sensor,
  * which waits for sysfs callbacks in flight, before freeing the port.
  */
@@ -60,7 +75,8 @@ struct ev3_uart_iio;
  * @address: e.g. "ttyUSB0:in1" (tty name, then the port label if set)
  * @dev: the lego-sensor class device (sensorN)
  * @id: N of sensorN
- * @gone: the sensor was lost or the line closed (under @port->lock)
+ * @gone: the sensor was lost or the line closed (written under
+ *	@port->lock)
  * @mode: current mode (under @port->lock)
  * @data: last DATA payload of @mode (under @port->lock)
  * @data_len: its length (under @port->lock)
@@ -90,7 +106,8 @@ struct ev3_uart_sensor_dev {
  * @lock: see "Locking" above
  * @parser: protocol state
  * @sensor: the registered sensor, or NULL
- * @closing: close() has started; no work may be queued any more
+ * @closing: close() has started; no work may be queued any more (written
+ *	under @lock)
  * @wq: ordered workqueue for all work of this port
  * @ack_timer: queues @ack_work 10 ms after the sensor's ACK (an hrtimer:
  *	exact at any HZ; it only queues the work, so it takes no lock)
@@ -111,7 +128,13 @@ struct ev3_uart_sensor_dev {
  * @restore_ticks: keep-alive periods since the restore began
  * @label: port label set by the user (module parameter or
  *	%LEGO_EV3_SET_PORT_LABEL), e.g. "in1"; under @lock
- * @last_error: reason of the last protocol error, for the log
+ * @last_error: reason of the last protocol error, for the log (under @lock)
+ * @bad_speed: a speed this tty could not be set to: handshakes asking for it
+ *	are not answered (only ack_work uses it)
+ * @tx_buf: bytes queued for the tty (under @tx_mutex)
+ * @tx_pos: the first byte of @tx_buf not yet sent
+ * @tx_len: bytes queued from @tx_pos on
+ * @tx_work: sends what is queued once the tty has room again
  */
 struct ev3_uart_port {
 	struct tty_struct *tty;
@@ -135,12 +158,18 @@ struct ev3_uart_port {
 	unsigned int restore_ticks;
 	char label[EV3_UART_LABEL_LEN];
 	const char *last_error;
+	u32 bad_speed;
+	u8 tx_buf[4 * EV3_UART_MAX_MSG_LEN];
+	unsigned int tx_pos;
+	unsigned int tx_len;
+	struct work_struct tx_work;
 };
 
 /* ev3_uart_ldisc.c */
 int ev3_uart_set_mode(struct ev3_uart_sensor_dev *sd, u8 mode);
 int ev3_uart_set_mode_by_name(struct ev3_uart_sensor_dev *sd, const char *name);
 int ev3_uart_show_modes(struct ev3_uart_sensor_dev *sd, char *buf);
+int ev3_uart_show_mode(struct ev3_uart_sensor_dev *sd, char *buf);
 int ev3_uart_write(struct ev3_uart_sensor_dev *sd, const u8 *data, size_t len);
 int ev3_uart_get_data(struct ev3_uart_sensor_dev *sd, u8 *mode, u8 *data);
 
@@ -154,6 +183,7 @@ void ev3_uart_sensor_destroy(struct ev3_uart_sensor_dev *sd);
 /* ev3_uart_iio.c */
 int ev3_uart_iio_register(struct ev3_uart_sensor_dev *sd);
 void ev3_uart_iio_unregister(struct ev3_uart_sensor_dev *sd);
+bool ev3_uart_iio_mode_busy(struct ev3_uart_sensor_dev *sd, u8 mode);
 void ev3_uart_iio_push(struct ev3_uart_sensor_dev *sd, u8 mode,
 		       const u8 *data, unsigned int len, size_t rest);
 

@@ -48,7 +48,6 @@ static const char * const ev3_uart_bin_formats[] = {
 };
 
 enum ev3_mode_field {
-	EV3_FIELD_NAME,
 	EV3_FIELD_NUM_VALUES,
 	EV3_FIELD_DECIMALS,
 	EV3_FIELD_UNITS,
@@ -64,8 +63,6 @@ static ssize_t mode_field_show(struct device *dev, char *buf,
 	if (IS_ERR(m))
 		return PTR_ERR(m);
 	switch (field) {
-	case EV3_FIELD_NAME:
-		return sysfs_emit(buf, "%s\n", m->name);
 	case EV3_FIELD_NUM_VALUES:
 		return sysfs_emit(buf, "%u\n", m->num_values);
 	case EV3_FIELD_DECIMALS:
@@ -102,7 +99,7 @@ static DEVICE_ATTR_RO(modes);
 static ssize_t mode_show(struct device *dev, struct device_attribute *attr,
 			 char *buf)
 {
-	return mode_field_show(dev, buf, EV3_FIELD_NAME);
+	return ev3_uart_show_mode(to_sensor(dev), buf);
 }
 
 static ssize_t mode_store(struct device *dev, struct device_attribute *attr,

@@ -18,173 +18,53 @@
 #include <linux/iio/iio.h>
 #include <linux/iio/kfifo_buf.h>
 #include <linux/iio/sysfs.h>
-#include <linux/math64.h>
+#include <linux/lockdep.h>
+#include <linux/math.h>
 #include <linux/slab.h>
 #include <linux/string.h>
 
 #include "lego_compat.h"
 #include "ev3_uart.h"
-
-#define EV3_IIO_MAX_CHANNELS	(EV3_UART_MAX_MODES * 8 + 1)
+#include "ev3_uart_chan.h"
 
 /**
  * struct ev3_uart_iio - the IIO side of one sensor
- * @sd: the sensor
+ * @sd: the sensor; valid until ev3_uart_iio_unregister() returns, after
+ *	which the IIO core calls none of the callbacks below (it checks
+ *	&iio_dev.info), even for a /dev/iio:deviceN still held open
  * @indio: the IIO device
  * @buffer: its kfifo
- * @chan_mode: mode of each channel, by scan index
- * @chan_index: value index within its mode of each channel
- * @scale_nano: scale of each channel, in nano-units of the IIO unit
- * @offset_micro: offset of each channel, in micro raw units
+ * @chans: the channels as ev3_uart_chans_build() made them, by scan index
+ * @num_chans: their number, at least 1
  * @buffer_mode: mode whose DATA messages are pushed, or %EV3_UART_NO_MODE
  *	(under the port lock)
  * @last_ts: timestamp of the last message pushed, 0 for none yet (under the
  *	port lock)
- * @scan: one scan: a value per channel, then the timestamp
+ * @scan: one scan: a value per channel, then the timestamp (under the port
+ *	lock)
+ * @name: the IIO device's name, the sensor's driver name (a copy: the IIO
+ *	device can outlive the sensor)
+ * @label: its label, the sensor's address (a copy)
  */
 struct ev3_uart_iio {
 	struct ev3_uart_sensor_dev *sd;
 	struct iio_dev *indio;
 	struct iio_buffer *buffer;
-	u8 chan_mode[EV3_IIO_MAX_CHANNELS];
-	u8 chan_index[EV3_IIO_MAX_CHANNELS];
-	s64 scale_nano[EV3_IIO_MAX_CHANNELS];
-	s64 offset_micro[EV3_IIO_MAX_CHANNELS];
+	struct ev3_uart_chan *chans;
+	unsigned int num_chans;
 	u8 buffer_mode;
 	s64 last_ts;
-	struct {
-		s32 v[EV3_IIO_MAX_CHANNELS];
-		aligned_s64 ts;
-	} scan;
+	s32 *scan;
+	char name[sizeof_field(struct ev3_uart_sensor_dev, driver_name)];
+	char label[EV3_UART_ADDRESS_LEN];
 };
-
-/**
- * struct ev3_iio_unit - how a sensor unit maps onto an IIO channel type
- * @units: the sensor's unit symbol
- * @type: IIO channel type
- * @nano: IIO units per sensor unit, times 10^9
- */
-struct ev3_iio_unit {
-	const char *units;
-	enum iio_chan_type type;
-	s64 nano;
-};
-
-static const struct ev3_iio_unit ev3_iio_units[] = {
-	{ "deg",	IIO_ANGL,		17453293 },	/* rad */
-	{ "d/s",	IIO_ANGL_VEL,		17453293 },	/* rad/s */
-	{ "cm",		IIO_DISTANCE,		10000000 },	/* m */
-	{ "inch",	IIO_DISTANCE,		25400000 },	/* m */
-	{ "mm",		IIO_DISTANCE,		1000000 },	/* m */
-	{ "C",		IIO_TEMP,		1000000000000LL },	/* m°C */
-	{ "%RH",	IIO_HUMIDITYRELATIVE,	1000000000000LL },	/* m% */
-	{ "mV",		IIO_VOLTAGE,		1000000000 },	/* mV */
-	{ "lx",		IIO_LIGHT,		1000000000 },	/* lux */
-	{ "hPa",	IIO_PRESSURE,		100000000 },	/* kPa */
-	{ "g",		IIO_ACCEL,		9806650000LL },	/* m/s^2 */
-	{ "uT",		IIO_MAGN,		10000000 },	/* gauss */
-};
-
-/*
- * The LEGO sensors' modes whose unit alone does not say what they measure.
- * Values past the listed types get the last one.
- */
-static const struct {
-	u8 type;
-	const char *mode;
-	enum iio_chan_type chan[2];
-	s64 nano;
-} ev3_iio_modes[] = {
-	{ EV3_UART_TYPE_COLOR, "COL-REFLECT", { IIO_INTENSITY }, 1000000000 },
-	{ EV3_UART_TYPE_COLOR, "COL-AMBIENT", { IIO_INTENSITY }, 1000000000 },
-	{ EV3_UART_TYPE_COLOR, "REF-RAW", { IIO_INTENSITY }, 1000000000 },
-	{ EV3_UART_TYPE_COLOR, "RGB-RAW", { IIO_INTENSITY }, 1000000000 },
-	{ EV3_UART_TYPE_GYRO, "GYRO-FAS", { IIO_ANGL_VEL }, 17453293 },
-	{ EV3_UART_TYPE_GYRO, "GYRO-G&A", { IIO_ANGL, IIO_ANGL_VEL }, 17453293 },
-	{ EV3_UART_TYPE_IR, "IR-PROX", { IIO_PROXIMITY }, 1000000000 },
-};
-
-static bool ev3_iio_chan_type(const struct ev3_uart_sensor *desc, u8 mode,
-			      unsigned int index, enum iio_chan_type *type,
-			      s64 *nano)
-{
-	const struct ev3_uart_mode *m = &desc->modes[mode];
-	unsigned int i;
-
-	for (i = 0; i < ARRAY_SIZE(ev3_iio_modes); i++) {
-		if (ev3_iio_modes[i].type != desc->type ||
-		    strcmp(ev3_iio_modes[i].mode, m->name))
-			continue;
-		*type = ev3_iio_modes[i].chan[index && ev3_iio_modes[i].chan[1] ? 1 : 0];
-		*nano = ev3_iio_modes[i].nano;
-		return true;
-	}
-	/* Units tell nothing for the colour or IR sensor's percentages. */
-	for (i = 0; i < ARRAY_SIZE(ev3_iio_units); i++) {
-		if (!strcmp(ev3_iio_units[i].units, m->units)) {
-			*type = ev3_iio_units[i].type;
-			*nano = ev3_iio_units[i].nano;
-			return true;
-		}
-	}
-	return false;
-}
-
-/* The colour sensor's RGB-RAW: red, green, blue, then the LED-off reading. */
-static int ev3_iio_modifier(const struct ev3_uart_sensor *desc, u8 mode,
-			    unsigned int index)
-{
-	static const int rgb[] = { IIO_MOD_LIGHT_RED, IIO_MOD_LIGHT_GREEN,
-				   IIO_MOD_LIGHT_BLUE };
-
-	if (desc->type == EV3_UART_TYPE_COLOR &&
-	    !strcmp(desc->modes[mode].name, "RGB-RAW") && index < ARRAY_SIZE(rgb))
-		return rgb[index];
-	return 0;
-}
-
-/*
- * processed = (raw + offset) * scale must equal the SI value in IIO units:
- * si = (raw - raw_min) * si_span / raw_span + si_min, si in 10^-decimals.
- */
-static void ev3_iio_scale(struct ev3_uart_iio *iio, unsigned int ch,
-			  const struct ev3_uart_mode *m, s64 nano)
-{
-	s64 raw_span = (s64)m->raw_max - m->raw_min;
-	s64 si_span = (s64)m->si_max - m->si_min;
-	u64 div = 1;
-	unsigned int d;
-	s64 off;
-
-	for (d = 0; d < m->decimals; d++)
-		div *= 10;
-
-	/* Floats arrive already scaled by 10^decimals, in SI units. */
-	if (m->data_type == EV3_UART_DATA_FLOAT || !raw_span || !si_span) {
-		iio->scale_nano[ch] = div64_s64(nano, div);
-		iio->offset_micro[ch] = 0;
-		return;
-	}
-
-	iio->scale_nano[ch] = mul_u64_u64_div_u64(abs(si_span), nano,
-						  abs(raw_span) * div);
-	if ((si_span ^ raw_span) < 0)	/* signs differ */
-		iio->scale_nano[ch] = -iio->scale_nano[ch];
-
-	/* offset = si_min * raw_span / si_span - raw_min, in micro raw units */
-	if (check_mul_overflow((s64)m->si_min, raw_span, &off) ||
-	    check_mul_overflow(off, (s64)1000000, &off))
-		off = 0;
-	iio->offset_micro[ch] = div64_s64(off, si_span) - (s64)m->raw_min * 1000000;
-}
 
 static int ev3_iio_read_raw(struct iio_dev *indio, struct iio_chan_spec const *chan,
 			    int *val, int *val2, long mask)
 {
 	struct ev3_uart_iio *iio = iio_priv(indio);
-	unsigned int ch = chan->scan_index;
+	const struct ev3_uart_chan *c = &iio->chans[chan->scan_index];
 	u8 data[EV3_UART_MAX_PAYLOAD], mode;
-	s64 v;
 	int ret;
 
 	switch (mask) {
@@ -192,22 +72,36 @@ static int ev3_iio_read_raw(struct iio_dev *indio, struct iio_chan_spec const *c
 		ret = ev3_uart_get_data(iio->sd, &mode, data);
 		if (ret < 0)
 			return ret;
-		if (mode != iio->chan_mode[ch])
+		if (mode != c->mode)
 			return -EBUSY;
-		ret = ev3_uart_read_value(&iio->sd->desc.modes[mode], data,
-					  EV3_UART_MAX_PAYLOAD, iio->chan_index[ch], val);
+		ret = ev3_uart_chan_read(&iio->sd->desc, c, data,
+					 EV3_UART_MAX_PAYLOAD, val);
 		return ret ? ret : IIO_VAL_INT;
 	case IIO_CHAN_INFO_SCALE:
-		v = iio->scale_nano[ch];
-		*val = div_s64_rem(v, 1000000000, val2);
+		*val = c->scale_val;
+		*val2 = c->scale_val2;
 		return IIO_VAL_INT_PLUS_NANO;
 	case IIO_CHAN_INFO_OFFSET:
-		v = iio->offset_micro[ch];
-		*val = div_s64_rem(v, 1000000, val2);
+		*val = c->offset_val;
+		*val2 = c->offset_val2;
 		return IIO_VAL_INT_PLUS_MICRO;
 	default:
 		return -EINVAL;
 	}
+}
+
+static int ev3_iio_read_label(struct iio_dev *indio,
+			      struct iio_chan_spec const *chan, char *label)
+{
+	struct ev3_uart_iio *iio = iio_priv(indio);
+	const struct ev3_uart_chan *c = &iio->chans[chan->scan_index];
+	char tok[EV3_UART_TOKEN_LEN + 1];
+	int ret;
+
+	ret = ev3_uart_mode_token(&iio->sd->desc, c->mode, tok, sizeof(tok));
+	if (ret < 0)
+		return ret;
+	return sysfs_emit(label, "%s value%u\n", tok, c->index);
 }
 
 /* A buffer holds the values of one mode only. */
@@ -215,13 +109,13 @@ static bool ev3_iio_validate_scan_mask(struct iio_dev *indio,
 				       const unsigned long *mask)
 {
 	struct ev3_uart_iio *iio = iio_priv(indio);
-	unsigned int ch, last = indio->num_channels - 1;
+	unsigned int ch;
 	int mode = -1;
 
-	for_each_set_bit(ch, mask, last) {
-		if (mode >= 0 && iio->chan_mode[ch] != mode)
+	for_each_set_bit(ch, mask, iio->num_chans) {
+		if (mode >= 0 && iio->chans[ch].mode != mode)
 			return false;
-		mode = iio->chan_mode[ch];
+		mode = iio->chans[ch].mode;
 	}
 	return true;
 }
@@ -230,12 +124,8 @@ static ssize_t mode_show(struct device *dev, struct device_attribute *attr,
 			 char *buf)
 {
 	struct ev3_uart_iio *iio = iio_priv(dev_to_iio_dev(dev));
-	u8 data[EV3_UART_MAX_PAYLOAD], mode;
-	int ret = ev3_uart_get_data(iio->sd, &mode, data);
 
-	if (ret < 0)
-		return ret;
-	return sysfs_emit(buf, "%s\n", iio->sd->desc.modes[mode].name);
+	return ev3_uart_show_mode(iio->sd, buf);
 }
 
 static ssize_t mode_store(struct device *dev, struct device_attribute *attr,
@@ -269,6 +159,7 @@ static const struct attribute_group ev3_iio_attr_group = {
 
 static const struct iio_info ev3_iio_info = {
 	.read_raw = ev3_iio_read_raw,
+	.read_label = ev3_iio_read_label,
 	.attrs = &ev3_iio_attr_group,
 };
 
@@ -279,10 +170,10 @@ static int ev3_iio_postenable(struct iio_dev *indio)
 	u8 mode;
 	int ret;
 
-	ch = find_first_bit(indio->active_scan_mask, indio->num_channels - 1);
-	if (ch >= indio->num_channels - 1)
+	ch = find_first_bit(indio->active_scan_mask, iio->num_chans);
+	if (ch >= iio->num_chans)
 		return -EINVAL;
-	mode = iio->chan_mode[ch];
+	mode = iio->chans[ch].mode;
 	ret = ev3_uart_set_mode(iio->sd, mode);
 	if (ret)
 		return ret;
@@ -308,6 +199,23 @@ static const struct iio_buffer_setup_ops ev3_iio_buffer_ops = {
 	.predisable = ev3_iio_predisable,
 	.validate_scan_mask = ev3_iio_validate_scan_mask,
 };
+
+/**
+ * ev3_uart_iio_mode_busy() - whether a buffer holds the sensor to its mode
+ * @sd: the sensor
+ * @mode: the mode a user asks for
+ *
+ * A buffer captures the values of one mode: switching away while it is
+ * enabled would leave it silently empty. Called under the port lock.
+ *
+ * Return: true if a buffer is enabled on another mode than @mode.
+ */
+bool ev3_uart_iio_mode_busy(struct ev3_uart_sensor_dev *sd, u8 mode)
+{
+	lockdep_assert_held(&sd->port->lock);
+	return sd->iio && sd->iio->buffer_mode != EV3_UART_NO_MODE &&
+	       sd->iio->buffer_mode != mode;
+}
 
 /*
  * When the last byte of a DATA message of @len payload bytes arrived, @rest
@@ -337,74 +245,76 @@ void ev3_uart_iio_push(struct ev3_uart_sensor_dev *sd, u8 mode,
 		       const u8 *data, unsigned int len, size_t rest)
 {
 	struct ev3_uart_iio *iio = sd->iio;
-	struct iio_dev *indio;
 	unsigned int ch, i = 0;
 
+	lockdep_assert_held(&sd->port->lock);
 	if (!iio || iio->buffer_mode != mode ||
 	    time_before(jiffies, sd->settle_until))
 		return;
-	indio = iio->indio;
-	for_each_set_bit(ch, indio->active_scan_mask, indio->num_channels - 1)
-		if (ev3_uart_read_value(&sd->desc.modes[mode], data, len,
-					iio->chan_index[ch], &iio->scan.v[i++]))
-			iio->scan.v[i - 1] = 0;
-	iio_push_to_buffers_with_timestamp(indio, &iio->scan,
+	for_each_set_bit(ch, iio->indio->active_scan_mask, iio->num_chans) {
+		if (ev3_uart_chan_read(&sd->desc, &iio->chans[ch], data, len,
+				       &iio->scan[i]))
+			iio->scan[i] = 0;
+		i++;
+	}
+	iio_push_to_buffers_with_timestamp(iio->indio, iio->scan,
 					   ev3_iio_timestamp(iio, len, rest));
 }
 
-static void ev3_iio_fill_channels(struct ev3_uart_iio *iio,
-				  struct iio_chan_spec *chans)
+/* The IIO channel specs of the channels, then the timestamp. */
+static struct iio_chan_spec *ev3_iio_chan_specs(struct ev3_uart_iio *iio)
 {
-	const struct ev3_uart_sensor *desc = &iio->sd->desc;
-	unsigned int n = 0, type_count[64] = { };
-	enum iio_chan_type type;
-	u8 mode, k;
-	s64 nano;
+	struct iio_chan_spec *specs;
+	unsigned int n;
 
-	for (mode = 0; mode < desc->num_modes; mode++) {
-		const struct ev3_uart_mode *m = &desc->modes[mode];
+	specs = devm_kcalloc(&iio->indio->dev, iio->num_chans + 1,
+			     sizeof(*specs), GFP_KERNEL);
+	if (!specs)
+		return NULL;
+	for (n = 0; n < iio->num_chans; n++) {
+		const struct ev3_uart_chan *c = &iio->chans[n];
+		struct iio_chan_spec *s = &specs[n];
 
-		for (k = 0; k < m->num_values; k++) {
-			struct iio_chan_spec *c = &chans[n];
-
-			if (!ev3_iio_chan_type(desc, mode, k, &type, &nano) ||
-			    type >= ARRAY_SIZE(type_count))
-				break;
-			c->type = type;
-			c->modified = ev3_iio_modifier(desc, mode, k) != 0;
-			c->channel2 = ev3_iio_modifier(desc, mode, k);
-			c->indexed = !c->modified;
-			c->channel = type_count[type]++;
-			c->info_mask_separate = BIT(IIO_CHAN_INFO_RAW) |
-						BIT(IIO_CHAN_INFO_SCALE) |
-						BIT(IIO_CHAN_INFO_OFFSET);
-			c->scan_index = n;
-			c->scan_type.sign = 's';
-			c->scan_type.realbits = 8 * ev3_uart_data_size(m->data_type);
-			c->scan_type.storagebits = 32;
-			c->scan_type.endianness = IIO_CPU;
-			iio->chan_mode[n] = mode;
-			iio->chan_index[n] = k;
-			ev3_iio_scale(iio, n, m, nano);
-			n++;
-		}
+		s->type = c->type;
+		s->modified = c->modifier != 0;
+		s->channel2 = c->modifier;
+		s->indexed = !s->modified;
+		s->channel = c->channel;
+		s->info_mask_separate = BIT(IIO_CHAN_INFO_RAW) |
+					BIT(IIO_CHAN_INFO_SCALE) |
+					BIT(IIO_CHAN_INFO_OFFSET);
+		s->scan_index = n;
+		s->scan_type.sign = 's';
+		s->scan_type.realbits = c->realbits;
+		s->scan_type.storagebits = 32;
+		s->scan_type.endianness = IIO_CPU;
 	}
-	chans[n] = (struct iio_chan_spec)IIO_CHAN_SOFT_TIMESTAMP(n);
-	iio->indio->num_channels = n + 1;
+	specs[n] = (struct iio_chan_spec)IIO_CHAN_SOFT_TIMESTAMP(n);
+	return specs;
 }
 
 /**
  * ev3_uart_iio_register() - create and register a sensor's IIO device
  * @sd: the sensor, registered in the lego-sensor class
  *
+ * A sensor none of whose values has an IIO channel type (or a scale IIO
+ * can show) gets no IIO device.
+ *
  * Return: 0 or a negative errno.
  */
 int ev3_uart_iio_register(struct ev3_uart_sensor_dev *sd)
 {
-	struct iio_chan_spec *chans;
+	const struct iio_chan_spec *specs;
 	struct ev3_uart_iio *iio;
 	struct iio_dev *indio;
+	unsigned int n;
 	int ret;
+
+	n = ev3_uart_chans_build(&sd->desc, NULL, 0);
+	if (!n) {
+		dev_info(&sd->dev, "no value has an IIO type and scale: no IIO device\n");
+		return 0;
+	}
 
 	indio = iio_device_alloc(sd->port->tty->dev, sizeof(*iio));
 	if (!indio)
@@ -413,25 +323,33 @@ int ev3_uart_iio_register(struct ev3_uart_sensor_dev *sd)
 	iio->sd = sd;
 	iio->indio = indio;
 	iio->buffer_mode = EV3_UART_NO_MODE;
+	iio->num_chans = n;
+	strscpy(iio->name, sd->driver_name, sizeof(iio->name));
+	strscpy(iio->label, sd->address, sizeof(iio->label));
 
-	chans = devm_kcalloc(&indio->dev, EV3_IIO_MAX_CHANNELS, sizeof(*chans),
-			     GFP_KERNEL);
-	if (!chans) {
-		ret = -ENOMEM;
+	ret = -ENOMEM;
+	iio->chans = devm_kcalloc(&indio->dev, n, sizeof(*iio->chans), GFP_KERNEL);
+	/* A value per channel, then the timestamp, 8-byte aligned. */
+	iio->scan = devm_kzalloc(&indio->dev, round_up(n * sizeof(s32), 8) + 8,
+				 GFP_KERNEL);
+	if (!iio->chans || !iio->scan)
 		goto free;
-	}
-	ev3_iio_fill_channels(iio, chans);
-	indio->channels = chans;
-	indio->name = sd->driver_name;
+	if (WARN_ON(ev3_uart_chans_build(&sd->desc, iio->chans, n) != n))
+		goto free;
+	specs = ev3_iio_chan_specs(iio);
+	if (!specs)
+		goto free;
+	indio->channels = specs;
+	indio->num_channels = n + 1;
+	indio->name = iio->name;
+	indio->label = iio->label;
 	indio->info = &ev3_iio_info;
 	indio->modes = INDIO_DIRECT_MODE;
 	indio->setup_ops = &ev3_iio_buffer_ops;
 
 	iio->buffer = iio_kfifo_allocate();
-	if (!iio->buffer) {
-		ret = -ENOMEM;
+	if (!iio->buffer)
 		goto free;
-	}
 	ret = iio_device_attach_buffer(indio, iio->buffer);
 	if (ret)
 		goto free_buffer;
@@ -457,14 +375,21 @@ free:
 /**
  * ev3_uart_iio_unregister() - remove a sensor's IIO device
  * @sd: the sensor, no longer reachable from the receive path
+ *
+ * After this, no IIO callback runs for @sd, even if /dev/iio:deviceN is
+ * still open: the IIO core refuses every call on an unregistered device.
+ * The IIO device's memory goes with its last reference.
  */
 void ev3_uart_iio_unregister(struct ev3_uart_sensor_dev *sd)
 {
-	struct ev3_uart_iio *iio = sd->iio;
+	struct ev3_uart_iio *iio;
 
+	spin_lock(&sd->port->lock);
+	iio = sd->iio;
+	sd->iio = NULL;
+	spin_unlock(&sd->port->lock);
 	if (!iio)
 		return;
-	sd->iio = NULL;
 	iio_device_unregister(iio->indio);
 	iio_kfifo_free(iio->buffer);
 	iio_device_free(iio->indio);

@@ -14,7 +14,8 @@
  *    80 ms at most; a delayed work would wait 0 to 10 ms at HZ=100) and
  *    ack_work answers ACK, switches the tty to the sensor's speed and
  *    registers the sensor;
- *  - keepalive_work sends NACK every 100 ms (the sensor resets itself after
+ *  - keepalive_work sends NACK every 100 ms from the moment the speed is
+ *    switched, registration included (the sensor resets itself after
  *    about a second without one) and declares the sensor lost after about
  *    700 ms without data;
  *  - reset_work unregisters a lost sensor and goes back to 2400 baud, where
@@ -28,9 +29,9 @@
 #define pr_fmt(fmt) KBUILD_MODNAME ": " fmt
 
 #include <linux/capability.h>
-#include <linux/ctype.h>
 #include <linux/hrtimer.h>
 #include <linux/jiffies.h>
+#include <linux/lockdep.h>
 #include <linux/module.h>
 #include <linux/moduleparam.h>
 #include <linux/ratelimit.h>
@@ -45,6 +46,7 @@
 
 #include "lego_compat.h"
 #include "ev3_uart.h"
+#include "ev3_uart_chan.h"
 
 #define EV3_UART_LDISC_NAME	"n_legoev3"
 #define EV3_UART_ACK_DELAY_MS	10	/* like LEGO's firmware; the sensor allows 80 */
@@ -55,9 +57,13 @@
 #define EV3_UART_RESTORE_EVERY	3	/* keep-alive periods between SELECTs */
 #define EV3_UART_RESTORE_TICKS	15	/* give up after that many periods */
 
-static int ldisc_num = N_DEVELOPMENT;
-module_param(ldisc_num, int, 0444);
-MODULE_PARM_DESC(ldisc_num, "line discipline number to register (default 29, N_DEVELOPMENT)");
+/*
+ * The discipline takes N_DEVELOPMENT (29), as ev3dev's did: the one number
+ * the kernel leaves for disciplines outside the tree. There is no parameter
+ * to choose another: tty_register_ldisc() does not check that a number is
+ * free, so any other would replace a discipline in use (30 is N_CAN327).
+ */
+#define EV3_UART_LDISC_NUM	N_DEVELOPMENT
 
 static char *port_labels[8];
 static int num_port_labels;
@@ -82,56 +88,128 @@ static unsigned int ev3_uart_settle_ms(u8 type)
 	}
 }
 
-static int ev3_uart_tx(struct ev3_uart_port *port, const u8 *buf, size_t len)
+/*
+ * Hand the queued bytes to the tty driver, as many as it takes. A driver
+ * whose buffer is full takes part of a message or none of it: the rest
+ * stays queued and goes out from write_wakeup, so a message is never cut
+ * short on the wire (can327 does the same). The wakeup flag is set before
+ * writing, so a wakeup for room made meanwhile is not lost.
+ */
+static int ev3_uart_tx_flush(struct ev3_uart_port *port)
 {
 	struct tty_struct *tty = port->tty;
 	int n;
 
-	mutex_lock(&port->tx_mutex);
-	n = tty->ops->write(tty, buf, len);
-	mutex_unlock(&port->tx_mutex);
-	if (n < 0 || (size_t)n != len) {
-		pr_warn_ratelimited("%s: short write (%d of %zu bytes)\n",
-				    tty->name, n, len);
-		return n < 0 ? n : -EIO;
+	lockdep_assert_held(&port->tx_mutex);
+	set_bit(TTY_DO_WRITE_WAKEUP, &tty->flags);
+	while (port->tx_len) {
+		n = tty->ops->write(tty, port->tx_buf + port->tx_pos, port->tx_len);
+		if (n < 0) {
+			/* The tty is gone or broken: what is queued is lost. */
+			port->tx_len = 0;
+			clear_bit(TTY_DO_WRITE_WAKEUP, &tty->flags);
+			return n;
+		}
+		if (!n)
+			return 0;	/* full: write_wakeup sends the rest */
+		port->tx_pos += n;
+		port->tx_len -= n;
 	}
+	port->tx_pos = 0;
+	clear_bit(TTY_DO_WRITE_WAKEUP, &tty->flags);
 	return 0;
 }
 
-static void ev3_uart_set_speed(struct tty_struct *tty, unsigned int baud)
+/* Queue a whole message behind what is still queued, and send. */
+static int ev3_uart_tx(struct ev3_uart_port *port, const u8 *buf, size_t len)
 {
-	struct ktermios old;
+	int ret;
 
-	down_write(&tty->termios_rwsem);
-	old = tty->termios;
-	tty_encode_baud_rate(tty, baud, baud);
-	if (tty->ops->set_termios)
-		tty->ops->set_termios(tty, &old);
-	up_write(&tty->termios_rwsem);
+	mutex_lock(&port->tx_mutex);
+	if (port->tx_pos) {
+		memmove(port->tx_buf, port->tx_buf + port->tx_pos, port->tx_len);
+		port->tx_pos = 0;
+	}
+	if (len > sizeof(port->tx_buf) - port->tx_len) {
+		ret = -ENOBUFS;
+	} else {
+		memcpy(port->tx_buf + port->tx_len, buf, len);
+		port->tx_len += len;
+		ret = ev3_uart_tx_flush(port);
+	}
+	mutex_unlock(&port->tx_mutex);
+	if (ret)
+		pr_warn_ratelimited("%s: cannot send a %zu-byte message: %d\n",
+				    port->tty->name, len, ret);
+	return ret;
+}
+
+static void ev3_uart_tx_work(struct work_struct *work)
+{
+	struct ev3_uart_port *port = container_of(work, struct ev3_uart_port,
+						  tx_work);
+
+	mutex_lock(&port->tx_mutex);
+	if (port->tx_len && ev3_uart_tx_flush(port))
+		pr_warn_ratelimited("%s: cannot send queued bytes\n",
+				    port->tty->name);
+	mutex_unlock(&port->tx_mutex);
+}
+
+/* The driver has room again: send the rest from process context. */
+static void ev3_uart_write_wakeup(struct tty_struct *tty)
+{
+	struct ev3_uart_port *port = tty->disc_data;
+
+	schedule_work(&port->tx_work);
+}
+
+/*
+ * Through tty_set_termios(), like a TCSETS would: locked termios are
+ * respected, and the driver writes back the speed it could set. A tty with
+ * no set_termios (a pty master) has no speed to set.
+ *
+ * Return: 0, or -%EINVAL if the tty runs at another speed than @baud.
+ */
+static int ev3_uart_set_speed(struct tty_struct *tty, unsigned int baud)
+{
+	struct ktermios t;
+	speed_t got;
+
+	down_read(&tty->termios_rwsem);
+	t = tty->termios;
+	up_read(&tty->termios_rwsem);
+	tty_termios_encode_baud_rate(&t, baud, baud);
+	tty_set_termios(tty, &t);
+	if (!tty->ops->set_termios)
+		return 0;
+	down_read(&tty->termios_rwsem);
+	got = tty_termios_baud_rate(&tty->termios);
+	up_read(&tty->termios_rwsem);
+	return got == baud ? 0 : -EINVAL;
 }
 
 /* Raw 8N1 at 2400 baud, no flow control, errors reported as flags. */
 static void ev3_uart_setup_tty(struct tty_struct *tty)
 {
-	struct ktermios old;
+	struct ktermios t;
 
-	down_write(&tty->termios_rwsem);
-	old = tty->termios;
-	tty->termios.c_iflag &= ~(IGNBRK | BRKINT | PARMRK | ISTRIP | INLCR |
-				  IGNCR | ICRNL | IXON | IXOFF | IGNPAR);
-	tty->termios.c_oflag &= ~OPOST;
-	tty->termios.c_lflag &= ~(ECHO | ECHONL | ICANON | ISIG | IEXTEN);
-	tty->termios.c_cflag &= ~(CSIZE | PARENB | CSTOPB | CRTSCTS);
-	tty->termios.c_cflag |= CS8 | CREAD | CLOCAL | HUPCL;
-	tty_encode_baud_rate(tty, EV3_UART_SPEED_MIN, EV3_UART_SPEED_MIN);
-	if (tty->ops->set_termios)
-		tty->ops->set_termios(tty, &old);
-	up_write(&tty->termios_rwsem);
+	down_read(&tty->termios_rwsem);
+	t = tty->termios;
+	up_read(&tty->termios_rwsem);
+	t.c_iflag &= ~(IGNBRK | BRKINT | PARMRK | ISTRIP | INLCR | IGNCR |
+		       ICRNL | IXON | IXOFF | IGNPAR);
+	t.c_oflag &= ~OPOST;
+	t.c_lflag &= ~(ECHO | ECHONL | ICANON | ISIG | IEXTEN);
+	t.c_cflag &= ~(CSIZE | PARENB | CSTOPB | CRTSCTS);
+	t.c_cflag |= CS8 | CREAD | CLOCAL | HUPCL;
+	tty_termios_encode_baud_rate(&t, EV3_UART_SPEED_MIN, EV3_UART_SPEED_MIN);
+	tty_set_termios(tty, &t);
 }
 
-/* Called under port->lock. */
 static void ev3_uart_queue(struct ev3_uart_port *port, struct work_struct *work)
 {
+	lockdep_assert_held(&port->lock);
 	if (!port->closing)
 		queue_work(port->wq, work);
 }
@@ -145,6 +223,7 @@ static void ev3_uart_event(struct ev3_uart_port *port,
 {
 	struct ev3_uart_sensor_dev *sd = port->sensor;
 
+	lockdep_assert_held(&port->lock);
 	switch (ev->type) {
 	case EV3_UART_EV_SYNC:
 		pr_debug("%s: sensor type %u syncing\n", port->tty->name,
@@ -235,6 +314,33 @@ static enum hrtimer_restart ev3_uart_ack_timer(struct hrtimer *timer)
 	return HRTIMER_NORESTART;
 }
 
+/*
+ * Restore the mode the user chose before the sensor was lost. A user who is
+ * choosing a mode right now (holding select_mutex) wins: no restore then.
+ */
+static void ev3_uart_restore_mode(struct ev3_uart_port *port,
+				  const struct ev3_uart_sensor *desc)
+{
+	u8 select[3], mode = EV3_UART_NO_MODE;
+
+	if (!mutex_trylock(&port->select_mutex))
+		return;
+	spin_lock(&port->lock);
+	if (port->requested_mode != EV3_UART_NO_MODE &&
+	    port->requested_type == desc->type &&
+	    port->requested_mode < desc->num_modes &&
+	    !ev3_uart_parser_select(&port->parser, port->requested_mode)) {
+		mode = port->requested_mode;
+		port->restored_at = jiffies;
+		port->restore_mode = mode;
+		port->restore_ticks = 0;
+	}
+	spin_unlock(&port->lock);
+	if (mode != EV3_UART_NO_MODE)
+		ev3_uart_tx(port, select, ev3_uart_build_select(select, mode));
+	mutex_unlock(&port->select_mutex);
+}
+
 static void ev3_uart_ack_work(struct work_struct *work)
 {
 	struct ev3_uart_port *port = container_of(work, struct ev3_uart_port,
@@ -242,7 +348,8 @@ static void ev3_uart_ack_work(struct work_struct *work)
 	struct tty_struct *tty = port->tty;
 	struct ev3_uart_sensor_dev *sd;
 	struct ev3_uart_sensor desc;
-	u8 ack, select[3], mode = EV3_UART_NO_MODE;
+	const char *last_error;
+	u8 ack;
 
 	spin_lock(&port->lock);
 	if (port->closing || port->parser.state != EV3_UART_STATE_ACKED) {
@@ -252,15 +359,39 @@ static void ev3_uart_ack_work(struct work_struct *work)
 	desc = port->parser.sensor;
 	spin_unlock(&port->lock);
 
+	/* Not again a speed this tty could not do (see below). */
+	if (desc.speed == port->bad_speed) {
+		pr_debug("%s: sensor type %u wants %u baud again; not answered\n",
+			 tty->name, desc.type, desc.speed);
+		goto restart;
+	}
+
 	if (ev3_uart_tx(port, &ack, ev3_uart_build_ack(&ack)))
 		goto fail;
 	/* The sensor switches speed once it has our ACK: so do we. */
 	tty_wait_until_sent(tty, msecs_to_jiffies(50));
-	ev3_uart_set_speed(tty, desc.speed);
+	if (ev3_uart_set_speed(tty, desc.speed)) {
+		/*
+		 * The UART cannot run at the sensor's speed, or its speed is
+		 * locked (TIOCSLCKTRMIOS): the sensor would be lost and come
+		 * back for ever. Say so once and leave its handshakes
+		 * unanswered from now on.
+		 */
+		pr_err("%s: cannot set %u baud for sensor type %u: not connecting it\n",
+		       tty->name, desc.speed, desc.type);
+		port->bad_speed = desc.speed;
+		goto fail;
+	}
 
 	spin_lock(&port->lock);
 	ev3_uart_parser_start_data(&port->parser);
 	spin_unlock(&port->lock);
+	/*
+	 * Keep the sensor alive from now on: it resets after about a second
+	 * without NACK, and registering a sensor with many values can take
+	 * that long on a slow or debug kernel.
+	 */
+	queue_delayed_work(system_highpri_wq, &port->keepalive_work, 0);
 
 	sd = ev3_uart_sensor_create(port, &desc);
 	if (IS_ERR(sd)) {
@@ -271,37 +402,24 @@ static void ev3_uart_ack_work(struct work_struct *work)
 
 	spin_lock(&port->lock);
 	port->sensor = sd;
-	if (port->requested_mode != EV3_UART_NO_MODE &&
-	    port->requested_type == desc.type &&
-	    port->requested_mode < desc.num_modes &&
-	    !ev3_uart_parser_select(&port->parser, port->requested_mode)) {
-		mode = port->requested_mode;
-		port->restored_at = jiffies;
-		port->restore_mode = mode;
-		port->restore_ticks = 0;
-	}
+	last_error = port->last_error;
+	port->last_error = NULL;
 	spin_unlock(&port->lock);
 
 	pr_info("%s: %s connected as %s at %u baud\n", tty->name,
 		sd->driver_name, dev_name(&sd->dev), desc.speed);
-	if (port->last_error) {
-		pr_info("%s: reconnected after: %s\n", tty->name,
-			port->last_error);
-		port->last_error = NULL;
-	}
+	if (last_error)
+		pr_info("%s: reconnected after: %s\n", tty->name, last_error);
 
-	/* Restore the mode the user chose before the sensor was lost. */
-	if (mode != EV3_UART_NO_MODE)
-		ev3_uart_tx(port, select, ev3_uart_build_select(select, mode));
-
-	queue_delayed_work(port->wq, &port->keepalive_work, 0);
+	ev3_uart_restore_mode(port, &desc);
 	return;
 
 fail:
+	ev3_uart_set_speed(tty, EV3_UART_SPEED_MIN);
+restart:
 	spin_lock(&port->lock);
 	ev3_uart_parser_init(&port->parser);
 	spin_unlock(&port->lock);
-	ev3_uart_set_speed(tty, EV3_UART_SPEED_MIN);
 }
 
 static void ev3_uart_keepalive_work(struct work_struct *work)
@@ -338,11 +456,21 @@ static void ev3_uart_keepalive_work(struct work_struct *work)
 	if (!alive)
 		return;
 
-	if (restore != EV3_UART_NO_MODE)
-		ev3_uart_tx(port, select, ev3_uart_build_select(select, restore));
+	/* Not while a user selects a mode: theirs wins (see set_mode). */
+	if (restore != EV3_UART_NO_MODE && mutex_trylock(&port->select_mutex)) {
+		spin_lock(&port->lock);
+		if (port->restore_mode != restore ||
+		    port->parser.pending_mode != restore)
+			restore = EV3_UART_NO_MODE;
+		spin_unlock(&port->lock);
+		if (restore != EV3_UART_NO_MODE)
+			ev3_uart_tx(port, select,
+				    ev3_uart_build_select(select, restore));
+		mutex_unlock(&port->select_mutex);
+	}
 	ev3_uart_tx(port, &nack, ev3_uart_build_nack(&nack));
 	if (!READ_ONCE(port->closing))
-		queue_delayed_work(port->wq, &port->keepalive_work,
+		queue_delayed_work(system_highpri_wq, &port->keepalive_work,
 				   msecs_to_jiffies(EV3_UART_KEEPALIVE_MS));
 }
 
@@ -358,7 +486,7 @@ static void ev3_uart_reset_work(struct work_struct *work)
 	sd = port->sensor;
 	port->sensor = NULL;
 	if (sd)
-		sd->gone = true;
+		WRITE_ONCE(sd->gone, true);
 	/* A sensor lost right after a restored mode does not get it again. */
 	if (port->restored_at &&
 	    time_before(jiffies, port->restored_at + EV3_UART_RESTORE_GRACE))
@@ -407,19 +535,39 @@ int ev3_uart_get_data(struct ev3_uart_sensor_dev *sd, u8 *mode, u8 *data)
 /*
  * Wait until a new mode's values can be trusted: until @settle, then for one
  * DATA message received after it (the last one before may be stale too).
+ * A lost sensor ends the wait at once: the sysfs write waiting here would
+ * otherwise hold up reset_work's unregistering of the sensor, and with it
+ * every work item of the port (the next sensor's ACK among them).
  */
 static int ev3_uart_settle(struct ev3_uart_sensor_dev *sd, u8 mode,
 			   unsigned long settle, unsigned long wait)
 {
 	struct ev3_uart_port *port = sd->port;
-	long left;
+	long left, t;
 
-	if (schedule_timeout_interruptible(settle - jiffies))
-		return -ERESTARTSYS;
-
+	/* From now on only a loss (or close) completes select_done... */
 	spin_lock(&port->lock);
-	port->select_mode = mode;
+	if (sd->gone) {
+		spin_unlock(&port->lock);
+		return -ENODEV;
+	}
 	reinit_completion(&port->select_done);
+	spin_unlock(&port->lock);
+
+	t = (long)(settle - jiffies);
+	if (t > 0) {
+		left = wait_for_completion_interruptible_timeout(&port->select_done, t);
+		if (left)
+			return left < 0 ? left : -ENODEV;
+	}
+
+	/* ...and now also the first DATA message of @mode. */
+	spin_lock(&port->lock);
+	if (sd->gone) {
+		spin_unlock(&port->lock);
+		return -ENODEV;
+	}
+	port->select_mode = mode;
 	spin_unlock(&port->lock);
 
 	left = wait_for_completion_interruptible_timeout(&port->select_done, wait);
@@ -429,7 +577,7 @@ static int ev3_uart_settle(struct ev3_uart_sensor_dev *sd, u8 mode,
 	spin_unlock(&port->lock);
 	if (left < 0)
 		return left;
-	return sd->gone ? -ENODEV : 0;
+	return READ_ONCE(sd->gone) ? -ENODEV : 0;
 }
 
 /**
@@ -444,9 +592,9 @@ static int ev3_uart_settle(struct ev3_uart_sensor_dev *sd, u8 mode,
  * mode's values can be trusted (about 1.1 s for the infrared sensor).
  * Selecting the current mode returns at once.
  *
- * Return: 0, -%EINVAL for a mode the sensor does not have, -%ENODEV if the
- * sensor is gone, -%ETIMEDOUT if it never confirmed, -%ERESTARTSYS if
- * interrupted.
+ * Return: 0, -%EINVAL for a mode the sensor does not have, -%EBUSY while an
+ * IIO buffer captures another mode, -%ENODEV if the sensor is gone,
+ * -%ETIMEDOUT if it never confirmed, -%ERESTARTSYS if interrupted.
  */
 int ev3_uart_set_mode(struct ev3_uart_sensor_dev *sd, u8 mode)
 {
@@ -466,20 +614,35 @@ int ev3_uart_set_mode(struct ev3_uart_sensor_dev *sd, u8 mode)
 	spin_lock(&port->lock);
 	if (sd->gone) {
 		ret = -ENODEV;
+	} else if (ev3_uart_iio_mode_busy(sd, mode)) {
+		ret = -EBUSY;
 	} else if (sd->mode == mode &&
 		   port->parser.pending_mode == EV3_UART_NO_MODE) {
 		ret = 1;	/* nothing to do */
 	} else {
 		ret = ev3_uart_parser_select(&port->parser, mode);
-		port->select_mode = mode;
-		reinit_completion(&port->select_done);
+		if (!ret) {
+			/* A restore in progress gives way to the user's mode. */
+			port->restore_mode = EV3_UART_NO_MODE;
+			port->select_mode = mode;
+			reinit_completion(&port->select_done);
+		}
 	}
 	spin_unlock(&port->lock);
 	if (ret)
 		goto out;
 
 	for (i = 0; i < EV3_UART_SELECT_TRIES; i++) {
-		ret = ev3_uart_tx(port, msg, ev3_uart_build_select(msg, mode));
+		/*
+		 * Every SELECT (re)arms the parser: a DATA message of a mode
+		 * that is neither the current nor the pending one is dropped
+		 * as a leftover, so a retry must make @mode pending again.
+		 */
+		spin_lock(&port->lock);
+		ret = sd->gone ? -ENODEV : ev3_uart_parser_select(&port->parser, mode);
+		spin_unlock(&port->lock);
+		if (!ret)
+			ret = ev3_uart_tx(port, msg, ev3_uart_build_select(msg, mode));
 		if (ret)
 			break;
 		left = wait_for_completion_interruptible_timeout(&port->select_done,
@@ -513,21 +676,18 @@ out:
 }
 
 /**
- * ev3_uart_set_mode_by_name() - switch a sensor to the mode of that name
+ * ev3_uart_set_mode_by_name() - switch a sensor to the mode a user named
  * @sd: the sensor
- * @name: a mode name, as written to a sysfs attribute (a newline may follow)
+ * @name: as written to a sysfs attribute: see ev3_uart_find_mode()
  *
  * Return: 0, -%EINVAL if the sensor has no such mode, or the errors of
  * ev3_uart_set_mode().
  */
 int ev3_uart_set_mode_by_name(struct ev3_uart_sensor_dev *sd, const char *name)
 {
-	int i;
+	int mode = ev3_uart_find_mode(&sd->desc, name);
 
-	for (i = 0; i < sd->desc.num_modes; i++)
-		if (sysfs_streq(name, sd->desc.modes[i].name))
-			return ev3_uart_set_mode(sd, i);
-	return -EINVAL;
+	return mode < 0 ? mode : ev3_uart_set_mode(sd, mode);
 }
 
 /**
@@ -535,17 +695,43 @@ int ev3_uart_set_mode_by_name(struct ev3_uart_sensor_dev *sd, const char *name)
  * @sd: the sensor
  * @buf: the sysfs page
  *
- * Return: the length written: the names separated by spaces, then a newline.
+ * Return: the length written: the modes' tokens (ev3_uart_mode_token())
+ * separated by spaces, then a newline.
  */
 int ev3_uart_show_modes(struct ev3_uart_sensor_dev *sd, char *buf)
 {
+	char tok[EV3_UART_TOKEN_LEN + 1];
 	int i, len = 0;
 
-	for (i = 0; i < sd->desc.num_modes; i++)
-		len += sysfs_emit_at(buf, len, "%s%s", i ? " " : "",
-				     sd->desc.modes[i].name);
+	for (i = 0; i < sd->desc.num_modes; i++) {
+		if (ev3_uart_mode_token(&sd->desc, i, tok, sizeof(tok)) < 0)
+			return -EINVAL;
+		len += sysfs_emit_at(buf, len, "%s%s", i ? " " : "", tok);
+	}
 	len += sysfs_emit_at(buf, len, "\n");
 	return len;
+}
+
+/**
+ * ev3_uart_show_mode() - the current mode of a sensor, for sysfs
+ * @sd: the sensor
+ * @buf: the sysfs page
+ *
+ * Return: the length written (the mode's token and a newline), or
+ * -%ENODEV if the sensor is gone.
+ */
+int ev3_uart_show_mode(struct ev3_uart_sensor_dev *sd, char *buf)
+{
+	char tok[EV3_UART_TOKEN_LEN + 1];
+	u8 data[EV3_UART_MAX_PAYLOAD], mode;
+	int ret = ev3_uart_get_data(sd, &mode, data);
+
+	if (ret < 0)
+		return ret;
+	ret = ev3_uart_mode_token(&sd->desc, mode, tok, sizeof(tok));
+	if (ret < 0)
+		return ret;
+	return sysfs_emit(buf, "%s\n", tok);
 }
 
 /**
@@ -560,16 +746,12 @@ int ev3_uart_show_modes(struct ev3_uart_sensor_dev *sd, char *buf)
 int ev3_uart_write(struct ev3_uart_sensor_dev *sd, const u8 *data, size_t len)
 {
 	u8 msg[EV3_UART_MAX_PAYLOAD + 2];
-	bool gone;
 	int n;
 
 	n = ev3_uart_build_write(msg, data, len);
 	if (n < 0)
 		return n;
-	spin_lock(&sd->port->lock);
-	gone = sd->gone;
-	spin_unlock(&sd->port->lock);
-	if (gone)
+	if (READ_ONCE(sd->gone))
 		return -ENODEV;
 	return ev3_uart_tx(sd->port, msg, n);
 }
@@ -589,16 +771,42 @@ static void ev3_uart_find_label(struct ev3_uart_port *port)
 	}
 }
 
+/*
+ * A label ends up in the sensor's address and its uevents: ASCII letters,
+ * digits and "_.-" only (the kernel's isalnum() also takes Latin-1 letters).
+ */
 static bool ev3_uart_label_ok(const char *label, size_t size)
 {
 	size_t i, n = strnlen(label, size);
+	char c;
 
 	if (n == size)
 		return false;
-	for (i = 0; i < n; i++)
-		if (!isalnum(label[i]) && !strchr("_.-", label[i]))
+	for (i = 0; i < n; i++) {
+		c = label[i];
+		if (!(c >= 'a' && c <= 'z') && !(c >= 'A' && c <= 'Z') &&
+		    !(c >= '0' && c <= '9') && c != '_' && c != '.' && c != '-')
 			return false;
+	}
 	return true;
+}
+
+/* Every port_labels entry must be "tty=label" with a valid label. */
+static int ev3_uart_check_port_labels(void)
+{
+	const char *p, *eq;
+	int i;
+
+	for (i = 0; i < num_port_labels; i++) {
+		p = port_labels[i];
+		eq = p ? strchr(p, '=') : NULL;
+		if (!eq || eq == p || !ev3_uart_label_ok(eq + 1, EV3_UART_LABEL_LEN)) {
+			pr_err("port_labels: \"%s\" is not tty=label (label: up to %d of [A-Za-z0-9_.-])\n",
+			       p ?: "", EV3_UART_LABEL_LEN - 1);
+			return -EINVAL;
+		}
+	}
+	return 0;
 }
 
 static int ev3_uart_ioctl(struct tty_struct *tty, unsigned int cmd,
@@ -668,6 +876,7 @@ static int ev3_uart_open(struct tty_struct *tty)
 	INIT_WORK(&port->ack_work, ev3_uart_ack_work);
 	INIT_DELAYED_WORK(&port->keepalive_work, ev3_uart_keepalive_work);
 	INIT_WORK(&port->reset_work, ev3_uart_reset_work);
+	INIT_WORK(&port->tx_work, ev3_uart_tx_work);
 	ev3_uart_parser_init(&port->parser);
 	port->select_mode = EV3_UART_NO_MODE;
 	port->requested_mode = EV3_UART_NO_MODE;
@@ -688,9 +897,9 @@ static void ev3_uart_close(struct tty_struct *tty)
 	struct ev3_uart_sensor_dev *sd;
 
 	spin_lock(&port->lock);
-	port->closing = true;
+	WRITE_ONCE(port->closing, true);
 	if (port->sensor)
-		port->sensor->gone = true;
+		WRITE_ONCE(port->sensor->gone, true);
 	complete_all(&port->select_done);
 	spin_unlock(&port->lock);
 
@@ -710,43 +919,44 @@ static void ev3_uart_close(struct tty_struct *tty)
 	sd = port->sensor;
 	port->sensor = NULL;
 	if (sd)
-		sd->gone = true;
+		WRITE_ONCE(sd->gone, true);
 	spin_unlock(&port->lock);
 	if (sd)
 		ev3_uart_sensor_destroy(sd);
 
+	/* No work writes any more: stop the wakeups, then their work. */
+	clear_bit(TTY_DO_WRITE_WAKEUP, &tty->flags);
+	cancel_work_sync(&port->tx_work);
 	tty->disc_data = NULL;
 	kfree(port);
 }
 
 static struct tty_ldisc_ops ev3_uart_ldisc = {
 	.owner		= THIS_MODULE,
+	.num		= EV3_UART_LDISC_NUM,
 	.name		= EV3_UART_LDISC_NAME,
 	.open		= ev3_uart_open,
 	.close		= ev3_uart_close,
 	.ioctl		= ev3_uart_ioctl,
 	.receive_buf	= ev3_uart_receive_buf,
+	.write_wakeup	= ev3_uart_write_wakeup,
 };
 
 static int __init ev3_uart_init(void)
 {
 	int ret;
 
-	if (ldisc_num < 0 || ldisc_num >= NR_LDISCS) {
-		pr_err("ldisc_num %d out of range 0..%d\n", ldisc_num,
-		       NR_LDISCS - 1);
-		return -EINVAL;
-	}
-
+	ret = ev3_uart_check_port_labels();
+	if (ret)
+		return ret;
 	ret = ev3_uart_class_init();
 	if (ret)
 		return ret;
 
-	ev3_uart_ldisc.num = ldisc_num;
 	ret = tty_register_ldisc(&ev3_uart_ldisc);
 	if (ret) {
-		pr_err("cannot register line discipline %d: %d\n", ldisc_num,
-		       ret);
+		pr_err("cannot register line discipline %d: %d\n",
+		       EV3_UART_LDISC_NUM, ret);
 		ev3_uart_class_exit();
 	}
 	return ret;
@@ -762,4 +972,4 @@ module_exit(ev3_uart_exit);
 
 MODULE_DESCRIPTION("LEGO MINDSTORMS EV3 UART sensor line discipline");
 MODULE_LICENSE("GPL");
-MODULE_ALIAS_LDISC(N_DEVELOPMENT);
+MODULE_ALIAS_LDISC(EV3_UART_LDISC_NUM);

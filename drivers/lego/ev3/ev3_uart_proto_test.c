@@ -13,6 +13,7 @@
 #include <linux/string.h>
 
 #include "lego_compat.h"
+#include "ev3_uart_chan.h"
 #include "ev3_uart_proto.h"
 
 /* IEEE 754 single-precision bit patterns. */
@@ -945,11 +946,13 @@ static void test_line_errors(struct kunit *test)
 	struct ev3_uart_event ev;
 	size_t len = enc_handshake(c->buf, &sensors[0]);
 
-	/* In the handshake: start over. */
+	/* In the handshake: start over, and the whole handshake still works. */
 	feed(&c->p, c->buf, 20, 20, &c->r);
 	ev3_uart_parser_line_error(&c->p, &ev);
 	KUNIT_EXPECT_EQ(test, ev.type, EV3_UART_EV_ERROR);
 	KUNIT_EXPECT_EQ(test, c->p.state, EV3_UART_STATE_SYNC);
+	feed(&c->p, c->buf, len, len, &c->r);
+	KUNIT_EXPECT_EQ(test, last(&c->r)->type, EV3_UART_EV_HANDSHAKE);
 
 	/* In the data phase: counted, fatal only when repeated. */
 	c = new_ctx(test);
@@ -957,7 +960,6 @@ static void test_line_errors(struct kunit *test)
 	ev3_uart_parser_line_error(&c->p, &ev);
 	KUNIT_EXPECT_EQ(test, ev.type, EV3_UART_EV_NONE);
 	KUNIT_EXPECT_EQ(test, c->p.state, EV3_UART_STATE_DATA);
-	KUNIT_EXPECT_GT(test, len, (size_t)0);
 }
 
 /* ---- values ---- */
@@ -1010,7 +1012,8 @@ static void test_scale_value(struct kunit *test)
 	m.raw_max = S32_MAX;
 	m.si_min = S32_MIN;
 	m.si_max = S32_MAX - 1;
-	KUNIT_EXPECT_LE(test, ev3_uart_scale_value(&m, S32_MAX), S32_MAX);
+	KUNIT_EXPECT_EQ(test, ev3_uart_scale_value(&m, S32_MAX), S32_MAX - 1);
+	KUNIT_EXPECT_EQ(test, ev3_uart_scale_value(&m, S32_MIN), S32_MIN);
 	/*
 	 * A value far outside a one-wide RAW range, on the widest SI range
 	 * (all as a sensor can send them in f32): 2^31 + 2^24 times the SI
@@ -1069,6 +1072,214 @@ static void test_build_messages(struct kunit *test)
 	KUNIT_EXPECT_EQ(test, buf[0], 0x02);
 }
 
+/* ---- IIO channels and mode names (ev3_uart_chan.c) ---- */
+
+static void test_mul_div(struct kunit *test)
+{
+	u64 q;
+
+	KUNIT_EXPECT_EQ(test, ev3_uart_mul_div(10, 3, 4, &q), 0);
+	KUNIT_EXPECT_EQ(test, q, 8ULL);			/* 7.5 rounds up */
+	KUNIT_EXPECT_EQ(test, ev3_uart_mul_div(7, 1, 4, &q), 0);
+	KUNIT_EXPECT_EQ(test, q, 2ULL);			/* 1.75 */
+	/* Products beyond 64 bits are exact. */
+	KUNIT_EXPECT_EQ(test, ev3_uart_mul_div(1ULL << 40, 1ULL << 40, 1ULL << 30, &q), 0);
+	KUNIT_EXPECT_EQ(test, q, 1ULL << 50);
+	KUNIT_EXPECT_EQ(test, ev3_uart_mul_div(U64_MAX, U64_MAX, U64_MAX, &q), -EOVERFLOW);
+	KUNIT_EXPECT_EQ(test, ev3_uart_mul_div(1ULL << 62, 4, 2, &q), -EOVERFLOW);
+	KUNIT_EXPECT_EQ(test, ev3_uart_mul_div(1ULL << 62, 2, 2, &q), 0);
+	KUNIT_EXPECT_EQ(test, q, 1ULL << 62);
+	KUNIT_EXPECT_EQ(test, ev3_uart_mul_div(1, 1, 0, &q), -EOVERFLOW);
+	/* The quotient the divide error came from: 2e7 C over a 1-wide range. */
+	KUNIT_EXPECT_EQ(test, ev3_uart_mul_div(20000000, 1000000000000ULL, 1, &q),
+			-EOVERFLOW);
+}
+
+static void test_chan_scale(struct kunit *test)
+{
+	struct ev3_uart_mode m = {
+		.raw_min = 0, .raw_max = 2550, .si_min = 0, .si_max = 2550,
+		.num_values = 1, .data_type = EV3_UART_DATA_S16, .decimals = 1,
+	};
+	struct ev3_uart_chan c;
+
+	/* US-DIST-CM: 0.1 cm per raw unit, in metres. */
+	KUNIT_ASSERT_EQ(test, ev3_uart_chan_scale(&m, 10000000, &c), 0);
+	KUNIT_EXPECT_EQ(test, c.scale_val, 0);
+	KUNIT_EXPECT_EQ(test, c.scale_val2, 1000000);
+	KUNIT_EXPECT_EQ(test, c.offset_val, 0);
+	KUNIT_EXPECT_EQ(test, c.offset_val2, 0);
+
+	/* A temperature: raw 0..1000 is -40.0..85.0 C, shown in m°C. */
+	m.raw_min = 0;
+	m.raw_max = 1000;
+	m.si_min = -400;
+	m.si_max = 850;
+	KUNIT_ASSERT_EQ(test, ev3_uart_chan_scale(&m, 1000000000000ULL, &c), 0);
+	KUNIT_EXPECT_EQ(test, c.scale_val, 125);	/* 0.125 C = 125 m°C */
+	KUNIT_EXPECT_EQ(test, c.scale_val2, 0);
+	KUNIT_EXPECT_EQ(test, c.offset_val, -320);	/* (0 - 320) * 125 = -40000 */
+	KUNIT_EXPECT_EQ(test, c.offset_val2, 0);
+
+	/* Inverted: raw 0..100 is 100..0. */
+	m.si_min = 100;
+	m.si_max = 0;
+	m.raw_max = 100;
+	m.decimals = 0;
+	KUNIT_ASSERT_EQ(test, ev3_uart_chan_scale(&m, 1000000000, &c), 0);
+	KUNIT_EXPECT_EQ(test, c.scale_val, -1);
+	KUNIT_EXPECT_EQ(test, c.scale_val2, 0);
+	KUNIT_EXPECT_EQ(test, c.offset_val, -100);	/* (raw - 100) * -1 */
+
+	/* Issue 17: RAW 0..1, SI 0..2e7 in C: too large a scale, no trap. */
+	m.raw_min = 0;
+	m.raw_max = 1;
+	m.si_min = 0;
+	m.si_max = 20000000;
+	KUNIT_EXPECT_EQ(test, ev3_uart_chan_scale(&m, 1000000000000ULL, &c), -ERANGE);
+	/* The widest spans the parser lets through, both ways round. */
+	m.raw_min = S32_MIN;
+	m.raw_max = S32_MAX;
+	m.si_min = S32_MAX;
+	m.si_max = S32_MIN;
+	KUNIT_EXPECT_EQ(test, ev3_uart_chan_scale(&m, 1000000000000ULL, &c), 0);
+	KUNIT_EXPECT_EQ(test, c.scale_val, -1000);
+	m.si_min = S32_MIN;
+	m.si_max = S32_MIN + 1;
+	m.decimals = 9;
+	/* 1e-9 of a unit over 2^32 raw units: too small to show. */
+	KUNIT_EXPECT_EQ(test, ev3_uart_chan_scale(&m, 1000000000, &c), -ERANGE);
+	/* An offset beyond an int: SI 2^31-1..2^31 over raw 0..1. */
+	m.raw_min = 0;
+	m.raw_max = 1;
+	m.si_min = S32_MAX - 1;
+	m.si_max = S32_MAX;
+	m.decimals = 0;
+	KUNIT_EXPECT_EQ(test, ev3_uart_chan_scale(&m, 1000000000, &c), 0);
+	KUNIT_EXPECT_EQ(test, c.offset_val, S32_MAX - 1);
+	m.raw_min = -2;
+	KUNIT_EXPECT_EQ(test, ev3_uart_chan_scale(&m, 1000000000, &c), -ERANGE);
+}
+
+static void test_chan_scale_floats(struct kunit *test)
+{
+	struct ev3_uart_mode m = {
+		.raw_min = 0, .raw_max = 1023, .si_min = 0, .si_max = 1000000000,
+		.num_values = 1, .data_type = EV3_UART_DATA_FLOAT, .decimals = 9,
+	};
+	struct ev3_uart_chan c;
+	u8 data[4] = { 0x00, 0x00, 0x34, 0x43 };	/* 180.0 */
+	struct ev3_uart_sensor s = { .num_modes = 1 };
+	s32 v;
+
+	/* Degrees with 9 decimals would be 1.7e-11 rad: keep 4 decimals. */
+	KUNIT_ASSERT_EQ(test, ev3_uart_chan_scale(&m, 17453293, &c), 0);
+	KUNIT_EXPECT_EQ(test, c.decimals, 4);
+	KUNIT_EXPECT_EQ(test, c.scale_val, 0);
+	KUNIT_EXPECT_EQ(test, c.scale_val2, 1745);
+	KUNIT_EXPECT_EQ(test, c.offset_val, 0);
+	s.modes[0] = m;
+	c.mode = 0;
+	c.index = 0;
+	KUNIT_ASSERT_EQ(test, ev3_uart_chan_read(&s, &c, data, 4, &v), 0);
+	KUNIT_EXPECT_EQ(test, v, 1800000);
+	/* In m°C nine decimals keep their precision. */
+	KUNIT_ASSERT_EQ(test, ev3_uart_chan_scale(&m, 1000000000000ULL, &c), 0);
+	KUNIT_EXPECT_EQ(test, c.decimals, 9);
+	KUNIT_EXPECT_EQ(test, c.scale_val2, 1000);
+}
+
+/* Issue 17: 8 modes of 32 s8 values in degrees: 256 channels. */
+static void test_chans_bounded(struct kunit *test)
+{
+	struct ev3_uart_sensor *s = kunit_kzalloc(test, sizeof(*s), GFP_KERNEL);
+	struct ev3_uart_chan *chans;
+	unsigned int i, n;
+
+	KUNIT_ASSERT_NOT_NULL(test, s);
+	s->type = 88;
+	s->num_modes = EV3_UART_MAX_MODES;
+	for (i = 0; i < EV3_UART_MAX_MODES; i++) {
+		struct ev3_uart_mode *m = &s->modes[i];
+
+		snprintf(m->name, sizeof(m->name), "M%u", i);
+		strscpy(m->units, i % 2 ? "deg" : "cm", sizeof(m->units));
+		m->raw_max = 1023;
+		m->si_max = 1023;
+		m->num_values = EV3_UART_MAX_PAYLOAD;
+		m->data_type = EV3_UART_DATA_S8;
+		m->figures = 4;
+	}
+	n = ev3_uart_chans_build(s, NULL, 0);
+	KUNIT_EXPECT_EQ(test, n, (unsigned int)EV3_UART_MAX_CHANS);
+
+	/* Never more than the room given; a guard after it stays intact. */
+	chans = kunit_kzalloc(test, 11 * sizeof(*chans), GFP_KERNEL);
+	KUNIT_ASSERT_NOT_NULL(test, chans);
+	memset(&chans[10], 0xa5, sizeof(chans[10]));
+	KUNIT_EXPECT_EQ(test, ev3_uart_chans_build(s, chans, 10), n);
+	KUNIT_EXPECT_EQ(test, chans[10].mode, 0xa5);
+	KUNIT_EXPECT_EQ(test, chans[9].mode, 0);
+	KUNIT_EXPECT_EQ(test, chans[9].index, 9);
+	KUNIT_EXPECT_EQ(test, chans[9].channel, 9);
+
+	/* A num_values the parser would refuse is still bounded. */
+	s->modes[0].num_values = 200;
+	KUNIT_EXPECT_EQ(test, ev3_uart_chans_build(s, NULL, 0), n);
+	/* Units without an IIO type: no channel. */
+	for (i = 0; i < EV3_UART_MAX_MODES; i++)
+		strscpy(s->modes[i].units, "pct", sizeof(s->modes[i].units));
+	KUNIT_EXPECT_EQ(test, ev3_uart_chans_build(s, NULL, 0), 0U);
+}
+
+static void test_mode_tokens(struct kunit *test)
+{
+	static const char * const names[] = { "COL O", "IR Tx", "A", "A", "B_C", "B C",
+					      "COL-REFLECT" };
+	struct ev3_uart_sensor *s = kunit_kzalloc(test, sizeof(*s), GFP_KERNEL);
+	char tok[EV3_UART_TOKEN_LEN + 1];
+	unsigned int i;
+
+	KUNIT_ASSERT_NOT_NULL(test, s);
+	s->num_modes = ARRAY_SIZE(names);
+	for (i = 0; i < ARRAY_SIZE(names); i++)
+		strscpy(s->modes[i].name, names[i], sizeof(s->modes[i].name));
+
+	KUNIT_EXPECT_EQ(test, ev3_uart_mode_token(s, 0, tok, sizeof(tok)), 5);
+	KUNIT_EXPECT_STREQ(test, tok, "COL_O");
+	ev3_uart_mode_token(s, 1, tok, sizeof(tok));
+	KUNIT_EXPECT_STREQ(test, tok, "IR_Tx");
+	/* Two modes of one name, and two names shown alike: by number. */
+	ev3_uart_mode_token(s, 2, tok, sizeof(tok));
+	KUNIT_EXPECT_STREQ(test, tok, "#2");
+	ev3_uart_mode_token(s, 3, tok, sizeof(tok));
+	KUNIT_EXPECT_STREQ(test, tok, "#3");
+	ev3_uart_mode_token(s, 4, tok, sizeof(tok));
+	KUNIT_EXPECT_STREQ(test, tok, "#4");
+	ev3_uart_mode_token(s, 5, tok, sizeof(tok));
+	KUNIT_EXPECT_STREQ(test, tok, "#5");
+	ev3_uart_mode_token(s, 6, tok, sizeof(tok));
+	KUNIT_EXPECT_STREQ(test, tok, "COL-REFLECT");
+	KUNIT_EXPECT_EQ(test, ev3_uart_mode_token(s, 7, tok, sizeof(tok)), -EINVAL);
+	KUNIT_EXPECT_EQ(test, ev3_uart_mode_token(s, 0, tok, 4), -EINVAL);
+
+	/* Every token, written back, selects its own mode. */
+	for (i = 0; i < ARRAY_SIZE(names); i++) {
+		KUNIT_ASSERT_GE(test, ev3_uart_mode_token(s, i, tok, sizeof(tok)), 2);
+		KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(s, tok), (int)i);
+	}
+	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(s, "COL_O\n"), 0);
+	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(s, "COL O\n"), 0);	/* as sent */
+	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(s, "B C"), 5);
+	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(s, "B_C"), 4);
+	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(s, "A"), -EINVAL);	/* two */
+	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(s, "#6"), 6);
+	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(s, "#7"), -EINVAL);
+	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(s, "COL"), -EINVAL);
+	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(s, ""), -EINVAL);
+	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(s, "\n"), -EINVAL);
+}
+
 static struct kunit_case ev3_uart_proto_cases[] = {
 	KUNIT_CASE(test_checksum_real_messages),
 	KUNIT_CASE(test_msg_len),
@@ -1102,6 +1313,11 @@ static struct kunit_case ev3_uart_proto_cases[] = {
 	KUNIT_CASE(test_scale_value),
 	KUNIT_CASE(test_float_values),
 	KUNIT_CASE(test_build_messages),
+	KUNIT_CASE(test_mul_div),
+	KUNIT_CASE(test_chan_scale),
+	KUNIT_CASE(test_chan_scale_floats),
+	KUNIT_CASE(test_chans_bounded),
+	KUNIT_CASE(test_mode_tokens),
 	{}
 };
 

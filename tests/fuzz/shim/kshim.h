@@ -45,6 +45,7 @@
 
 #define check_mul_overflow(a, b, d)	__builtin_mul_overflow(a, b, d)
 #define check_add_overflow(a, b, d)	__builtin_add_overflow(a, b, d)
+#define check_sub_overflow(a, b, d)	__builtin_sub_overflow(a, b, d)
 
 static inline u64 div_u64(u64 dividend, u32 divisor)
 {
@@ -54,6 +55,28 @@ static inline u64 div_u64(u64 dividend, u32 divisor)
 static inline s64 div64_s64(s64 dividend, s64 divisor)
 {
 	return dividend / divisor;
+}
+
+static inline s64 div_s64_rem(s64 dividend, s32 divisor, s32 *remainder)
+{
+	*remainder = dividend % divisor;
+	return dividend / divisor;
+}
+
+/* The kernel's strscpy(): always terminated, -E2BIG if truncated. */
+static inline long strscpy(char *dst, const char *src, size_t size)
+{
+	size_t n = strnlen(src, size);
+
+	if (!size)
+		return -E2BIG;
+	if (n == size) {
+		memcpy(dst, src, size - 1);
+		dst[size - 1] = '\0';
+		return -E2BIG;
+	}
+	memcpy(dst, src, n + 1);
+	return n;
 }
 
 #define le16_to_cpu(x)		((u16)le16toh(x))

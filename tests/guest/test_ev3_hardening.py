@@ -1,0 +1,325 @@
+"""Sensors that follow every rule of the protocol and still ask too much:
+the handshakes of issue 17 that crashed the kernel, mode names that sysfs
+cannot list as they are, a UART that cannot reach the sensor's speed, and
+the module's own inputs (port labels)."""
+import errno
+import fcntl
+import glob
+import os
+import select
+import struct
+import subprocess
+import time
+
+import pytest
+
+import ev3
+from ev3 import find_sensor, iio_device, read_attr, wait_value, write_attr
+from ev3_sensor import S8, S16, Mode, SensorDef
+from conftest import loaded, module_path
+
+TIOCSLCKTRMIOS = 0x5457
+CBAUD = 0o010017
+
+
+def kernel_log():
+    return subprocess.run(['dmesg'], capture_output=True, text=True).stdout
+
+
+def iio_attrs(dev):
+    """Every readable attribute of an IIO device: {name: text or errno}."""
+    out = {}
+    for path in glob.glob(dev + '/*') + glob.glob(dev + '/*/*'):
+        if os.path.isdir(path) or not os.access(path, os.R_OK):
+            continue
+        name = os.path.relpath(path, dev)
+        try:
+            with open(path) as f:
+                out[name] = f.read().strip()
+        except OSError as e:
+            out[name] = e.errno
+    return out
+
+
+def test_huge_scale_is_left_out_not_divided(line):
+    """Issue 17: RAW 0..1 and SI 0..2e7 in C (a scale of 2e10 m°C per raw
+    unit) made ev3_iio_scale() raise a divide error in ack_work, and the
+    kernel panicked. The sensor must register; its channel, whose scale IIO
+    cannot show, is left out, and with no channel left there is no IIO
+    device."""
+    sdef = SensorDef(90, 'ev3-uart-90', 1, [
+        Mode('TEMP', (0, 1), (0, 2e7), 'C', 1, S16, 4, 0)], speed=57600)
+    emu = line.plug(sdef)
+    path = find_sensor(line.address, timeout=15)
+    assert path, 'not registered (events: %s)' % emu.events
+    assert read_attr(path, 'driver_name') == 'ev3-uart-90'
+    emu.set_values(0, [1])
+    assert wait_value(path, 0, 20000000) == 20000000     # ev3dev's scaling
+    assert iio_device('ev3-uart-90', timeout=1) is None
+
+
+def test_256_values_get_256_channels(line):
+    """Issue 17: 8 modes of 32 s8 values each, in units IIO knows, wrote 256
+    channels into arrays of 65 (KASAN: slab-out-of-bounds). Every value
+    gets its channel now, every attribute reads, and a buffer captures all
+    32 values of one mode."""
+    units = ['deg', 'd/s', 'cm', 'C', 'mm', 'inch', 'mV', 'lx']
+    sdef = SensorDef(88, 'ev3-uart-88', 8, [
+        Mode('M%d' % i, (-128, 127), (-128, 127), units[i], 32, S8, 4, 0,
+             cadence='continuous', period=0.05)
+        for i in range(8)], speed=57600)
+    emu = line.plug(sdef)
+    path = find_sensor(line.address, timeout=20)
+    assert path, 'not registered (events: %s)' % emu.events
+    dev = iio_device('ev3-uart-88')
+    assert dev, emu.events
+    attrs = iio_attrs(dev)
+    raw = [a for a in attrs if a.endswith('_raw')]
+    assert len(raw) == 256, (sorted(attrs), emu.events)
+    assert len([a for a in attrs if a.startswith('scan_elements/') and
+                a.endswith('_en')]) == 257                  # and the timestamp
+    assert read_attr(dev, 'label') == line.address
+    for name, v in attrs.items():
+        if name.endswith('_scale'):
+            assert float(v) != 0, name
+        # Channels of modes other than the current one: EBUSY, nothing else.
+        if name.endswith('_raw') and not isinstance(v, str):
+            assert v == errno.EBUSY, name
+    # Mode 0 (deg): 32 angle channels, in_angl0..31; their values.
+    emu.set_values(0, list(range(-16, 16)))
+    assert wait_value(path, 7, -9) == -9
+    assert [int(read_attr(dev, 'in_angl%d_raw' % i)) for i in range(32)] == \
+        list(range(-16, 16))
+    assert read_attr(dev, 'in_angl31_label') == 'M0 value31'
+    # A buffer of all 32 values of mode 3 (C, in_temp0..31).
+    write_attr(dev, 'mode', 'M3')
+    emu.set_values(3, list(range(100, 132)))
+    for i in range(32):
+        write_attr(dev, 'scan_elements/in_temp%d_en' % i, '1')
+    write_attr(dev, 'scan_elements/in_timestamp_en', '1')
+    num = dev.rsplit('iio:device', 1)[1]
+    fd = os.open('/dev/iio:device' + num, os.O_RDONLY | os.O_NONBLOCK)
+    try:
+        write_attr(dev, 'buffer/enable', '1')
+        data = b''
+        deadline = time.monotonic() + 10
+        while len(data) < 3 * 136 and time.monotonic() < deadline:
+            select.select([fd], [], [], 0.2)
+            try:
+                data += os.read(fd, 4096)
+            except BlockingIOError:
+                pass
+        # Another mode while the buffer captures M3: EBUSY, not silence.
+        with pytest.raises(OSError) as e:
+            write_attr(path, 'mode', 'M1')
+        assert e.value.errno == errno.EBUSY
+        write_attr(dev, 'buffer/enable', '0')
+    finally:
+        os.close(fd)
+    assert len(data) >= 136
+    scan = struct.unpack('<32iq', data[:136])
+    assert list(scan[:32]) == list(range(100, 132))
+    write_attr(path, 'mode', 'M1')
+    assert read_attr(path, 'mode') == 'M1'
+
+
+def test_mode_names_with_spaces_and_twins(line):
+    """Real devices name modes "COL O" or "IR Tx", and nothing forbids two
+    modes of one name: "modes" lists each so that it can be split on spaces
+    and written back to "mode"."""
+    sdef = SensorDef(91, 'ev3-uart-91', 4, [
+        Mode('COL O', (0, 100), (0, 100), 'pct', 1, S8, 3, 0),
+        Mode('IR Tx', (0, 100), (0, 100), 'pct', 1, S8, 3, 0),
+        Mode('TWIN', (0, 100), (0, 100), 'pct', 1, S8, 3, 0),
+        Mode('TWIN', (0, 100), (0, 100), 'pct', 1, S8, 3, 0)], speed=57600)
+    line.plug(sdef)
+    path = find_sensor(line.address, timeout=15)
+    assert path
+    modes = read_attr(path, 'modes').split(' ')
+    assert modes == ['COL_O', 'IR_Tx', '#2', '#3']
+    assert read_attr(path, 'mode') == 'COL_O'
+    for m in ['IR_Tx', '#3', '#2', 'COL_O']:
+        write_attr(path, 'mode', m)
+        assert read_attr(path, 'mode') == m
+    write_attr(path, 'mode', 'IR Tx')          # the name as the sensor sent it
+    assert read_attr(path, 'mode') == 'IR_Tx'
+    for bad in ['TWIN', '#4', 'IR']:
+        with pytest.raises(OSError) as e:
+            write_attr(path, 'mode', bad)
+        assert e.value.errno == errno.EINVAL
+
+
+def test_speed_the_uart_cannot_set(ev3_module):
+    """A tty whose speed is locked (TIOCSLCKTRMIOS, as a UART that cannot do
+    the sensor's speed): the driver says so once and stops answering that
+    sensor, rather than connecting and losing it for ever."""
+    ln = ev3.Line(0)
+    ln.attach()
+    try:
+        # Lock the speed bits at 2400, where attaching left them.
+        fcntl.ioctl(ln.fd, TIOCSLCKTRMIOS,
+                    struct.pack('IIIIB19s', 0, 0, CBAUD, 0, 0, bytes(19)))
+        before = kernel_log().count('cannot set 57600 baud')
+        emu = ln.plug('us')
+        deadline = time.monotonic() + 20
+        while time.monotonic() < deadline and \
+                sum(1 for _, w in emu.events if w == 'handshake sent') < 4:
+            time.sleep(0.1)
+        sent = sum(1 for _, w in emu.events if w == 'handshake sent')
+        assert sent >= 4, emu.events
+        assert kernel_log().count('cannot set 57600 baud') == before + 1
+        # Only the first handshake was answered.
+        assert emu.handshakes <= 1
+        assert find_sensor(ln.address, timeout=0.5) is None
+    finally:
+        fcntl.ioctl(ln.fd, TIOCSLCKTRMIOS, struct.pack('IIIIB19s', 0, 0, 0, 0, 0, bytes(19)))
+        ln.close()
+
+
+def test_ldisc_number_is_fixed(ev3_module):
+    """The discipline always takes 29 (N_DEVELOPMENT): a parameter choosing
+    the number could replace any discipline, N_TTY included."""
+    subprocess.run(['rmmod', 'lego_ev3_uart'], check=True)
+    try:
+        r = subprocess.run(['insmod', module_path('lego_ev3_uart'), 'ldisc_num=30'],
+                           capture_output=True, text=True)
+        assert r.returncode == 0, r.stderr      # an unknown parameter is ignored
+        with open('/proc/tty/ldiscs') as f:
+            ldiscs = dict(line.split() for line in f)
+        assert ldiscs.get('n_legoev3') == '29'
+        assert not os.path.exists('/sys/module/lego_ev3_uart/parameters/ldisc_num')
+    finally:
+        if not loaded('lego_ev3_uart'):
+            subprocess.run(['insmod', module_path('lego_ev3_uart')], check=True)
+
+
+@pytest.mark.parametrize('labels', ['ttyNM0=in:1', 'ttyNM0=\xe9t\xe9', '=in1', 'ttyNM0',
+                                    'ttyNM0=' + 'x' * 16])
+def test_port_labels_are_checked(ev3_module, labels):
+    subprocess.run(['rmmod', 'lego_ev3_uart'], check=True)
+    try:
+        r = subprocess.run(['insmod', module_path('lego_ev3_uart'), 'port_labels=' + labels],
+                           capture_output=True)
+        assert r.returncode != 0
+        assert not loaded('lego_ev3_uart')
+    finally:
+        if not loaded('lego_ev3_uart'):
+            subprocess.run(['insmod', module_path('lego_ev3_uart')], check=True)
+
+
+def test_label_ioctl_takes_ascii_only(line):
+    LEGO_EV3_SET_PORT_LABEL = 0x4010e301      # _IOW(0xE3, 0x01, 16 bytes)
+    for bad in [b'\xe9t\xe9', b'in 1', b'in/1']:
+        with pytest.raises(OSError) as e:
+            fcntl.ioctl(line.fd, LEGO_EV3_SET_PORT_LABEL, bad.ljust(16, b'\0'))
+        assert e.value.errno == errno.EINVAL
+    fcntl.ioctl(line.fd, LEGO_EV3_SET_PORT_LABEL, b'in-1.a_B'.ljust(16, b'\0'))
+
+
+def ack_ns():
+    with open('/sys/module/lego_nullmodem/parameters/ack_ns') as f:
+        return [int(x) for x in f.read().split(',')]
+
+
+def test_driver_acks_within_80ms_on_the_line(line):
+    """The sensor waits 80 ms for the host's ACK. The emulator cannot judge
+    that any more (it counts the wait on its own clock, see
+    ev3_sensor.wait_ack()), so the null modem times both ACKs on the line
+    itself: from the sensor's ACK's last bit to the host's ACK's."""
+    delays = []
+    for kind in ['color', 'us', 'gyro', 'ir', 'color', 'us', 'gyro', 'ir']:
+        before = ack_ns()
+        emu = line.plug(kind)
+        path = find_sensor(line.address, timeout=15)
+        assert path, (kind, emu.events)
+        after = ack_ns()
+        assert after[0] != before[0] and after[1] != before[1]
+        delays.append((after[0] - after[1]) / 1e6)
+        emu.stop()
+        assert ev3.wait_gone(path, 5)
+    # 10 ms on purpose, then the ACK's own 4.2 ms on the wire at 2400 baud.
+    assert all(14 <= d < 80 for d in delays), delays
+
+
+def test_partial_writes_are_finished(line):
+    """A UART that takes part of a message (its buffer is full) must get the
+    rest once it has room, never a truncated frame: every SELECT and WRITE
+    here is taken a byte or two at a time."""
+    param = '/sys/module/lego_nullmodem/parameters/fifo_room'
+    emu = line.plug('gyro')
+    path = find_sensor(line.address, timeout=15)
+    assert path
+    with open(param, 'w') as f:
+        f.write('2')
+    try:
+        for mode in ['GYRO-RATE', 'GYRO-ANG', 'GYRO-RATE']:
+            write_attr(path, 'mode', mode)
+            assert read_attr(path, 'mode') == mode
+        with open(os.path.join(path, 'direct'), 'wb', buffering=0) as f:
+            f.write(bytes([0x11] + [0x55] * 8))      # a 10-byte WRITE message
+        deadline = time.monotonic() + 3
+        while not emu.writes and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert emu.writes == [bytes([0x11] + [0x55] * 8)]
+        time.sleep(1.5)                              # NACKs keep it alive
+        assert read_attr(path, 'mode') == 'GYRO-RATE'
+        assert emu.handshakes == 1
+    finally:
+        with open(param, 'w') as f:
+            f.write('0')
+
+
+def test_iio_device_held_open_across_unplug(line):
+    """/dev/iio:deviceN held open (a buffer enabled) outlives the sensor:
+    reads and ioctls fail cleanly, nothing touches the freed sensor."""
+    emu = line.plug('gyro')
+    assert find_sensor(line.address, timeout=15)
+    dev = iio_device('lego-ev3-gyro')
+    assert dev
+    write_attr(dev, 'scan_elements/in_angl0_en', '1')
+    write_attr(dev, 'buffer/enable', '1')
+    num = dev.rsplit('iio:device', 1)[1]
+    fd = os.open('/dev/iio:device' + num, os.O_RDONLY | os.O_NONBLOCK)
+    try:
+        emu.stop()
+        assert ev3.wait_gone(dev, 5)
+        for _ in range(3):
+            with pytest.raises(OSError) as e:
+                os.read(fd, 64)
+            assert e.value.errno in (errno.ENODEV, errno.EAGAIN)
+            select.select([fd], [], [], 0.1)
+        # IIO_GET_EVENT_FD_IOCTL on a device that is gone.
+        with pytest.raises(OSError) as e:
+            fcntl.ioctl(fd, 0x80046990, b'\0' * 4)
+        assert e.value.errno == errno.ENODEV
+    finally:
+        os.close(fd)
+
+
+def test_mode_write_right_after_reconnect(line):
+    """Issue 17: after a reconnect the driver restores the user's mode while
+    the user may already write another. One of them wins, the sensor
+    confirms it, and its values flow (the parser must not be left waiting
+    for a mode the sensor is not in)."""
+    emu = line.plug('gyro')
+    path = find_sensor(line.address, timeout=15)
+    assert path
+    write_attr(path, 'mode', 'GYRO-RATE')           # restored after reconnects
+    for i in range(3):
+        emu.unplug()
+        assert ev3.wait_gone(path, 5)
+        emu.plug()
+        sd = ev3.open_sensor(line.address, timeout=15)
+        assert sd, emu.events
+        try:
+            sd.write('mode', 'GYRO-ANG')        # at once, racing the restore
+            emu.set_values(0, [40 + i])
+            deadline = time.monotonic() + 3
+            while sd.read('value0') != str(40 + i) and time.monotonic() < deadline:
+                time.sleep(0.05)
+            assert sd.read('mode') == 'GYRO-ANG'
+            assert sd.read('value0') == str(40 + i)
+            path = sd.path
+        finally:
+            sd.close()
+        write_attr(path, 'mode', 'GYRO-RATE')
