@@ -417,6 +417,22 @@ def _scale_overflows(m, nano):
     return abs(si_span) * nano // (abs(raw_span) * 10 ** m.dec) >= 2 ** 64
 
 
+def _scale_nano(m, nano):
+    """scale_nano as ev3_iio_scale() computes it (before the fix), or None
+    where it traps."""
+    raw_span = m.raw[1] - m.raw[0]
+    si_span = m.si[1] - m.si[0]
+    div = 10 ** m.dec
+    if m.t == es.FLOAT or not raw_span or not si_span:
+        return nano // div
+    q = abs(si_span) * nano // (abs(raw_span) * div)
+    if q >= 2 ** 64:
+        return None
+    if q >= 2 ** 63:
+        q -= 2 ** 64                        # the u64 lands in an s64
+    return -q if (si_span < 0) != (raw_span < 0) else q
+
+
 def known_bugs(desc):
     """The known driver bugs `desc` triggers (names from KNOWN_BUGS)."""
     if desc is None:
@@ -427,6 +443,12 @@ def known_bugs(desc):
     if any(iio_nano(desc, i) is not None and _scale_overflows(desc.modes[i], iio_nano(desc, i))
            for i in range(desc.num_modes)):
         bugs.append('iio-scale-divide')
+    scales = [_scale_nano(desc.modes[i], iio_nano(desc, i)) for i in range(desc.num_modes)
+              if iio_nano(desc, i) is not None]
+    if 0 in scales:
+        bugs.append('iio-scale-zero')
+    if any(v is not None and not -2 ** 31 * 10 ** 9 <= v < 2 ** 31 * 10 ** 9 for v in scales):
+        bugs.append('iio-scale-wraps')
     return bugs
 
 
@@ -436,6 +458,14 @@ KNOWN_BUGS = {
         'unit, up to 8 x 32 = 256, into arrays of EV3_IIO_MAX_CHANNELS (65): KASAN '
         'slab-out-of-bounds in the channel array and in chan_mode/chan_index/scale_nano '
         '(a heap overflow inside struct ev3_uart_iio)',
+    'iio-scale-zero':
+        'ev3_iio_scale() truncates scales below 1e-9 IIO units to 0 (e.g. hPa over a RAW '
+        'span of 2^31, or float/zero-span modes with many decimals: nano / 10^decimals): '
+        'the channel reads 0 whatever the sensor measures',
+    'iio-scale-wraps':
+        'ev3_iio_scale() keeps a u64 quotient >= 2^63 in an s64 (negative), and '
+        'read_raw() puts scale_nano / 10^9 in an int: scales of 2^31 or more read as '
+        'wrong numbers, possibly of the wrong sign',
     'iio-scale-divide':
         'ev3_iio_scale(): mul_u64_u64_div_u64(|si_span|, nano, |raw_span| * 10^decimals) '
         'overflows 64 bits when the SI range is much wider than the RAW one (x86 divq '

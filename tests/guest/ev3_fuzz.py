@@ -44,7 +44,7 @@ TIOCVHANGUP = 0x5437
 IIO = '/sys/bus/iio/devices'
 CASE_TIMEOUT = 90           # seconds: a case still running is a hang
 REGISTER_TIMEOUT = 15.0     # a handshake the model accepts must register by then
-REFUSE_WAIT = 1.5           # how long a refused handshake is given to register anyway
+REFUSE_WAIT = 0.6           # how long a refused handshake is given to register anyway
 GONE_TIMEOUT = 10.0
 # The patterns of tests/scan-console.py: any of them in the kernel log fails the case.
 SPLAT = re.compile(r'\bBUG: |\bWARNING: |\bOops\b|general protection fault|Kernel panic|'
@@ -448,7 +448,10 @@ class Runner:
         self.check(len(chans) <= total, '%d IIO channels for %d values in all modes'
                    % (len(chans), total))
         current = 0
+        m0 = d.modes[0]
+        raw_span, si_span = m0.raw[1] - m0.raw[0], m0.si[1] - m0.si[0]
         for ch in chans:
+            busy = read_path('%s/%s_raw' % (iio, ch))[1] == errno.EBUSY
             for what in ('scale', 'offset'):
                 v, e = read_path('%s/%s_%s' % (iio, ch, what))
                 if e == errno.ENOENT:
@@ -461,6 +464,10 @@ class Runner:
                 self.check(math.isfinite(x), '%s_%s reads %r' % (ch, what, v))
                 if what == 'scale':
                     self.check(x != 0, '%s_scale reads %r: zero' % (ch, v))
+                if what == 'scale' and not busy and m0.t != es.FLOAT and raw_span and si_span:
+                    # (raw + offset) * scale grows with raw iff SI grows with RAW.
+                    self.check((x > 0) == ((si_span > 0) == (raw_span > 0)),
+                               '%s_scale reads %s for RAW %s and SI %s' % (ch, v, m0.raw, m0.si))
             v, e = read_path('%s/%s_raw' % (iio, ch))
             if e == errno.EBUSY:
                 continue                    # a channel of another mode
@@ -555,8 +562,17 @@ class Runner:
         ts_off = [o for ch, o, _ in offs if ch == 'in_timestamp'][0]
         stamps = [struct.unpack_from('<q', data, i + ts_off)[0]
                   for i in range(0, len(data), scan_size)]
-        self.check(all(b > a for a, b in zip(stamps, stamps[1:])),
-                   'timestamps not increasing: %s' % stamps[:10])
+        if not all(b > a for a, b in zip(stamps, stamps[1:])):
+            # ev3_uart_msg_time() backdates a batch's messages at the line
+            # speed and follows a clock set back by more than a second: a
+            # pty hands over the 16-frame stream in one batch, which at a
+            # low speed is more than a second of line time.
+            frame = 2 + gen.pow2_at_least(gen.SIZE[c.desc.modes[0].t] * c.desc.modes[0].n)
+            backdated = self.transport == 'pty' and 16 * frame * 10 / c.desc.speed > 1.0
+            if backdated and self.known == 'avoid':
+                self.bump('known_timestamps_backwards')
+            else:
+                self.fail('timestamps not increasing: %s' % stamps[:10])
         self.bump('captured_scans', len(stamps))
 
     # -- modes --
