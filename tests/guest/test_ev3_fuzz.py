@@ -48,3 +48,5 @@ def test_generated_handshakes(ev3_module, record_testsuite_property):
     assert info.get('captured_scans', 0) > 0
     assert info.get('mode_switches', 0) > 0
     assert info.get('writes', 0) > CASES // 3
+    lost = sum(v for k, v in info.items() if k.startswith('sensor_lost'))
+    assert lost <= info.get('registered', 0) // 10, '%d sensors lost mid-case' % lost
