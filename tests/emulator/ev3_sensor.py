@@ -115,9 +115,15 @@ class Mode:
 
 
 class SensorDef:
-    def __init__(self, type_id, driver, views, modes, speed=57600):
+    """raw_handshake: bytes to send as the handshake instead of the one
+    handshake() builds (e.g. a generated one, tests/emulator/ev3_gen.py);
+    quirks=False: none of the real sensors' quirks in the data phase."""
+
+    def __init__(self, type_id, driver, views, modes, speed=57600, raw_handshake=None,
+                 quirks=True):
         self.type, self.driver, self.views = type_id, driver, views
         self.modes, self.speed = modes, speed
+        self.raw_handshake, self.quirks = raw_handshake, quirks
 
 
 COLOR = SensorDef(29, 'lego-ev3-color', 3, [
@@ -197,6 +203,8 @@ ACK_SLICE = 0.005
 
 def handshake(s):
     """The bytes a real sensor sends from TYPE to its ACK."""
+    if getattr(s, 'raw_handshake', None) is not None:
+        return s.raw_handshake
     out = cmd_msg(CMD_TYPE, [s.type])
     out += cmd_msg(CMD_MODES, [len(s.modes) - 1, s.views - 1])
     out += cmd_msg(CMD_SPEED, struct.pack('<I', s.speed))
@@ -252,7 +260,7 @@ class EmulatedSensor(threading.Thread):
     stop() is called."""
 
     def __init__(self, path, kind, hostile=False, seed=1, boot_delay=0.5, period_scale=1.0,
-                 host_tty=None):
+                 host_tty=None, retry_delay=None):
         """period_scale > 1 slows the spontaneous cadence of continuous modes
         (NACK replies stay immediate): several emulators in one Python
         process inside an emulated machine cannot all keep real cadences
@@ -270,10 +278,12 @@ class EmulatedSensor(threading.Thread):
         self.period_scale = period_scale
         self.sdef = SENSORS[kind] if isinstance(kind, str) else kind
         self.path, self.hostile, self.boot_delay = path, hostile, boot_delay
+        self.retry_delay = retry_delay  # boot delay after an unanswered handshake
+        self.attempts = 0
         self.rng = random.Random(seed)
         self.lock = threading.Lock()
         self.values = {i: [0] * m.n for i, m in enumerate(self.sdef.modes)}
-        if self.sdef.type == 29:
+        if self.sdef.type == 29 and self.sdef.quirks:
             self.values[4] = [0, 0, 0, 0]     # RGB-RAW sends four values
         self.mode = 0
         self.stopping = threading.Event()
@@ -332,6 +342,11 @@ class EmulatedSensor(threading.Thread):
     # ---- the wire ----
 
     def set_speed(self, baud):
+        if baud not in BAUD:
+            # No constant for it: only a pty, which has no speed, can
+            # play such a sensor.
+            self.speed = baud
+            return
         attrs = termios.tcgetattr(self.fd)
         attrs[4] = attrs[5] = BAUD[baud]
         termios.tcsetattr(self.fd, termios.TCSANOW, attrs)
@@ -403,7 +418,11 @@ class EmulatedSensor(threading.Thread):
         with self.lock:
             self.mode = 0
         termios.tcsendbreak(self.fd, 0)
-        self.stopping.wait(self.boot_delay)
+        delay = self.boot_delay
+        if self.attempts and self.retry_delay is not None:
+            delay = self.retry_delay
+        self.attempts += 1
+        self.stopping.wait(delay)
         termios.tcflush(self.fd, termios.TCIFLUSH)
         if self.hostile:
             self.send_hostile()
@@ -448,16 +467,17 @@ class EmulatedSensor(threading.Thread):
         m = self.sdef.modes[mode]
         with self.lock:
             values = list(self.values[mode])
-            stale = self.stale_until > time.monotonic()
+            stale = self.stale_until > time.monotonic() and self.sdef.quirks
         if stale:
             # IR: leftovers of the previous mode until it settles.
             values = [self.rng.randrange(-128, 127) if m.t == S8 else self.rng.randrange(0, 3000)
                       for _ in values]
         tag = mode
         # US-DC-IN tags its own frames with mode 5 (US-DC-CM).
-        if self.sdef.type == 30 and mode == 6 and spontaneous:
+        if self.sdef.type == 30 and mode == 6 and spontaneous and self.sdef.quirks:
             tag = 5
-        bad = self.sdef.type == 29 and mode == 4 and self.rng.random() < 0.99
+        bad = (self.sdef.type == 29 and mode == 4 and self.sdef.quirks and
+               self.rng.random() < 0.99)
         self.send(data_msg(tag, pack_values(m, values), bad_checksum=bad))
         self.frames_sent += 1
 

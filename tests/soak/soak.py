@@ -19,6 +19,9 @@ Parts (each reports its count and its failures):
      with a clean errno (ENODEV last) in time, the node must go away and come
      back on the next plug.
   5  8 clients hammering one brick: every reply matched to its request.
+  7  EV3 generated handshakes (tests/guest/ev3_fuzz.py): --ev3-cases cases from
+     --ev3-seed (default random, printed), each through attach, registration,
+     every attribute, a buffered capture, mode switches, a WRITE and a detach.
 Then a kmemleak scan (twice): any leak fails the run (--lego-leaks-only: only
 leaks whose backtrace names a lego_ module, for runs after other tests).
 
@@ -62,9 +65,9 @@ CLEAN_UNPLUG = {errno.ENODEV, errno.ESHUTDOWN, errno.EPROTO, errno.EIO, errno.ET
                 errno.EPIPE, errno.ECONNRESET}
 
 FULL = dict(cycles=1000, lines=8, fuzz_seconds=600, fuzz_workers=4, race_seconds=180,
-            unplugs=500, transactions=500)
+            unplugs=500, transactions=500, ev3_cases=10000)
 SHORT = dict(cycles=30, lines=4, fuzz_seconds=60, fuzz_workers=3, race_seconds=20,
-             unplugs=24, transactions=80)
+             unplugs=24, transactions=80, ev3_cases=200)
 
 CTX = multiprocessing.get_context('fork')
 
@@ -855,6 +858,27 @@ def part_hammer(p, per_client, clients=8):
             p.fail('the node outlived the brick')
 
 
+# ---- part 7: generated EV3 handshakes -------------------------------------------
+
+def part_ev3_fuzz(p, cases, seed):
+    import ev3_fuzz
+    if seed is None:
+        seed = random.SystemRandom().randrange(1 << 40)
+    print('soak: part 7: %d cases from seed %d (--ev3-seed %d to run them again), '
+          'known bugs: %s' % (cases, seed, seed, ev3_fuzz.DEFAULT_KNOWN), flush=True)
+    p.info['seed'] = seed
+    plan = ev3_fuzz.plan_for(cases, seed, pty_workers=3, nullmodem_lines=[0, 1],
+                             nullmodem_share=0.02)
+    res = ev3_fuzz.run_many(plan, ev3_fuzz.DEFAULT_KNOWN)
+    p.count += res['count']
+    for k, v in res['info'].items():
+        p.info[k] = p.info.get(k, 0) + v
+    for f in res['failures']:
+        p.fail(f)
+    if res['count'] < cases:
+        p.fail('%d cases run of %d' % (res['count'], cases))
+
+
 # ---- kmemleak ---------------------------------------------------------------
 
 def kmemleak_available():
@@ -900,7 +924,7 @@ def run(parts, params, lego_leaks_only=False, kmemleak=True):
     results = []
     names = {1: 'EV3 plug/unplug cycles', 2: 'random/mutated streams',
              3: 'attach/detach races', 4: 'brick unplugs mid-transfer',
-             5: '8 clients, one brick'}
+             5: '8 clients, one brick', 7: 'EV3 generated handshakes'}
     for n in parts:
         p = Part(n, names[n])
         t0 = time.monotonic()
@@ -916,6 +940,8 @@ def run(parts, params, lego_leaks_only=False, kmemleak=True):
                 part_unplug(p, params['unplugs'])
             elif n == 5:
                 part_hammer(p, params['transactions'])
+            elif n == 7:
+                part_ev3_fuzz(p, params['ev3_cases'], params.get('ev3_seed'))
         except Exception:
             p.fail('exception: ' + traceback.format_exc(limit=6))
         p.seconds = time.monotonic() - t0
@@ -954,7 +980,7 @@ def main():
                                  formatter_class=argparse.RawDescriptionHelpFormatter,
                                  epilog=__doc__.split('\n', 2)[2])
     ap.add_argument('--short', action='store_true', help='a few dozen cycles each, 60 s of streams')
-    ap.add_argument('--parts', default='1,2,3,4,5')
+    ap.add_argument('--parts', default='1,2,3,4,5,7')
     ap.add_argument('--json', metavar='FILE', help='also write the results as JSON')
     ap.add_argument('--cycles', type=int)
     ap.add_argument('--lines', type=int)
@@ -962,6 +988,8 @@ def main():
     ap.add_argument('--race-seconds', type=float)
     ap.add_argument('--unplugs', type=int)
     ap.add_argument('--transactions', type=int, help='per client, in part 5')
+    ap.add_argument('--ev3-cases', type=int, help='generated EV3 handshakes, in part 7')
+    ap.add_argument('--ev3-seed', type=int, help='first seed of part 7 (default: random)')
     ap.add_argument('--no-kmemleak', action='store_true')
     ap.add_argument('--lego-leaks-only', action='store_true')
     args = ap.parse_args()
@@ -970,11 +998,11 @@ def main():
         return 2
     try:
         parts = sorted({int(x) for x in args.parts.split(',')})
-        assert parts and all(1 <= x <= 5 for x in parts)
+        assert parts and all(1 <= x <= 5 or x == 7 for x in parts)
     except (ValueError, AssertionError):
-        print('soak.py: --parts takes numbers 1 to 5, e.g. 1,3', file=sys.stderr)
+        print('soak.py: --parts takes numbers 1 to 5 and 7, e.g. 1,3', file=sys.stderr)
         return 2
-    params = dict(SHORT if args.short else FULL)
+    params = dict(SHORT if args.short else FULL, ev3_seed=None)
     for k in params:
         v = getattr(args, k, None)
         if v is not None:
