@@ -18,7 +18,7 @@ import pytest
 sys.path.insert(0, os.path.dirname(__file__))
 import ev3_fuzz  # noqa: E402
 
-CASES = int(os.environ.get('LEGO_EV3FUZZ_CASES', '300'))
+CASES = int(os.environ.get('LEGO_EV3FUZZ_CASES', '200'))
 KNOWN = os.environ.get('LEGO_EV3FUZZ_KNOWN', ev3_fuzz.DEFAULT_KNOWN)
 
 

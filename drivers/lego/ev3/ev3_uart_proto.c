@@ -124,8 +124,11 @@ EXPORT_SYMBOL_IF_KUNIT(ev3_uart_data_size);
  * after the message came in at the line speed (8N1: 10 bit times a byte),
  * so it ended that much earlier. And two messages cannot end closer together
  * than the second one's time on the wire, which keeps the times strictly
- * increasing where the clock is coarse. A clock set back by more than a
- * second is followed.
+ * increasing where the clock is coarse, and where a batch holds more bytes
+ * than the line could carry since the previous one (a pty has no speed: a
+ * batch of 500 bytes "at 2400 baud" would date its first message two
+ * seconds back). A clock set back by more than a second (@now itself that
+ * far before @last) is followed.
  *
  * Return: the estimated time, in ns.
  */
@@ -137,7 +140,7 @@ s64 ev3_uart_msg_time(s64 now, size_t rest, unsigned int msg_len, u32 speed,
 	s64 t = now - (s64)rest * byte_ns;
 	s64 wire_ns = msg_len * byte_ns;
 
-	if (last && t < last + wire_ns && t > last - NSEC_PER_SEC)
+	if (last && t < last + wire_ns && now > last - NSEC_PER_SEC)
 		t = last + wire_ns;
 	return t;
 }

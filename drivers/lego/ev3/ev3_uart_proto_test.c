@@ -344,6 +344,13 @@ static void test_msg_time(struct kunit *test)
 	KUNIT_EXPECT_EQ(test, ev3_uart_msg_time(now - 500000000, 0, 4, 57600, now),
 			now + 4 * b);
 
+	/*
+	 * More bytes in one batch than the line could carry since the last
+	 * message (a pty at 2400 baud): dated after the last one all the same.
+	 */
+	t = ev3_uart_msg_time(now, 500, 34, 2400, now - 1000000);
+	KUNIT_EXPECT_EQ(test, t, now - 1000000 + 34 * 4166666LL);
+
 	/* 2400 baud: 4.17 ms a byte; a bad speed counts as 2400. */
 	KUNIT_EXPECT_EQ(test, ev3_uart_msg_time(now, 3, 3, 2400, 0), now - 3 * 4166666LL);
 	KUNIT_EXPECT_EQ(test, ev3_uart_msg_time(now, 3, 3, 0, 0), now - 3 * 4166666LL);
