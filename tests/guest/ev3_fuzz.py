@@ -213,7 +213,7 @@ class Runner:
                 # Dropped (its log line may be rate-limited): the directory
                 # must be gone too. Counted; the test bounds how often.
                 self.kmsg_lines()
-                if self._sd.wait_gone(2):
+                if self._sd.wait_gone(10):
                     raise SensorLost()
             self.fail(msg)
 

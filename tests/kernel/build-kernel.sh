@@ -8,6 +8,8 @@
 # arm64.config, and cached as kernel-arm64-SERIES-<key>.
 # --variant bench (x86): test.config plus bench.config, the debug checks off,
 # for `make bench`; cached as kernel-bench-SERIES-<key>.
+# --variant kcsan (x86): test.config plus kcsan.config, KCSAN instead of
+# KASAN, for `make soak`; cached as kernel-kcsan-SERIES-<key>.
 # --tree-only prints the cached tree if it is complete and builds nothing.
 #
 # The source comes from Debian's linux-source-SERIES package. The build lives in
@@ -53,7 +55,8 @@ esac
 case "$arch/$variant" in
 */) ;;
 x86/bench) fragments+=("$here/bench.config") ;;
-*) echo "build-kernel: unknown --variant $variant for $arch (x86: bench)" >&2; exit 2 ;;
+x86/kcsan) fragments+=("$here/kcsan.config") ;;
+*) echo "build-kernel: unknown --variant $variant for $arch (x86: bench, kcsan)" >&2; exit 2 ;;
 esac
 tarball=/usr/src/linux-source-$series.tar.xz
 cache=$(kcache_dir)

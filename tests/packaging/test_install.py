@@ -160,3 +160,15 @@ find /lib/modules -name '*.ko*'
     assert re.search(r'lego-mindstorms/\S+, %s, \S+: installed' % re.escape(kver), status)
     assert 'lego_ev3_uart.ko' in status and 'lego_nxt_usb.ko' in status
     assert '.ko' not in after and 'lego-mindstorms' not in after, after
+
+
+def test_kernel_without_iio_kfifo_gets_a_clear_error(src, tree):
+    """A kernel without CONFIG_IIO_KFIFO_BUF (the variable emptied on the
+    command line, as in a .config without it) must stop the build with a
+    message that says so, not with an unresolved symbol at load time."""
+    r = subprocess.run(['make', '-C', src, 'KDIR=' + tree, 'CONFIG_IIO_KFIFO_BUF='],
+                       capture_output=True, text=True)
+    assert r.returncode != 0
+    assert 'needs a kernel with CONFIG_IIO and CONFIG_IIO_KFIFO_BUF' in r.stdout + r.stderr
+    # And with the option, the same tree builds (make clean reads no config).
+    make(src, 'KDIR=' + tree, 'clean')

@@ -167,7 +167,9 @@ static void ev3_uart_write_wakeup(struct tty_struct *tty)
 /*
  * Through tty_set_termios(), like a TCSETS would: locked termios are
  * respected, and the driver writes back the speed it could set. A tty with
- * no set_termios (a pty master) has no speed to set.
+ * no set_termios (a pty master) has no speed to set. A speed within 2 % is
+ * as good (the tty core itself rounds to a standard rate that close, and
+ * UARTs tolerate more).
  *
  * Return: 0, or -%EINVAL if the tty runs at another speed than @baud.
  */
@@ -186,7 +188,7 @@ static int ev3_uart_set_speed(struct tty_struct *tty, unsigned int baud)
 	down_read(&tty->termios_rwsem);
 	got = tty_termios_baud_rate(&tty->termios);
 	up_read(&tty->termios_rwsem);
-	return got == baud ? 0 : -EINVAL;
+	return abs((int)got - (int)baud) <= baud / 50 ? 0 : -EINVAL;
 }
 
 /* Raw 8N1 at 2400 baud, no flow control, errors reported as flags. */
@@ -618,7 +620,14 @@ int ev3_uart_set_mode(struct ev3_uart_sensor_dev *sd, u8 mode)
 		ret = -EBUSY;
 	} else if (sd->mode == mode &&
 		   port->parser.pending_mode == EV3_UART_NO_MODE) {
-		ret = 1;	/* nothing to do */
+		/*
+		 * Nothing to send, but the user's choice: a restore of an
+		 * older choice must not come after it (see restore_mode()).
+		 */
+		port->requested_type = sd->desc.type;
+		port->requested_mode = mode;
+		port->restore_mode = EV3_UART_NO_MODE;
+		ret = 1;
 	} else {
 		ret = ev3_uart_parser_select(&port->parser, mode);
 		if (!ret) {

@@ -124,11 +124,13 @@ EXPORT_SYMBOL_IF_KUNIT(ev3_uart_data_size);
  * after the message came in at the line speed (8N1: 10 bit times a byte),
  * so it ended that much earlier. And two messages cannot end closer together
  * than the second one's time on the wire, which keeps the times strictly
- * increasing where the clock is coarse, and where a batch holds more bytes
- * than the line could carry since the previous one (a pty has no speed: a
- * batch of 500 bytes "at 2400 baud" would date its first message two
- * seconds back). A clock set back by more than a second (@now itself that
- * far before @last) is followed.
+ * increasing where the clock is coarse. Nor can they run ahead of the clock
+ * by more than %EV3_UART_MSG_AHEAD_NS: a batch may hold more bytes than the
+ * line could carry since the previous one (a pty has no speed: 500 bytes
+ * "at 2400 baud" would date the batch's first message two seconds back and
+ * push the next ones two seconds ahead), and then its messages are 1 ns
+ * apart. A clock set back by more than a second (@now itself that far
+ * before @last) is followed.
  *
  * Return: the estimated time, in ns.
  */
@@ -140,8 +142,11 @@ s64 ev3_uart_msg_time(s64 now, size_t rest, unsigned int msg_len, u32 speed,
 	s64 t = now - (s64)rest * byte_ns;
 	s64 wire_ns = msg_len * byte_ns;
 
-	if (last && t < last + wire_ns && now > last - NSEC_PER_SEC)
+	if (last && t < last + wire_ns && now > last - NSEC_PER_SEC) {
 		t = last + wire_ns;
+		if (t > now + EV3_UART_MSG_AHEAD_NS)
+			t = max(now + EV3_UART_MSG_AHEAD_NS, last + 1);
+	}
 	return t;
 }
 EXPORT_SYMBOL_IF_KUNIT(ev3_uart_msg_time);

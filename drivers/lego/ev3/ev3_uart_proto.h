@@ -72,6 +72,8 @@ enum ev3_uart_msg_type {
 /* Decimals beyond this make 10^decimals overflow the fixed-point values. */
 #define EV3_UART_MAX_DECIMALS		9
 #define EV3_UART_MAX_FIGURES		15
+/* How far ahead of the clock ev3_uart_msg_time() may date a message. */
+#define EV3_UART_MSG_AHEAD_NS		50000000
 /* Bad frames (net of good ones) or silent keep-alive periods before a resync. */
 #define EV3_UART_MAX_DATA_ERR		6
 

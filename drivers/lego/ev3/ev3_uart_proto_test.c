@@ -319,6 +319,7 @@ static void test_msg_time(struct kunit *test)
 	const s64 b = 173611;		/* ns a byte at 57600 baud, 8N1 */
 	const s64 now = 5000000000LL;
 	s64 t1, t2, t3, t;
+	int i;
 
 	/* Three 4-byte messages handled in one batch: dated back to the wire. */
 	t1 = ev3_uart_msg_time(now, 8, 4, 57600, 0);
@@ -341,15 +342,27 @@ static void test_msg_time(struct kunit *test)
 	/* Set back by more than a second: followed; by less: not. */
 	KUNIT_EXPECT_EQ(test, ev3_uart_msg_time(now - 2000000000LL, 0, 4, 57600, now),
 			now - 2000000000LL);
+	/* (and then 1 ns after the last: not a wire time, 0.5 s ahead) */
 	KUNIT_EXPECT_EQ(test, ev3_uart_msg_time(now - 500000000, 0, 4, 57600, now),
-			now + 4 * b);
+			now + 1);
 
 	/*
 	 * More bytes in one batch than the line could carry since the last
 	 * message (a pty at 2400 baud): dated after the last one all the same.
 	 */
 	t = ev3_uart_msg_time(now, 500, 34, 2400, now - 1000000);
-	KUNIT_EXPECT_EQ(test, t, now - 1000000 + 34 * 4166666LL);
+	KUNIT_EXPECT_EQ(test, t, now + EV3_UART_MSG_AHEAD_NS);	/* not 90 ms ahead */
+	t = ev3_uart_msg_time(now, 500, 34, 2400, now - 100000000);
+	KUNIT_EXPECT_EQ(test, t, now - 100000000 + 34 * 4166666LL);
+	/* ...and a batch of 16 such messages stays within 50 ms of the clock. */
+	for (i = 0, t2 = 0; i < 16; i++) {
+		t = ev3_uart_msg_time(now, (15 - i) * 34, 34, 2400, t2);
+		KUNIT_EXPECT_GT(test, t, t2);
+		KUNIT_EXPECT_LE(test, t, now + EV3_UART_MSG_AHEAD_NS);
+		t2 = t;
+	}
+	t = ev3_uart_msg_time(now + 10000000, 0, 34, 2400, t2);
+	KUNIT_EXPECT_GT(test, t, t2);
 
 	/* 2400 baud: 4.17 ms a byte; a bad speed counts as 2400. */
 	KUNIT_EXPECT_EQ(test, ev3_uart_msg_time(now, 3, 3, 2400, 0), now - 3 * 4166666LL);
