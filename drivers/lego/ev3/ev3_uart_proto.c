@@ -726,11 +726,25 @@ static void ev3_uart_data_resync(struct ev3_uart_parser *p)
 	p->msg_len = 0;
 }
 
+/*
+ * Quirk: the sensor switches speed as soon as it has the host's ACK, and
+ * the host only once the ACK is on the wire, so the first bytes of the
+ * data phase can arrive garbled (a 34-byte message at 57600 baud read at
+ * 2400 is a dozen framing errors), and the tty may hand them over only
+ * after the switch. Until the first good DATA message, bad bytes and
+ * frames are garbage, not errors: a sensor that never gets there is lost
+ * by the keep-alive ticks (ev3_uart_parser_tick()) all the same.
+ */
+static bool ev3_uart_settling(const struct ev3_uart_parser *p)
+{
+	return !p->frames;
+}
+
 static void ev3_uart_bad_frame(struct ev3_uart_parser *p,
 			       struct ev3_uart_event *ev)
 {
 	p->bad_frames++;
-	if (++p->data_err > EV3_UART_MAX_DATA_ERR)
+	if (!ev3_uart_settling(p) && ++p->data_err > EV3_UART_MAX_DATA_ERR)
 		return ev3_uart_error(p, ev, "too many bad DATA messages");
 	ev3_uart_data_resync(p);
 }
@@ -902,7 +916,7 @@ void ev3_uart_parser_line_error(struct ev3_uart_parser *p,
 	case EV3_UART_STATE_DATA:
 		p->msg_len = 0;
 		p->bad_frames++;
-		if (++p->data_err > EV3_UART_MAX_DATA_ERR)
+		if (!ev3_uart_settling(p) && ++p->data_err > EV3_UART_MAX_DATA_ERR)
 			ev3_uart_error(p, ev, "too many line errors");
 		break;
 	}

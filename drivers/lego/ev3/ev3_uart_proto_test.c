@@ -909,11 +909,18 @@ static void test_data_resync_after_garbage(struct kunit *test)
 
 static void test_too_many_bad_frames(struct kunit *test)
 {
+	static const u8 good[] = { 0xc0, 0x07, 0x38 };
 	struct ctx *c = new_ctx(test);
 	u8 frame[3] = { 0xc0, 0x01, 0x00 };	/* wrong checksum */
 	int i;
 
 	connect(test, c, &sensors[0]);
+	/* Before the first good message: garbage of the speed change. */
+	for (i = 0; i < 3 * EV3_UART_MAX_DATA_ERR; i++)
+		feed(&c->p, frame, 3, 3, &c->r);
+	KUNIT_EXPECT_EQ(test, count(&c->r, EV3_UART_EV_ERROR), 0U);
+	feed(&c->p, good, 3, 3, &c->r);
+	KUNIT_ASSERT_EQ(test, last(&c->r)->type, EV3_UART_EV_DATA);
 	for (i = 0; i < EV3_UART_MAX_DATA_ERR; i++)
 		feed(&c->p, frame, 3, 3, &c->r);
 	KUNIT_EXPECT_EQ(test, count(&c->r, EV3_UART_EV_ERROR), 0U);
@@ -962,8 +969,10 @@ static void test_bytes_dropped_while_acked(struct kunit *test)
 
 static void test_line_errors(struct kunit *test)
 {
+	static const u8 data[] = { 0xc0, 0x07, 0x38 };	/* COL-REFLECT 7 */
 	struct ctx *c = new_ctx(test);
 	struct ev3_uart_event ev;
+	int i;
 	size_t len = enc_handshake(c->buf, &sensors[0]);
 
 	/* In the handshake: start over, and the whole handshake still works. */
@@ -974,12 +983,27 @@ static void test_line_errors(struct kunit *test)
 	feed(&c->p, c->buf, len, len, &c->r);
 	KUNIT_EXPECT_EQ(test, last(&c->r)->type, EV3_UART_EV_HANDSHAKE);
 
-	/* In the data phase: counted, fatal only when repeated. */
+	/*
+	 * In the data phase, before the first good message: garbage from the
+	 * speed change, however much of it.
+	 */
 	c = new_ctx(test);
 	connect(test, c, &sensors[0]);
-	ev3_uart_parser_line_error(&c->p, &ev);
-	KUNIT_EXPECT_EQ(test, ev.type, EV3_UART_EV_NONE);
+	for (i = 0; i < 3 * EV3_UART_MAX_DATA_ERR; i++) {
+		ev3_uart_parser_line_error(&c->p, &ev);
+		KUNIT_EXPECT_EQ(test, ev.type, EV3_UART_EV_NONE);
+	}
 	KUNIT_EXPECT_EQ(test, c->p.state, EV3_UART_STATE_DATA);
+	/* After it: counted, fatal only when repeated. */
+	feed(&c->p, data, sizeof(data), sizeof(data), &c->r);
+	KUNIT_ASSERT_EQ(test, last(&c->r)->type, EV3_UART_EV_DATA);
+	for (i = 0; i < EV3_UART_MAX_DATA_ERR; i++) {
+		ev3_uart_parser_line_error(&c->p, &ev);
+		KUNIT_EXPECT_EQ(test, ev.type, EV3_UART_EV_NONE);
+	}
+	ev3_uart_parser_line_error(&c->p, &ev);
+	KUNIT_EXPECT_EQ(test, ev.type, EV3_UART_EV_ERROR);
+	KUNIT_EXPECT_EQ(test, c->p.state, EV3_UART_STATE_SYNC);
 }
 
 /* ---- values ---- */
