@@ -545,8 +545,11 @@ class Runner:
         # Geometry of one scan, from the _index and _type files.
         elems = []
         for ch in enabled:
-            idx = int(read_path('%s/%s_index' % (scan, ch))[0])
-            t = read_path('%s/%s_type' % (scan, ch))[0]
+            v, e = read_path('%s/%s_index' % (scan, ch))
+            self.check(e is None, '%s_index: %s' % (ch, ename(e)))
+            idx = int(v)
+            t, e = read_path('%s/%s_type' % (scan, ch))
+            self.check(e is None, '%s_type: %s' % (ch, ename(e)))
             mt = re.match(r'([lb]e):([su])(\d+)/(\d+)>>(\d+)$', t)
             self.check(mt, '%s_type reads %r' % (ch, t))
             elems.append((idx, ch, int(mt.group(4)) // 8))

@@ -25,9 +25,10 @@
  * The work items that register and unregister sensors (ack_work,
  * reset_work) run on the port's ordered workqueue, so a sensor is never
  * registered and unregistered at the same time. keepalive_work runs on
- * system_highpri_wq, so that NACKs go out while a sensor registers (the
- * sensor resets after a second without one); it only ticks the parser, sends
- * and queues reset_work. tx_work runs on the system workqueue. The one timer,
+ * system_unbound_wq, so that NACKs go out (from another CPU if need be)
+ * while a sensor registers (the sensor resets after a second without one);
+ * it only ticks the parser, sends and queues reset_work. tx_work runs on
+ * system_unbound_wq too. The one timer,
  * ev3_uart_port.ack_timer, runs in hard interrupt context and takes no
  * lock: it only queues ack_work.
  *

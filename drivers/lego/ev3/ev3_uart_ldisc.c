@@ -161,7 +161,7 @@ static void ev3_uart_write_wakeup(struct tty_struct *tty)
 {
 	struct ev3_uart_port *port = tty->disc_data;
 
-	schedule_work(&port->tx_work);
+	queue_work(system_unbound_wq, &port->tx_work);
 }
 
 /*
@@ -391,9 +391,11 @@ static void ev3_uart_ack_work(struct work_struct *work)
 	/*
 	 * Keep the sensor alive from now on: it resets after about a second
 	 * without NACK, and registering a sensor with many values can take
-	 * that long on a slow or debug kernel.
+	 * that long on a slow or debug kernel. On an unbound workqueue, so
+	 * that another CPU sends the NACKs while this one registers (without
+	 * kernel preemption a per-CPU worker would wait for this one).
 	 */
-	queue_delayed_work(system_highpri_wq, &port->keepalive_work, 0);
+	queue_delayed_work(system_unbound_wq, &port->keepalive_work, 0);
 
 	sd = ev3_uart_sensor_create(port, &desc);
 	if (IS_ERR(sd)) {
@@ -472,7 +474,7 @@ static void ev3_uart_keepalive_work(struct work_struct *work)
 	}
 	ev3_uart_tx(port, &nack, ev3_uart_build_nack(&nack));
 	if (!READ_ONCE(port->closing))
-		queue_delayed_work(system_highpri_wq, &port->keepalive_work,
+		queue_delayed_work(system_unbound_wq, &port->keepalive_work,
 				   msecs_to_jiffies(EV3_UART_KEEPALIVE_MS));
 }
 
