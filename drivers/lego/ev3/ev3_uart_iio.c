@@ -2,11 +2,14 @@
 /*
  * LEGO MINDSTORMS EV3 UART sensors: IIO front end.
  *
- * One IIO device per sensor, named after its driver name and parented to
- * the tty. Every value of every mode whose unit has an IIO channel type
- * becomes a channel; _raw is the sensor's integer and _scale/_offset map it
- * onto the IIO unit of that type, derived from the RAW and SI ranges the
- * sensor announced (see Documentation/lego/ev3-uart.rst for the table).
+ * One IIO device per sensor, named after its driver name, labelled with its
+ * address and parented to the tty. The channels come from
+ * ev3_uart_chans_build(): every value of every mode whose unit has an IIO
+ * channel type and whose scale IIO can show; _raw is the sensor's integer
+ * (floats times 10^decimals) and _scale/_offset map it onto the IIO unit of
+ * that type, derived from the RAW and SI ranges the sensor announced (see
+ * Documentation/lego/ev3-uart.rst for the table). A sensor with no channel
+ * gets no IIO device.
  *
  * A channel belongs to one mode. Reading a channel of a mode that is not the
  * current one fails with EBUSY: write the mode first ("mode" attribute).
