@@ -205,7 +205,7 @@ static void nxt_out_complete(struct urb *urb)
 /* The transaction in the slot is out of time. */
 static void nxt_timer_fn(struct timer_list *t)
 {
-	struct nxt_usb *nxt = from_timer(nxt, t, timer);
+	struct nxt_usb *nxt = timer_container_of(nxt, t, timer);
 	struct urb *unlink = NULL;
 	struct nxt_xfer *x;
 	unsigned long flags;
