@@ -740,6 +740,27 @@ def test_sysfs_failure_is_cached():
         assert b.wait_gone()
 
 
+def test_poll_waits_for_the_drain():
+    """No POLLOUT while a lost reply is drained (a write() would get
+    EAGAIN), and POLLOUT by itself once the drain ends."""
+    b = nxt.Brick('dummy_udc.1', SERIAL2, hostile='noreply')
+    b.plug()
+    f = b.open(os.O_RDWR | os.O_NONBLOCK)
+    try:
+        assert nxt.set_timeout(f, 100) == 0
+        assert nxt.transact(f, b'\x00\x0b')[0] == errno.ETIMEDOUT
+        p = select.poll()
+        p.register(f, select.POLLOUT)
+        t0 = time.monotonic()
+        assert dict(p.poll(2000)).get(f, 0) & select.POLLOUT
+        assert time.monotonic() - t0 < 1.0
+        os.write(f, b'\x80\x03\xb8\x01\x10\x00')
+    finally:
+        os.close(f)
+        b.unplug()
+        assert b.wait_gone()
+
+
 def test_wrong_length_reply_is_skipped():
     """A reply to the same opcode but of the wrong length is not the reply:
     the real one that follows it is taken."""

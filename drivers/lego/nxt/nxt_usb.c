@@ -62,8 +62,20 @@ static void nxt_drain_for(struct nxt_usb *nxt, unsigned int ms)
 	u64 until = get_jiffies_64() + msecs_to_jiffies(ms);
 
 	lockdep_assert_held(&nxt->lock);
-	if (until > nxt->drain_until)
-		nxt->drain_until = until;
+	if (until <= nxt->drain_until)
+		return;
+	nxt->drain_until = until;
+	/* Nothing else may happen when it ends: poll() is woken then. */
+	mod_delayed_work(system_wq, &nxt->drain_work, msecs_to_jiffies(ms) + 1);
+}
+
+/* The drain has ended (or ended early): writers and poll() may go on. */
+static void nxt_drain_work(struct work_struct *work)
+{
+	struct nxt_usb *nxt = container_of(to_delayed_work(work), struct nxt_usb,
+					   drain_work);
+
+	wake_up_all(&nxt->wait);
 }
 
 /* Jiffies left of the drain; 0 when none. @lock held. */
@@ -508,17 +520,18 @@ static bool nxt_out_done(struct nxt_usb *nxt, struct nxt_xfer *x)
 }
 
 /**
- * nxt_slot_free() - whether a transaction could start now
+ * nxt_slot_free() - whether a telegram could be sent now
  * @nxt: the brick
  *
- * Return: true if no transaction holds the brick or waits for it.
+ * Return: true if no transaction holds the brick or waits for it, and no
+ * late reply is being drained.
  */
 bool nxt_slot_free(struct nxt_usb *nxt)
 {
 	bool free;
 
 	spin_lock_irq(&nxt->lock);
-	free = !nxt->cur && list_empty(&nxt->queue);
+	free = !nxt->cur && list_empty(&nxt->queue) && !nxt_drain_left(nxt);
 	spin_unlock_irq(&nxt->lock);
 	return free;
 }
@@ -669,9 +682,12 @@ out:
  * sent; its reply, if its type asks for one, arrives in @x later (see
  * nxt_xfer_wait()).
  *
- * Return: 0, or -%EINVAL / -%EMSGSIZE for a bad telegram, -%EAGAIN,
- * -%ERESTARTSYS or -%EINTR, -%ENODEV, -%ENOMEM, -%ETIMEDOUT if the brick did
- * not take the telegram in time, -%EPIPE if it stalled, -%EIO.
+ * Return: 0, or -%EINVAL / -%EMSGSIZE for a bad telegram, -%EAGAIN
+ * (@nonblock: the brick is busy, a late reply is being drained or a reset
+ * is under way; nothing was sent), -%ERESTARTSYS (a signal before anything
+ * was sent), -%EINTR (a signal while the telegram was being sent), -%ENODEV,
+ * -%ENOMEM, -%ETIMEDOUT if the brick did not take the telegram in time,
+ * -%EPIPE if it stalled, -%EIO.
  */
 int nxt_xfer_start(struct nxt_usb *nxt, struct nxt_xfer *x, const u8 *tg,
 		   size_t len, unsigned int timeout_ms, bool nonblock)
@@ -819,6 +835,8 @@ static void nxt_usb_free(struct kref *kref)
 {
 	struct nxt_usb *nxt = container_of(kref, struct nxt_usb, kref);
 
+	/* A drain that a last transaction started after disconnect(). */
+	cancel_delayed_work_sync(&nxt->drain_work);
 	usb_free_urb(nxt->in_urb);
 	kfree(nxt->in_buf);
 	usb_put_dev(nxt->udev);
@@ -901,6 +919,7 @@ static int nxt_usb_probe(struct usb_interface *intf,
 	init_usb_anchor(&nxt->out_anchor);
 	timer_setup(&nxt->timer, nxt_timer_fn, 0);
 	INIT_DELAYED_WORK(&nxt->recover_work, nxt_recover_work);
+	INIT_DELAYED_WORK(&nxt->drain_work, nxt_drain_work);
 	nxt_info_init(&nxt->info);
 	nxt->udev = usb_get_dev(interface_to_usbdev(intf));
 	nxt->intf = intf;
@@ -955,6 +974,7 @@ static void nxt_usb_disconnect(struct usb_interface *intf)
 	mutex_unlock(&nxt->io_mutex);
 
 	cancel_delayed_work_sync(&nxt->recover_work);
+	cancel_delayed_work_sync(&nxt->drain_work);
 	timer_delete_sync(&nxt->timer);
 	wake_up_all(&nxt->wait);
 

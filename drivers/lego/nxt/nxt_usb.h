@@ -13,8 +13,15 @@
  * A 64-byte IN transfer is kept pending from the first transaction on (the
  * "reader"), so the brick never freezes waiting for a host to collect a
  * reply; a packet that does not answer the transaction in the slot is
- * dropped as stale. After a timeout, and when the reader starts, packets
- * are drained for NXT_DRAIN_MS before the next telegram goes out.
+ * dropped as stale.
+ *
+ * A transaction is live (a packet can answer it, its timer end it, a reset
+ * fail it) only from when its telegram is submitted (@sent), not from when
+ * it takes the slot: until then it only waits for the drain and @io_mutex.
+ * When the reader starts, packets are drained for NXT_DRAIN_MS before the
+ * next telegram goes out; when a sent transaction ends without its reply,
+ * for as long as that reply may come late (nxt_reply_late_ms()), or until
+ * it has come.
  *
  * Locking
  * -------
@@ -25,7 +32,8 @@
  *
  * @lock (spinlock, taken in URB completions and the timer) protects the
  * slot @cur and the state of the transaction in it, the @queue of waiters
- * for it, @reader_running, @drain_until, @gone and the reply hand-off.
+ * for it, @reader_running, @drain_until, @orphan, @stalls, the halt flags,
+ * @gone and the reply hand-off.
  * Order: @io_mutex, then @lock.
  *
  * Lifetime
@@ -121,6 +129,7 @@ struct nxt_info {
  * @timer: ends the transaction in the slot when its time is up
  * @recover_work: clears a halted endpoint and restarts the reader; sending a
  *	telegram does the same first (nxt_recover_locked())
+ * @drain_work: wakes @wait when a drain ends
  * @halted_in: the IN endpoint stalled (@lock)
  * @halted_out: the OUT endpoint stalled (@lock)
  * @stalls: IN stalls in a row, with no packet in between (@lock)
@@ -152,6 +161,7 @@ struct nxt_usb {
 	struct usb_anchor out_anchor;
 	struct timer_list timer;
 	struct delayed_work recover_work;
+	struct delayed_work drain_work;
 	bool halted_in;
 	bool halted_out;
 	u8 stalls;
