@@ -240,14 +240,16 @@ static void nxt_in_complete(struct urb *urb)
 		nxt->halted_in = true;
 		if (nxt->stalls < U8_MAX)
 			nxt->stalls++;
-		if (nxt->cur && nxt->cur->want_reply && nxt->cur->status == -EINPROGRESS)
+		/* A transaction not sent yet sends its telegram after recovery. */
+		if (nxt->cur && nxt->cur->sent && nxt->cur->want_reply &&
+		    nxt->cur->status == -EINPROGRESS)
 			nxt_finish(nxt, nxt->cur, -EPIPE);
 		recover = true;
 		break;
 	default:
 		/* -EPROTO, -EILSEQ, -EOVERFLOW...: often an unplug in progress. */
 		dev_dbg_ratelimited(&nxt->udev->dev, "IN transfer error %d\n", urb->status);
-		if (nxt->cur)
+		if (nxt->cur && nxt->cur->sent)
 			nxt->cur->link_error = true;
 		recover = true;
 		break;
