@@ -450,7 +450,7 @@ def test_nonblocking_write_does_not_wait_for_a_drain(brick, fd):
         with pytest.raises(OSError) as e:
             os.write(f, b'\x00\x0b')
         assert e.value.errno == errno.EAGAIN
-        assert time.monotonic() - t0 < 0.1
+        assert time.monotonic() - t0 < 0.5         # the drain lasts ~0.8 s
     finally:
         os.close(f)
     assert nxt.set_timeout(fd, 3000) == 0
