@@ -442,6 +442,28 @@ unsigned int nxt_reply_late_ms(const u8 *tg, size_t len)
 EXPORT_SYMBOL_IF_KUNIT(nxt_reply_late_ms);
 
 /**
+ * nxt_stall_backoff_ms() - how long to wait before clearing a stall again
+ * @stalls: stalls of the IN endpoint in a row, with no packet in between
+ *
+ * A first stall is cleared at once: a telegram may be waiting for it. An
+ * endpoint that stalls again as soon as it is cleared would otherwise keep
+ * a CPU in a loop of control transfers, so each further stall doubles the
+ * wait, from NXT_STALL_BACKOFF_MIN_MS to NXT_STALL_BACKOFF_MAX_MS.
+ *
+ * Return: the wait in milliseconds.
+ */
+unsigned int nxt_stall_backoff_ms(unsigned int stalls)
+{
+	unsigned int ms;
+
+	if (stalls <= 1)
+		return 0;
+	ms = NXT_STALL_BACKOFF_MIN_MS << min(stalls - 2, 7U);
+	return min(ms, NXT_STALL_BACKOFF_MAX_MS);
+}
+EXPORT_SYMBOL_IF_KUNIT(nxt_stall_backoff_ms);
+
+/**
  * nxt_time_left() - time left until a point on a 64-bit clock, capped
  * @now: the clock now (get_jiffies_64(), say)
  * @until: the point

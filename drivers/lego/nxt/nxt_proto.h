@@ -96,11 +96,16 @@ struct nxt_device_info {
 #define NXT_LATE_REPLY_MS	20
 #define NXT_SLOW_REPLY_MS	3000
 
+/* Waits before clearing a stall again (nxt_stall_backoff_ms()). */
+#define NXT_STALL_BACKOFF_MIN_MS	10U
+#define NXT_STALL_BACKOFF_MAX_MS	1000U
+
 int nxt_telegram_check(const u8 *tg, size_t len);
 unsigned int nxt_reply_length(const u8 *tg, size_t len);
 int nxt_reply_check(const u8 *tg, size_t tg_len, const u8 *reply, size_t len);
 int nxt_status_to_errno(u8 status);
 unsigned int nxt_reply_late_ms(const u8 *tg, size_t len);
+unsigned int nxt_stall_backoff_ms(unsigned int stalls);
 u64 nxt_time_left(u64 now, u64 until, u64 max);
 bool nxt_time_fresh(u64 now, u64 then, u64 max_age);
 

@@ -542,6 +542,29 @@ static void nxt_test_time(struct kunit *test)
 	KUNIT_EXPECT_FALSE(test, nxt_time_fresh(start, start + 1, 100));
 }
 
+/*
+ * A permanently stalling endpoint: the first stall is cleared at once, the
+ * following ones after a wait that doubles up to a second, never 0 again.
+ */
+static void nxt_test_stall_backoff(struct kunit *test)
+{
+	unsigned int n, prev = 0, ms;
+
+	KUNIT_EXPECT_EQ(test, nxt_stall_backoff_ms(0), 0U);
+	KUNIT_EXPECT_EQ(test, nxt_stall_backoff_ms(1), 0U);
+	KUNIT_EXPECT_EQ(test, nxt_stall_backoff_ms(2), NXT_STALL_BACKOFF_MIN_MS);
+	KUNIT_EXPECT_EQ(test, nxt_stall_backoff_ms(3), 2 * NXT_STALL_BACKOFF_MIN_MS);
+	for (n = 2; n <= 300; n++) {
+		ms = nxt_stall_backoff_ms(n);
+		KUNIT_EXPECT_GE(test, ms, prev);
+		KUNIT_EXPECT_GT(test, ms, 0U);
+		KUNIT_EXPECT_LE(test, ms, NXT_STALL_BACKOFF_MAX_MS);
+		prev = ms;
+	}
+	KUNIT_EXPECT_EQ(test, nxt_stall_backoff_ms(255), NXT_STALL_BACKOFF_MAX_MS);
+	KUNIT_EXPECT_EQ(test, nxt_stall_backoff_ms(U32_MAX), NXT_STALL_BACKOFF_MAX_MS);
+}
+
 /* Counts in replies that do not fit their fields are refused. */
 static void nxt_test_malformed_payloads(struct kunit *test)
 {
@@ -700,6 +723,7 @@ static struct kunit_case nxt_proto_cases[] = {
 	KUNIT_CASE(nxt_test_reply_echo),
 	KUNIT_CASE(nxt_test_late_replies),
 	KUNIT_CASE(nxt_test_time),
+	KUNIT_CASE(nxt_test_stall_backoff),
 	KUNIT_CASE(nxt_test_malformed_payloads),
 	KUNIT_CASE(nxt_test_versions_and_device_info),
 	KUNIT_CASE(nxt_test_status_codes),

@@ -43,12 +43,6 @@
  * so that it ends with -ENODEV rather than with a timeout.
  */
 #define NXT_UNPLUG_GRACE_MS	1000
-/*
- * Restart delay of the reader after its endpoint stalled again and again:
- * 0 after the first stall, then doubling from NXT_RECOVER_MS up to this, so
- * that an endpoint that stalls for ever does not keep a CPU busy.
- */
-#define NXT_STALL_BACKOFF_MAX_MS	1000
 /* How long suspend() lets the transaction in flight finish. */
 #define NXT_SUSPEND_WAIT_MS	1000
 
@@ -198,21 +192,17 @@ static void nxt_take_packet(struct nxt_usb *nxt, const u8 *buf, unsigned int len
 }
 
 /*
- * When to restart the reader after a transfer error: at once after a first
- * stall (a telegram is waiting for it), later after a stall that came back
- * at once, NXT_RECOVER_MS after other errors. @lock held.
+ * When to restart the reader after a transfer error: after a stall, as
+ * nxt_stall_backoff_ms() says (at once the first time, later when the
+ * endpoint stalls again and again); NXT_RECOVER_MS after other errors.
+ * @lock held.
  */
 static unsigned long nxt_recover_delay(struct nxt_usb *nxt)
 {
-	unsigned int ms;
-
 	lockdep_assert_held(&nxt->lock);
 	if (!nxt->halted_in)
 		return msecs_to_jiffies(NXT_RECOVER_MS);
-	if (nxt->stalls <= 1)
-		return 0;
-	ms = NXT_RECOVER_MS << min_t(unsigned int, nxt->stalls - 2, 7);
-	return msecs_to_jiffies(min(ms, NXT_STALL_BACKOFF_MAX_MS));
+	return msecs_to_jiffies(nxt_stall_backoff_ms(nxt->stalls));
 }
 
 static void nxt_in_complete(struct urb *urb)
