@@ -67,6 +67,26 @@ lego_hrtimer_setup(struct hrtimer *timer,
 #endif
 
 /*
+ * Timers, in kernel builds only (the userspace builds have none): the code
+ * uses the names of current kernels, mapped here onto the older ones.
+ * 6.2 (and 6.1.y): del_timer() and del_timer_sync() became timer_delete()
+ * and timer_delete_sync(); 6.16: from_timer() became timer_container_of().
+ */
+#ifdef __KERNEL__
+#include <linux/timer.h>
+
+#ifndef LEGO_HAVE_TIMER_DELETE
+#define timer_delete(timer)		del_timer(timer)
+#define timer_delete_sync(timer)	del_timer_sync(timer)
+#endif
+
+#ifndef LEGO_HAVE_TIMER_CONTAINER_OF
+#define timer_container_of(var, callback_timer, timer_fieldname)	\
+	from_timer(var, callback_timer, timer_fieldname)
+#endif
+#endif /* __KERNEL__ */
+
+/*
  * KUNIT_EXPECT_MEMEQ() for the KUnit tests, which include <kunit/test.h>:
  * before 6.2, a memcmp() and the names of the two buffers on a failure.
  */

@@ -84,7 +84,8 @@ The `hostile` option makes a misbehaving brick: `short` (truncated replies),
 `long` (replies padded to 64 bytes), `opcode` (wrong echoed opcode),
 `noreply` (never replies), `garbage` (random bytes not starting with 0x02),
 `stall` (halts the IN endpoint instead of replying), `disconnect` (unplugs
-after receiving a command, before replying).
+after receiving a command, before replying), `mislength` (sends a reply to
+the same opcode but of the wrong length before each real reply).
 
 Usage: python3 tests/emulator/nxt_brick.py [--udc dummy_udc.0]
     [--serial 001653A0B1C2] [--name NXT] [--hostile MODE]
@@ -1117,7 +1118,8 @@ GET_STATUS, SET_ADDRESS, GET_DESCRIPTOR = 0x00, 0x05, 0x06
 GET_CONFIGURATION, SET_CONFIGURATION = 0x08, 0x09
 DT_DEVICE, DT_CONFIG, DT_STRING = 1, 2, 3
 
-HOSTILE_MODES = ('short', 'long', 'opcode', 'noreply', 'garbage', 'stall', 'disconnect')
+HOSTILE_MODES = ('short', 'long', 'opcode', 'noreply', 'garbage', 'stall', 'disconnect',
+                 'mislength')
 
 # Blocking raw-gadget ioctls are woken by this signal (its handler does
 # nothing, so the ioctl returns EINTR and the thread sees it should stop).
@@ -1418,6 +1420,10 @@ class RawGadgetBrick:
         return reply
 
     def _send(self, reply):
+        if self.hostile == 'mislength':
+            # A reply to the same opcode but of the wrong length first.
+            self._queue_reply(reply + b'\xa5' * (64 - len(reply)) if len(reply) < 64
+                              else reply[:-1])
         reply = self._spoil(reply)
         if self.hostile == 'stall':
             try:
@@ -1428,6 +1434,11 @@ class RawGadgetBrick:
             return
         if reply is None:
             return
+        self._queue_reply(reply)
+
+    def _queue_reply(self, reply):
+        """Put `reply` in the IN FIFO and wait, as the firmware does, for
+        the host to collect it."""
         item = _Reply(reply)
         with self._cond:
             if len(self._banks) >= IN_BANKS:

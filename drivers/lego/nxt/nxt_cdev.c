@@ -204,7 +204,11 @@ static __poll_t nxt_poll(struct file *file, poll_table *wait)
 	return mask;
 }
 
-/* A telegram and its reply, for the ioctls. @lock held. */
+/*
+ * A telegram and its reply, for the ioctls. @lock held. -ERESTARTSYS only
+ * when nothing was sent, so that the call can be restarted; -EINTR once it
+ * was.
+ */
 static int nxt_file_transact(struct nxt_file *f, const u8 *tg, size_t len,
 			     bool nonblock)
 {
@@ -213,10 +217,7 @@ static int nxt_file_transact(struct nxt_file *f, const u8 *tg, size_t len,
 	ret = nxt_file_settle(f, nonblock);
 	if (ret)
 		return ret;
-	ret = nxt_transact(f->nxt, &f->xfer, tg, len, f->timeout_ms, nonblock);
-	if (ret == -ERESTARTSYS)
-		ret = -EINTR;
-	return ret;
+	return nxt_transact(f->nxt, &f->xfer, tg, len, f->timeout_ms, nonblock);
 }
 
 static long nxt_ioctl_transact(struct nxt_file *f, void __user *argp,
@@ -249,21 +250,27 @@ static long nxt_ioctl_transact(struct nxt_file *f, void __user *argp,
 	return copy_to_user(argp, &t, sizeof(t)) ? -EFAULT : 0;
 }
 
+/*
+ * Errors: those of nxt_file_transact() (-EAGAIN only when, under O_NONBLOCK,
+ * nothing was sent; the argument is then not written), -EPROTO for a reply
+ * out of range, else the errno of the brick's status byte, which is in the
+ * argument copied back (-EINPROGRESS: an I2C transaction is still pending).
+ */
 static long nxt_ioctl_command(struct nxt_file *f, const struct nxt_command *cmd,
 			      void __user *argp, bool nonblock)
 {
 	struct device *dev = &f->nxt->udev->dev;
 	size_t size = _IOC_SIZE(cmd->ioctl);
-	u8 arg[NXT_TELEGRAM_MAX];
+	union nxt_command_arg arg;
 	u8 tg[NXT_TELEGRAM_MAX];
 	int len, ret;
 	u8 status;
 
 	if (WARN_ON_ONCE(size > sizeof(arg)))
 		return -EINVAL;
-	if (copy_from_user(arg, argp, size))
+	if (copy_from_user(&arg, argp, size))
 		return -EFAULT;
-	len = nxt_command_encode(cmd, arg, tg);
+	len = nxt_command_encode(cmd, &arg, tg);
 	if (len < 0) {
 		dev_dbg_ratelimited(dev, "bad arguments for opcode 0x%02x\n", cmd->opcode);
 		return len;
@@ -274,7 +281,7 @@ static long nxt_ioctl_command(struct nxt_file *f, const struct nxt_command *cmd,
 		return ret;
 	ret = nxt_file_transact(f, tg, len, nonblock);
 	if (!ret) {
-		ret = nxt_command_decode(cmd, f->xfer.reply, f->xfer.reply_len, arg);
+		ret = nxt_command_decode(cmd, f->xfer.reply, f->xfer.reply_len, &arg);
 		if (ret)
 			dev_warn_ratelimited(dev, "reply to opcode 0x%02x out of range\n",
 					     cmd->opcode);
@@ -283,9 +290,9 @@ static long nxt_ioctl_command(struct nxt_file *f, const struct nxt_command *cmd,
 	if (ret)
 		return ret;
 
-	if (copy_to_user(argp, arg, size))
+	if (copy_to_user(argp, &arg, size))
 		return -EFAULT;
-	status = arg[cmd->status_offset];
+	status = arg.bytes[cmd->status_offset];
 	if (status)
 		dev_dbg_ratelimited(dev, "opcode 0x%02x: status 0x%02x\n", cmd->opcode, status);
 	return nxt_status_to_errno(status);

@@ -357,6 +357,29 @@ unsigned int nxt_reply_length(const u8 *tg, size_t len)
 }
 EXPORT_SYMBOL_IF_KUNIT(nxt_reply_length);
 
+/*
+ * Whether a successful reply echoes what @tg asked for, where it echoes
+ * anything: the port of GetOutputState and GetInputValues, the local inbox
+ * of MessageRead. An error reply has zeros there (the firmware clears the
+ * payload), so only successful replies are checked.
+ */
+static bool nxt_reply_echoes(const u8 *tg, size_t tg_len, const u8 *reply)
+{
+	if (tg[0] != NXT_DIRECT_CMD)
+		return true;
+	switch (tg[1]) {
+	case NXT_GET_OUTPUT_STATE:
+	case NXT_GET_INPUT_VALUES:
+		/* Request: port at 2; reply: port at 3. */
+		return tg_len < 3 || reply[3] == tg[2];
+	case NXT_MESSAGE_READ:
+		/* Request: remote inbox, local inbox; reply: local inbox at 3. */
+		return tg_len < 4 || reply[3] == tg[3];
+	default:
+		return true;
+	}
+}
+
 /**
  * nxt_reply_check() - check that a packet from the brick answers a telegram
  * @tg: the telegram sent, which asked for a reply
@@ -367,10 +390,13 @@ EXPORT_SYMBOL_IF_KUNIT(nxt_reply_length);
  * A reply must be a reply telegram echoing @tg's opcode, and as long as the
  * firmware makes that command's replies. An error reply may be shorter (the
  * firmware sends three bytes for an unknown opcode or a bad low-speed port).
+ * A successful reply to GetOutputState or GetInputValues must echo @tg's
+ * port, one to MessageRead its local inbox: a stale reply to the same
+ * command for another port or inbox is not this reply.
  *
  * Return: the brick's status byte (0 for success) if @reply answers @tg;
- * -%ENOMSG if it is not a reply to @tg's opcode (a stale reply, or garbage);
- * -%EPROTO if it is, but its length is wrong for the command.
+ * -%ENOMSG if it is not a reply to @tg (a stale reply, or garbage); -%EPROTO
+ * if it is a reply to @tg's opcode, but its length is wrong for the command.
  */
 int nxt_reply_check(const u8 *tg, size_t tg_len, const u8 *reply, size_t len)
 {
@@ -386,9 +412,90 @@ int nxt_reply_check(const u8 *tg, size_t tg_len, const u8 *reply, size_t len)
 	want = nxt_reply_length(tg, tg_len);
 	if (want && len != want && (status == NXT_STATUS_SUCCESS || len > want))
 		return -EPROTO;
+	if (status == NXT_STATUS_SUCCESS && !nxt_reply_echoes(tg, tg_len, reply))
+		return -ENOMSG;
 	return status;
 }
 EXPORT_SYMBOL_IF_KUNIT(nxt_reply_check);
+
+/**
+ * nxt_reply_late_ms() - how late a reply to a telegram may still come
+ * @tg: a telegram that passed nxt_telegram_check() and was sent
+ * @len: its length
+ *
+ * After a transaction ends without its reply (a timeout, a signal), the
+ * reply may still be on its way: the next telegram waits this long for it,
+ * and goes as soon as it has come and been dropped.
+ *
+ * Quirk: DeleteUserFlash erases the whole user flash before it answers,
+ * which takes long enough that NBC waits 3 s for it instead of 1 s; every
+ * other command is answered within a few milliseconds of its arrival.
+ *
+ * Return: the time in milliseconds, NXT_LATE_REPLY_MS or more.
+ */
+unsigned int nxt_reply_late_ms(const u8 *tg, size_t len)
+{
+	if (len >= 2 && tg[0] == NXT_SYSTEM_CMD && tg[1] == NXT_DELETE_USER_FLASH)
+		return NXT_SLOW_REPLY_MS;
+	return NXT_LATE_REPLY_MS;
+}
+EXPORT_SYMBOL_IF_KUNIT(nxt_reply_late_ms);
+
+/**
+ * nxt_stall_backoff_ms() - how long to wait before clearing a stall again
+ * @stalls: stalls of the IN endpoint in a row, with no packet in between
+ *
+ * A first stall is cleared at once: a telegram may be waiting for it. An
+ * endpoint that stalls again as soon as it is cleared would otherwise keep
+ * a CPU in a loop of control transfers, so each further stall doubles the
+ * wait, from NXT_STALL_BACKOFF_MIN_MS to NXT_STALL_BACKOFF_MAX_MS.
+ *
+ * Return: the wait in milliseconds.
+ */
+unsigned int nxt_stall_backoff_ms(unsigned int stalls)
+{
+	unsigned int ms;
+
+	if (stalls <= 1)
+		return 0;
+	ms = NXT_STALL_BACKOFF_MIN_MS << min(stalls - 2, 7U);
+	return min(ms, NXT_STALL_BACKOFF_MAX_MS);
+}
+EXPORT_SYMBOL_IF_KUNIT(nxt_stall_backoff_ms);
+
+/**
+ * nxt_time_left() - time left until a point on a 64-bit clock, capped
+ * @now: the clock now (get_jiffies_64(), say)
+ * @until: the point
+ * @max: the cap: @until is never further than this ahead
+ *
+ * Pure arithmetic on a clock that does not wrap: a point long past stays
+ * past, however long ago it was, unlike with time_before() on a 32-bit
+ * jiffies, which wraps after 2^31 ticks (24.9 days at HZ=1000).
+ *
+ * Return: @until - @now, at most @max; 0 once @until has come.
+ */
+u64 nxt_time_left(u64 now, u64 until, u64 max)
+{
+	if (until <= now)
+		return 0;
+	return min(until - now, max);
+}
+EXPORT_SYMBOL_IF_KUNIT(nxt_time_left);
+
+/**
+ * nxt_time_fresh() - whether something taken at @then is younger than @max_age
+ * @now: the clock now (get_jiffies_64(), say)
+ * @then: when the thing was taken, on the same clock, not after @now
+ * @max_age: its lifetime
+ *
+ * Return: true while @now is before @then + @max_age.
+ */
+bool nxt_time_fresh(u64 now, u64 then, u64 max_age)
+{
+	return now >= then && now - then < max_age;
+}
+EXPORT_SYMBOL_IF_KUNIT(nxt_time_fresh);
 
 /**
  * nxt_status_to_errno() - the errno a status byte of the brick maps to
@@ -403,7 +510,8 @@ int nxt_status_to_errno(u8 status)
 	case NXT_STATUS_SUCCESS:
 		return 0;
 	case NXT_STATUS_PENDING:
-		return -EAGAIN;
+		/* Not -EAGAIN, which means "busy, nothing sent" under O_NONBLOCK. */
+		return -EINPROGRESS;
 	case NXT_STATUS_MAILBOX_EMPTY:
 		return -ENOMSG;
 	case NXT_STATUS_NO_MORE_HANDLES:
@@ -825,58 +933,63 @@ static int nxt_decode_message_read(const u8 *reply, void *arg)
 
 	if (r->size > NXT_MESSAGE_MAX)
 		return -EPROTO;
+	a->local_inbox = r->local_inbox;
 	a->size = r->size;
 	memset(a->data, 0, sizeof(a->data));
 	memcpy(a->data, r->data, r->size);
 	return 0;
 }
 
-#define NXT_CMD(_ioctl, _op, _type, _enc, _dec) {			\
-	.ioctl = _ioctl,						\
-	.opcode = _op,							\
+/*
+ * The typed ioctl NXT_IOC_<name> of direct command NXT_<name>: the size its
+ * number encodes must be that of its structure @_type, which must fit
+ * union nxt_command_arg, the ioctl's buffer.
+ */
+#define NXT_CMD(_name, _type, _enc, _dec) {				\
+	.ioctl = NXT_IOC_##_name +					\
+		 BUILD_BUG_ON_ZERO(_IOC_SIZE(NXT_IOC_##_name) != sizeof(_type)) + \
+		 BUILD_BUG_ON_ZERO(sizeof(_type) > sizeof(union nxt_command_arg)), \
+	.opcode = NXT_##_name,						\
 	.status_offset = offsetof(_type, status),			\
 	.encode = _enc,							\
 	.decode = _dec,							\
 }
 
 static const struct nxt_command nxt_commands[] = {
-	NXT_CMD(NXT_IOC_START_PROGRAM, NXT_START_PROGRAM, struct nxt_program,
+	NXT_CMD(START_PROGRAM, struct nxt_program,
 		nxt_encode_start_program, NULL),
-	NXT_CMD(NXT_IOC_STOP_PROGRAM, NXT_STOP_PROGRAM, struct nxt_status_only,
+	NXT_CMD(STOP_PROGRAM, struct nxt_status_only,
 		nxt_encode_status_only, NULL),
-	NXT_CMD(NXT_IOC_PLAY_SOUND_FILE, NXT_PLAY_SOUND_FILE, struct nxt_sound_file,
+	NXT_CMD(PLAY_SOUND_FILE, struct nxt_sound_file,
 		nxt_encode_sound_file, NULL),
-	NXT_CMD(NXT_IOC_PLAY_TONE, NXT_PLAY_TONE, struct nxt_tone,
+	NXT_CMD(PLAY_TONE, struct nxt_tone,
 		nxt_encode_tone, NULL),
-	NXT_CMD(NXT_IOC_SET_OUTPUT_STATE, NXT_SET_OUTPUT_STATE, struct nxt_output_state,
+	NXT_CMD(SET_OUTPUT_STATE, struct nxt_output_state,
 		nxt_encode_set_output_state, NULL),
-	NXT_CMD(NXT_IOC_SET_INPUT_MODE, NXT_SET_INPUT_MODE, struct nxt_input_mode,
+	NXT_CMD(SET_INPUT_MODE, struct nxt_input_mode,
 		nxt_encode_input_mode, NULL),
-	NXT_CMD(NXT_IOC_GET_OUTPUT_STATE, NXT_GET_OUTPUT_STATE, struct nxt_output_state,
+	NXT_CMD(GET_OUTPUT_STATE, struct nxt_output_state,
 		nxt_encode_get_output_state, nxt_decode_output_state),
-	NXT_CMD(NXT_IOC_GET_INPUT_VALUES, NXT_GET_INPUT_VALUES, struct nxt_input_values,
+	NXT_CMD(GET_INPUT_VALUES, struct nxt_input_values,
 		nxt_encode_get_input_values, nxt_decode_input_values),
-	NXT_CMD(NXT_IOC_RESET_INPUT_SCALED_VALUE, NXT_RESET_INPUT_SCALED_VALUE,
-		struct nxt_input_port, nxt_encode_input_port, NULL),
-	NXT_CMD(NXT_IOC_MESSAGE_WRITE, NXT_MESSAGE_WRITE, struct nxt_message,
+	NXT_CMD(RESET_INPUT_SCALED_VALUE, struct nxt_input_port, nxt_encode_input_port, NULL),
+	NXT_CMD(MESSAGE_WRITE, struct nxt_message,
 		nxt_encode_message_write, NULL),
-	NXT_CMD(NXT_IOC_RESET_MOTOR_POSITION, NXT_RESET_MOTOR_POSITION,
-		struct nxt_motor_position, nxt_encode_motor_position, NULL),
-	NXT_CMD(NXT_IOC_GET_BATTERY_LEVEL, NXT_GET_BATTERY_LEVEL, struct nxt_battery,
+	NXT_CMD(RESET_MOTOR_POSITION, struct nxt_motor_position, nxt_encode_motor_position, NULL),
+	NXT_CMD(GET_BATTERY_LEVEL, struct nxt_battery,
 		nxt_encode_battery, nxt_decode_battery),
-	NXT_CMD(NXT_IOC_STOP_SOUND_PLAYBACK, NXT_STOP_SOUND_PLAYBACK,
-		struct nxt_status_only, nxt_encode_status_only, NULL),
-	NXT_CMD(NXT_IOC_KEEP_ALIVE, NXT_KEEP_ALIVE, struct nxt_keep_alive,
+	NXT_CMD(STOP_SOUND_PLAYBACK, struct nxt_status_only, nxt_encode_status_only, NULL),
+	NXT_CMD(KEEP_ALIVE, struct nxt_keep_alive,
 		nxt_encode_keep_alive, nxt_decode_keep_alive),
-	NXT_CMD(NXT_IOC_LS_GET_STATUS, NXT_LS_GET_STATUS, struct nxt_ls_status,
+	NXT_CMD(LS_GET_STATUS, struct nxt_ls_status,
 		nxt_encode_ls_status, nxt_decode_ls_status),
-	NXT_CMD(NXT_IOC_LS_WRITE, NXT_LS_WRITE, struct nxt_ls_write,
+	NXT_CMD(LS_WRITE, struct nxt_ls_write,
 		nxt_encode_ls_write, NULL),
-	NXT_CMD(NXT_IOC_LS_READ, NXT_LS_READ, struct nxt_ls_read,
+	NXT_CMD(LS_READ, struct nxt_ls_read,
 		nxt_encode_ls_read, nxt_decode_ls_read),
-	NXT_CMD(NXT_IOC_GET_CURRENT_PROGRAM_NAME, NXT_GET_CURRENT_PROGRAM_NAME,
-		struct nxt_program, nxt_encode_program_name, nxt_decode_program_name),
-	NXT_CMD(NXT_IOC_MESSAGE_READ, NXT_MESSAGE_READ, struct nxt_message,
+	NXT_CMD(GET_CURRENT_PROGRAM_NAME, struct nxt_program,
+		nxt_encode_program_name, nxt_decode_program_name),
+	NXT_CMD(MESSAGE_READ, struct nxt_message,
 		nxt_encode_message_read, nxt_decode_message_read),
 };
 

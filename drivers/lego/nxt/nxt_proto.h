@@ -35,6 +35,45 @@ struct nxt_command {
 };
 
 /**
+ * union nxt_command_arg - room for the argument of any typed ioctl, aligned
+ *	for each of them
+ * @program: StartProgram, GetCurrentProgramName
+ * @status_only: StopProgram, StopSoundPlayback
+ * @sound_file: PlaySoundFile
+ * @tone: PlayTone
+ * @output_state: SetOutputState, GetOutputState
+ * @input_mode: SetInputMode
+ * @input_values: GetInputValues
+ * @input_port: ResetInputScaledValue
+ * @motor_position: ResetMotorPosition
+ * @message: MessageWrite, MessageRead
+ * @battery: GetBatteryLevel
+ * @keep_alive: KeepAlive
+ * @ls_status: LSGetStatus
+ * @ls_write: LSWrite
+ * @ls_read: LSRead
+ * @bytes: the argument as bytes
+ */
+union nxt_command_arg {
+	struct nxt_program program;
+	struct nxt_status_only status_only;
+	struct nxt_sound_file sound_file;
+	struct nxt_tone tone;
+	struct nxt_output_state output_state;
+	struct nxt_input_mode input_mode;
+	struct nxt_input_values input_values;
+	struct nxt_input_port input_port;
+	struct nxt_motor_position motor_position;
+	struct nxt_message message;
+	struct nxt_battery battery;
+	struct nxt_keep_alive keep_alive;
+	struct nxt_ls_status ls_status;
+	struct nxt_ls_write ls_write;
+	struct nxt_ls_read ls_read;
+	u8 bytes[NXT_TELEGRAM_MAX];
+};
+
+/**
  * struct nxt_device_info - the reply to GetDeviceInfo (system command 0x9b)
  * @name: the brick's name, NUL-terminated; bytes that are not printable
  *	ASCII read as '?'
@@ -50,11 +89,25 @@ struct nxt_device_info {
 /* System commands the driver sends itself, for the sysfs attributes. */
 #define NXT_GET_VERSIONS	0x88
 #define NXT_GET_DEVICE_INFO	0x9b
+/* The system command the brick is slow to answer. */
+#define NXT_DELETE_USER_FLASH	0xa0
+
+/* How late a reply may come after its transaction ended (nxt_reply_late_ms()). */
+#define NXT_LATE_REPLY_MS	20
+#define NXT_SLOW_REPLY_MS	3000
+
+/* Waits before clearing a stall again (nxt_stall_backoff_ms()). */
+#define NXT_STALL_BACKOFF_MIN_MS	10U
+#define NXT_STALL_BACKOFF_MAX_MS	1000U
 
 int nxt_telegram_check(const u8 *tg, size_t len);
 unsigned int nxt_reply_length(const u8 *tg, size_t len);
 int nxt_reply_check(const u8 *tg, size_t tg_len, const u8 *reply, size_t len);
 int nxt_status_to_errno(u8 status);
+unsigned int nxt_reply_late_ms(const u8 *tg, size_t len);
+unsigned int nxt_stall_backoff_ms(unsigned int stalls);
+u64 nxt_time_left(u64 now, u64 until, u64 max);
+bool nxt_time_fresh(u64 now, u64 then, u64 max_age);
 
 const struct nxt_command *nxt_command_find(unsigned int ioctl);
 int nxt_command_encode(const struct nxt_command *cmd, const void *arg, u8 *tg);

@@ -457,6 +457,114 @@ static void nxt_test_reply_check(struct kunit *test)
 					      sizeof(rename_stale)), 0);
 }
 
+/*
+ * A successful reply to a command that echoes a port or an inbox answers
+ * only the telegram that asked for that port or inbox: a stale reply to the
+ * same command for another one is not taken for it.
+ */
+static void nxt_test_reply_echo(struct kunit *test)
+{
+	static const u8 get_output1[] = { 0x00, 0x06, 0x01 };
+	u8 output[25] = { 0x02, 0x06, 0x00, 0x01 };
+	static const u8 get_input2[] = { 0x00, 0x07, 0x02 };
+	u8 input[16] = { 0x02, 0x07, 0x00, 0x02 };
+	u8 output_error[25] = { 0x02, 0x06, 0xc0 };
+	const struct nxt_command *cmd = nxt_command_find(NXT_IOC_MESSAGE_READ);
+	struct nxt_message m = { .inbox = 12, .local_inbox = 3, .remove = 1 };
+	u8 msg[64] = { 0x02, 0x13, 0x00, 0x03, 0x02, 'x', 0 };
+	u8 tg[NXT_TELEGRAM_MAX];
+	int len;
+
+	KUNIT_EXPECT_EQ(test, nxt_reply_check(get_output1, 3, output, sizeof(output)), 0);
+	output[3] = 0x02;
+	KUNIT_EXPECT_EQ(test, nxt_reply_check(get_output1, 3, output, sizeof(output)), -ENOMSG);
+	/* An error reply has zeros where the port would be. */
+	KUNIT_EXPECT_EQ(test, nxt_reply_check(get_output1, 3, output_error,
+					      sizeof(output_error)), 0xc0);
+
+	KUNIT_EXPECT_EQ(test, nxt_reply_check(get_input2, 3, input, sizeof(input)), 0);
+	input[3] = 0x00;
+	KUNIT_EXPECT_EQ(test, nxt_reply_check(get_input2, 3, input, sizeof(input)), -ENOMSG);
+
+	KUNIT_ASSERT_NOT_NULL(test, cmd);
+	len = nxt_command_encode(cmd, &m, tg);
+	KUNIT_ASSERT_EQ(test, len, 5);
+	KUNIT_EXPECT_EQ(test, nxt_reply_check(tg, len, msg, sizeof(msg)), 0);
+	/* The uapi says the local inbox is echoed: it is written back. */
+	m.local_inbox = 0xff;
+	KUNIT_EXPECT_EQ(test, nxt_command_decode(cmd, msg, sizeof(msg), &m), 0);
+	KUNIT_EXPECT_EQ(test, m.local_inbox, 3);
+	KUNIT_EXPECT_EQ(test, m.size, 2);
+	msg[3] = 0x04;
+	KUNIT_EXPECT_EQ(test, nxt_reply_check(tg, len, msg, sizeof(msg)), -ENOMSG);
+}
+
+/* How long a lost reply is waited for: DeleteUserFlash takes seconds. */
+static void nxt_test_late_replies(struct kunit *test)
+{
+	static const u8 erase[] = { 0x01, 0xa0 };
+	static const u8 erase_noreply[] = { 0x81, 0xa0 };
+	static const u8 battery[] = { 0x00, 0x0b };
+	static const u8 direct_a0[] = { 0x00, 0xa0 };
+
+	KUNIT_EXPECT_EQ(test, nxt_reply_late_ms(erase, sizeof(erase)), NXT_SLOW_REPLY_MS);
+	KUNIT_EXPECT_GE(test, NXT_SLOW_REPLY_MS, 3000);
+	KUNIT_EXPECT_EQ(test, nxt_reply_late_ms(erase_noreply, 2), NXT_LATE_REPLY_MS);
+	KUNIT_EXPECT_EQ(test, nxt_reply_late_ms(battery, 2), NXT_LATE_REPLY_MS);
+	KUNIT_EXPECT_EQ(test, nxt_reply_late_ms(direct_a0, 2), NXT_LATE_REPLY_MS);
+}
+
+/*
+ * The drain and the sysfs cache on a clock that does not wrap. The values
+ * are those a 32-bit jiffies makes wrong: a point 2^31 + 1 ticks in the
+ * past (24.9 days at HZ=1000) looked 2^31 - 1 ticks in the future to
+ * time_before(), and a write() slept that long.
+ */
+static void nxt_test_time(struct kunit *test)
+{
+	const u64 start = 0xfffb6c20ULL;	/* INITIAL_JIFFIES on 32 bits */
+	const u64 weeks = (1ULL << 31) + 1;
+	const u64 max = 3000;
+
+	KUNIT_EXPECT_EQ(test, nxt_time_left(start + weeks, start, max), 0ULL);
+	KUNIT_EXPECT_EQ(test, nxt_time_left(start + 2 * weeks, start + 20, max), 0ULL);
+	KUNIT_EXPECT_EQ(test, nxt_time_left(start, start, max), 0ULL);
+	KUNIT_EXPECT_EQ(test, nxt_time_left(start, start + 20, max), 20ULL);
+	KUNIT_EXPECT_EQ(test, nxt_time_left(U32_MAX - 5ULL, U32_MAX + 15ULL, max), 20ULL);
+	/* Never longer than the cap, whatever is stored. */
+	KUNIT_EXPECT_EQ(test, nxt_time_left(start, start + weeks, max), max);
+
+	KUNIT_EXPECT_TRUE(test, nxt_time_fresh(start + 10, start, 100));
+	KUNIT_EXPECT_TRUE(test, nxt_time_fresh(U32_MAX + 10ULL, U32_MAX - 10ULL, 100));
+	KUNIT_EXPECT_FALSE(test, nxt_time_fresh(start + 100, start, 100));
+	KUNIT_EXPECT_FALSE(test, nxt_time_fresh(start + weeks, start, 100));
+	KUNIT_EXPECT_FALSE(test, nxt_time_fresh(start + 2 * weeks + 50, start, 100));
+	KUNIT_EXPECT_FALSE(test, nxt_time_fresh(start, start + 1, 100));
+}
+
+/*
+ * A permanently stalling endpoint: the first stall is cleared at once, the
+ * following ones after a wait that doubles up to a second, never 0 again.
+ */
+static void nxt_test_stall_backoff(struct kunit *test)
+{
+	unsigned int n, prev = 0, ms;
+
+	KUNIT_EXPECT_EQ(test, nxt_stall_backoff_ms(0), 0U);
+	KUNIT_EXPECT_EQ(test, nxt_stall_backoff_ms(1), 0U);
+	KUNIT_EXPECT_EQ(test, nxt_stall_backoff_ms(2), NXT_STALL_BACKOFF_MIN_MS);
+	KUNIT_EXPECT_EQ(test, nxt_stall_backoff_ms(3), 2 * NXT_STALL_BACKOFF_MIN_MS);
+	for (n = 2; n <= 300; n++) {
+		ms = nxt_stall_backoff_ms(n);
+		KUNIT_EXPECT_GE(test, ms, prev);
+		KUNIT_EXPECT_GT(test, ms, 0U);
+		KUNIT_EXPECT_LE(test, ms, NXT_STALL_BACKOFF_MAX_MS);
+		prev = ms;
+	}
+	KUNIT_EXPECT_EQ(test, nxt_stall_backoff_ms(255), NXT_STALL_BACKOFF_MAX_MS);
+	KUNIT_EXPECT_EQ(test, nxt_stall_backoff_ms(U32_MAX), NXT_STALL_BACKOFF_MAX_MS);
+}
+
 /* Counts in replies that do not fit their fields are refused. */
 static void nxt_test_malformed_payloads(struct kunit *test)
 {
@@ -536,7 +644,8 @@ struct nxt_status_case {
 
 static const struct nxt_status_case nxt_status_cases[] = {
 	{ NXT_STATUS_SUCCESS, 0 },
-	{ NXT_STATUS_PENDING, -EAGAIN },
+	/* Not -EAGAIN: that is "busy, nothing sent" under O_NONBLOCK. */
+	{ NXT_STATUS_PENDING, -EINPROGRESS },
 	{ NXT_STATUS_MAILBOX_EMPTY, -ENOMSG },
 	{ NXT_STATUS_NO_MORE_HANDLES, -EMFILE },
 	{ NXT_STATUS_NO_SPACE, -ENOSPC },
@@ -611,6 +720,10 @@ static struct kunit_case nxt_proto_cases[] = {
 	KUNIT_CASE(nxt_test_telegram_lengths),
 	KUNIT_CASE(nxt_test_reply_lengths),
 	KUNIT_CASE(nxt_test_reply_check),
+	KUNIT_CASE(nxt_test_reply_echo),
+	KUNIT_CASE(nxt_test_late_replies),
+	KUNIT_CASE(nxt_test_time),
+	KUNIT_CASE(nxt_test_stall_backoff),
 	KUNIT_CASE(nxt_test_malformed_payloads),
 	KUNIT_CASE(nxt_test_versions_and_device_info),
 	KUNIT_CASE(nxt_test_status_codes),

@@ -9,6 +9,12 @@
  * second. GetDeviceInfo's values are also read again after a system command
  * that may change them (SetBrickName, file writes and deletions) went
  * through the char device.
+ *
+ * The attributes are world-readable, /dev/nxtN is not: whoever reads them,
+ * and however often, the brick gets at most one query of each kind a second
+ * from them. A failure is cached for a second too, so that a brick that
+ * does not answer is not asked again and again; only a query interrupted
+ * by a signal is not.
  */
 #include <linux/device.h>
 #include <linux/jiffies.h>
@@ -73,9 +79,16 @@ void nxt_info_telegram_sent(struct nxt_info *info, const u8 *tg)
 	}
 }
 
-static bool nxt_info_fresh(bool valid, unsigned long when)
+/* Whether a result taken at @when (64-bit jiffies) is less than a second old. */
+static bool nxt_info_fresh(bool valid, u64 when)
 {
-	return valid && time_before(jiffies, when + NXT_INFO_MAX_AGE);
+	return valid && nxt_time_fresh(get_jiffies_64(), when, NXT_INFO_MAX_AGE);
+}
+
+/* Whether a query's failure says something about the brick: if so, cache it. */
+static bool nxt_info_cacheable(int err)
+{
+	return err != -ERESTARTSYS && err != -EINTR && err != -ENOMEM;
 }
 
 /* Sends @tg and checks the reply's status. @info->lock held. */
@@ -96,14 +109,19 @@ static int nxt_info_read_versions(struct nxt_usb *nxt, struct nxt_xfer *x)
 	struct nxt_info *info = &nxt->info;
 	int ret;
 
-	if (READ_ONCE(info->versions_valid))
-		return 0;
+	/* Read once per reset; a failure is kept for a second. */
+	if (READ_ONCE(info->versions_valid) &&
+	    (!info->versions_err || nxt_info_fresh(true, info->versions_time)))
+		return info->versions_err;
 	ret = nxt_info_query(nxt, x, tg, sizeof(tg));
 	if (!ret)
 		ret = nxt_decode_versions(x->reply, x->reply_len, info->protocol,
 					  info->firmware);
-	if (!ret)
+	if (nxt_info_cacheable(ret)) {
+		info->versions_err = ret;
+		info->versions_time = get_jiffies_64();
 		WRITE_ONCE(info->versions_valid, true);
+	}
 	return ret;
 }
 
@@ -114,12 +132,13 @@ static int nxt_info_read_device(struct nxt_usb *nxt, struct nxt_xfer *x)
 	int ret;
 
 	if (nxt_info_fresh(READ_ONCE(info->device_valid), info->device_time))
-		return 0;
+		return info->device_err;
 	ret = nxt_info_query(nxt, x, tg, sizeof(tg));
 	if (!ret)
 		ret = nxt_decode_device_info(x->reply, x->reply_len, &info->device);
-	if (!ret) {
-		info->device_time = jiffies;
+	if (nxt_info_cacheable(ret)) {
+		info->device_err = ret;
+		info->device_time = get_jiffies_64();
 		WRITE_ONCE(info->device_valid, true);
 	}
 	return ret;
@@ -134,16 +153,18 @@ static int nxt_info_read_battery(struct nxt_usb *nxt, struct nxt_xfer *x)
 	int ret, len;
 
 	if (nxt_info_fresh(READ_ONCE(info->battery_valid), info->battery_time))
-		return 0;
+		return info->battery_err;
 	len = nxt_command_encode(cmd, &battery, tg);
 	if (len < 0)
 		return len;
 	ret = nxt_info_query(nxt, x, tg, len);
 	if (!ret)
 		ret = nxt_command_decode(cmd, x->reply, x->reply_len, &battery);
-	if (!ret) {
+	if (!ret)
 		info->battery = battery.millivolts;
-		info->battery_time = jiffies;
+	if (nxt_info_cacheable(ret)) {
+		info->battery_err = ret;
+		info->battery_time = get_jiffies_64();
 		WRITE_ONCE(info->battery_valid, true);
 	}
 	return ret;
@@ -170,7 +191,7 @@ static ssize_t nxt_attr_show(struct device *dev, char *buf, enum nxt_attr which)
 		return -ENOMEM;
 	if (mutex_lock_interruptible(&info->lock)) {
 		kfree(x);
-		return -EINTR;
+		return -ERESTARTSYS;
 	}
 
 	switch (which) {

@@ -23,6 +23,7 @@
  */
 #include <linux/errno.h>
 #include <linux/jiffies.h>
+#include <linux/limits.h>
 #include <linux/module.h>
 #include <linux/sched/signal.h>
 #include <linux/slab.h>
@@ -42,23 +43,82 @@
  * so that it ends with -ENODEV rather than with a timeout.
  */
 #define NXT_UNPLUG_GRACE_MS	1000
+/* How long suspend() lets the transaction in flight finish. */
+#define NXT_SUSPEND_WAIT_MS	1000
 
-static bool nxt_drains_after(const struct nxt_xfer *x, int status)
+/*
+ * Drains packets for @ms from now, unless a drain already lasts longer.
+ * The drain clock is 64-bit jiffies: a drain that ended weeks ago on a
+ * 32-bit machine stays ended. @lock held.
+ */
+static void nxt_drain_for(struct nxt_usb *nxt, unsigned int ms)
 {
-	/* A reply may still be on its way, or queued behind the brick's FIFO. */
-	return status && x->want_reply;
+	u64 until = get_jiffies_64() + msecs_to_jiffies(ms);
+
+	lockdep_assert_held(&nxt->lock);
+	if (until <= nxt->drain_until)
+		return;
+	nxt->drain_until = until;
+	/* Nothing else may happen when it ends: poll() is woken then. */
+	mod_delayed_work(system_wq, &nxt->drain_work, msecs_to_jiffies(ms) + 1);
+}
+
+/* The drain has ended (or ended early): writers and poll() may go on. */
+static void nxt_drain_work(struct work_struct *work)
+{
+	struct nxt_usb *nxt = container_of(to_delayed_work(work), struct nxt_usb,
+					   drain_work);
+
+	wake_up_all(&nxt->wait);
+}
+
+/* Jiffies left of the drain; 0 when none. @lock held. */
+static unsigned long nxt_drain_left(struct nxt_usb *nxt)
+{
+	lockdep_assert_held(&nxt->lock);
+	return nxt_time_left(get_jiffies_64(), nxt->drain_until,
+			     msecs_to_jiffies(NXT_SLOW_REPLY_MS));
+}
+
+static bool nxt_draining(struct nxt_usb *nxt)
+{
+	unsigned long left;
+
+	spin_lock_irq(&nxt->lock);
+	left = nxt_drain_left(nxt);
+	spin_unlock_irq(&nxt->lock);
+	return left;
+}
+
+/*
+ * @x, which was sent, ended without its reply: the reply may still be on
+ * its way, or queued in the brick's FIFO. If the brick took the telegram,
+ * the drain waits for the reply to its opcode (nxt_reply_late_ms()) and
+ * ends when it comes; else it lasts NXT_DRAIN_MS. @lock held.
+ */
+static void nxt_orphan(struct nxt_usb *nxt, struct nxt_xfer *x)
+{
+	if (!x->delivered) {
+		nxt_drain_for(nxt, NXT_DRAIN_MS);
+		return;
+	}
+	nxt_drain_for(nxt, nxt_reply_late_ms(x->tg, x->len));
+	nxt->orphan = true;
+	nxt->orphan_op = x->tg[1];
 }
 
 /* Ends the transaction @x with @status and frees the slot. @lock held. */
 static void nxt_finish(struct nxt_usb *nxt, struct nxt_xfer *x, int status)
 {
+	lockdep_assert_held(&nxt->lock);
 	x->status = status;
 	if (nxt->cur == x) {
 		nxt->cur = NULL;
 		timer_delete(&nxt->timer);
 	}
-	if (nxt_drains_after(x, status))
-		nxt->drain_until = jiffies + msecs_to_jiffies(NXT_DRAIN_MS);
+	/* A telegram never sent has no reply to wait for. */
+	if (status && x->want_reply && x->sent)
+		nxt_orphan(nxt, x);
 	wake_up_all(&nxt->wait);
 }
 
@@ -80,32 +140,50 @@ static int nxt_urb_errno(int status, bool timed_out)
 	}
 }
 
+/* A packet that came while draining: dropped; it may end the drain. @lock held. */
+static void nxt_drain_packet(struct nxt_usb *nxt, const u8 *buf, unsigned int len)
+{
+	dev_dbg_ratelimited(&nxt->udev->dev, "dropped a stale packet (%u bytes)\n", len);
+	/*
+	 * Replies come in the order of their commands, and the last command
+	 * that lost its reply was sent last: once its reply is in, nothing
+	 * stale is left to come.
+	 */
+	if (nxt->orphan && len >= 2 && buf[0] == NXT_REPLY && buf[1] == nxt->orphan_op) {
+		nxt->orphan = false;
+		nxt->drain_until = get_jiffies_64();
+		wake_up_all(&nxt->wait);
+	}
+}
+
 /* A packet from the brick: the awaited reply, or something to drop. @lock held. */
 static void nxt_take_packet(struct nxt_usb *nxt, const u8 *buf, unsigned int len)
 {
 	struct nxt_xfer *x = nxt->cur;
 	int ret;
 
-	if (!x || !x->want_reply || x->status != -EINPROGRESS ||
-	    time_before(jiffies, nxt->drain_until)) {
+	if (nxt_drain_left(nxt)) {
+		nxt_drain_packet(nxt, buf, len);
+		return;
+	}
+	nxt->orphan = false;
+	/* Until its telegram is sent, nothing can answer a transaction. */
+	if (!x || !x->sent || !x->want_reply || x->status != -EINPROGRESS) {
 		dev_dbg_ratelimited(&nxt->udev->dev, "dropped a stale packet (%u bytes)\n", len);
 		return;
 	}
 
 	ret = nxt_reply_check(x->tg, x->len, buf, len);
-	if (ret == -ENOMSG) {
-		/* Not this reply: stale, or garbage. The timeout decides. */
+	if (ret < 0) {
+		/*
+		 * Not this reply: stale, garbage, or the right opcode with the
+		 * wrong length or echo. The real reply may still come; the
+		 * timeout decides, with -EPROTO if it does not.
+		 */
 		x->saw_bad = true;
 		dev_dbg_ratelimited(&nxt->udev->dev,
-				    "packet %*ph... does not answer opcode 0x%02x\n",
-				    min(len, 4U), buf, x->tg[1]);
-		return;
-	}
-	if (ret < 0) {
-		dev_warn_ratelimited(&nxt->udev->dev,
-				     "reply to opcode 0x%02x has a bad length (%u bytes)\n",
-				     x->tg[1], len);
-		nxt_finish(nxt, x, ret);
+				    "packet %*ph... (%u bytes) does not answer opcode 0x%02x\n",
+				    min(len, 4U), buf, len, x->tg[1]);
 		return;
 	}
 	memcpy(x->reply, buf, len);
@@ -113,16 +191,31 @@ static void nxt_take_packet(struct nxt_usb *nxt, const u8 *buf, unsigned int len
 	nxt_finish(nxt, x, 0);
 }
 
+/*
+ * When to restart the reader after a transfer error: after a stall, as
+ * nxt_stall_backoff_ms() says (at once the first time, later when the
+ * endpoint stalls again and again); NXT_RECOVER_MS after other errors.
+ * @lock held.
+ */
+static unsigned long nxt_recover_delay(struct nxt_usb *nxt)
+{
+	lockdep_assert_held(&nxt->lock);
+	if (!nxt->halted_in)
+		return msecs_to_jiffies(NXT_RECOVER_MS);
+	return msecs_to_jiffies(nxt_stall_backoff_ms(nxt->stalls));
+}
+
 static void nxt_in_complete(struct urb *urb)
 {
 	struct nxt_usb *nxt = urb->context;
-	bool resubmit = false, recover = false, halted;
-	unsigned long flags;
+	bool resubmit = false, recover = false;
+	unsigned long flags, delay;
 	int ret;
 
 	spin_lock_irqsave(&nxt->lock, flags);
 	switch (urb->status) {
 	case 0:
+		nxt->stalls = 0;
 		nxt_take_packet(nxt, nxt->in_buf, urb->actual_length);
 		resubmit = true;
 		break;
@@ -135,21 +228,25 @@ static void nxt_in_complete(struct urb *urb)
 	case -EPIPE:
 		dev_warn_ratelimited(&nxt->udev->dev, "IN endpoint stalled\n");
 		nxt->halted_in = true;
-		if (nxt->cur && nxt->cur->want_reply && nxt->cur->status == -EINPROGRESS)
+		if (nxt->stalls < U8_MAX)
+			nxt->stalls++;
+		/* A transaction not sent yet sends its telegram after recovery. */
+		if (nxt->cur && nxt->cur->sent && nxt->cur->want_reply &&
+		    nxt->cur->status == -EINPROGRESS)
 			nxt_finish(nxt, nxt->cur, -EPIPE);
 		recover = true;
 		break;
 	default:
 		/* -EPROTO, -EILSEQ, -EOVERFLOW...: often an unplug in progress. */
 		dev_dbg_ratelimited(&nxt->udev->dev, "IN transfer error %d\n", urb->status);
-		if (nxt->cur)
+		if (nxt->cur && nxt->cur->sent)
 			nxt->cur->link_error = true;
 		recover = true;
 		break;
 	}
 	if (!resubmit)
 		nxt->reader_running = false;
-	halted = nxt->halted_in;
+	delay = nxt_recover_delay(nxt);
 	spin_unlock_irqrestore(&nxt->lock, flags);
 
 	if (resubmit) {
@@ -167,8 +264,7 @@ static void nxt_in_complete(struct urb *urb)
 		}
 	}
 	if (recover)
-		schedule_delayed_work(&nxt->recover_work,
-				      halted ? 0 : msecs_to_jiffies(NXT_RECOVER_MS));
+		schedule_delayed_work(&nxt->recover_work, delay);
 }
 
 static void nxt_out_complete(struct urb *urb)
@@ -178,6 +274,8 @@ static void nxt_out_complete(struct urb *urb)
 	unsigned long flags;
 
 	spin_lock_irqsave(&nxt->lock, flags);
+	/* The brick has the telegram, even if it was late (timed out). */
+	x->delivered = !urb->status;
 	if (x->status == -EINPROGRESS) {
 		if (urb->status && !x->timed_out && urb->status != -ENOENT)
 			dev_warn_ratelimited(&nxt->udev->dev,
@@ -205,14 +303,15 @@ static void nxt_out_complete(struct urb *urb)
 /* The transaction in the slot is out of time. */
 static void nxt_timer_fn(struct timer_list *t)
 {
-	struct nxt_usb *nxt = from_timer(nxt, t, timer);
+	struct nxt_usb *nxt = timer_container_of(nxt, t, timer);
 	struct urb *unlink = NULL;
 	struct nxt_xfer *x;
 	unsigned long flags;
 
 	spin_lock_irqsave(&nxt->lock, flags);
 	x = nxt->cur;
-	if (x && x->status == -EINPROGRESS) {
+	/* A timer meant for an earlier transaction cannot end one not yet sent. */
+	if (x && x->sent && x->status == -EINPROGRESS) {
 		if (time_before(jiffies, x->deadline)) {
 			mod_timer(&nxt->timer, x->deadline);
 		} else if (!x->out_done) {
@@ -257,7 +356,7 @@ static int nxt_reader_start_locked(struct nxt_usb *nxt)
 	if (start) {
 		nxt->reader_running = true;
 		/* Whatever the brick still holds from before is stale. */
-		nxt->drain_until = jiffies + msecs_to_jiffies(NXT_DRAIN_MS);
+		nxt_drain_for(nxt, NXT_DRAIN_MS);
 	}
 	spin_unlock_irq(&nxt->lock);
 	if (!start)
@@ -413,17 +512,18 @@ static bool nxt_out_done(struct nxt_usb *nxt, struct nxt_xfer *x)
 }
 
 /**
- * nxt_slot_free() - whether a transaction could start now
+ * nxt_slot_free() - whether a telegram could be sent now
  * @nxt: the brick
  *
- * Return: true if no transaction holds the brick or waits for it.
+ * Return: true if no transaction holds the brick or waits for it, and no
+ * late reply is being drained.
  */
 bool nxt_slot_free(struct nxt_usb *nxt)
 {
 	bool free;
 
 	spin_lock_irq(&nxt->lock);
-	free = !nxt->cur && list_empty(&nxt->queue);
+	free = !nxt->cur && list_empty(&nxt->queue) && !nxt_drain_left(nxt);
 	spin_unlock_irq(&nxt->lock);
 	return free;
 }
@@ -444,15 +544,95 @@ bool nxt_gone(struct nxt_usb *nxt)
 	return gone;
 }
 
-/* Submits the telegram of @x, which holds the slot. */
-static int nxt_send(struct nxt_usb *nxt, struct nxt_xfer *x, struct urb *urb,
-		    unsigned int timeout_ms)
+/*
+ * Waits until no packet is being drained. Nothing was sent: interrupted, it
+ * asks for the call to be restarted.
+ */
+static int nxt_drain_wait(struct nxt_usb *nxt, bool nonblock)
 {
-	unsigned long until;
+	unsigned long left;
+	long ret;
+
+	for (;;) {
+		spin_lock_irq(&nxt->lock);
+		left = nxt_drain_left(nxt);
+		spin_unlock_irq(&nxt->lock);
+		if (!left)
+			return 0;
+		if (nonblock)
+			return -EAGAIN;
+		ret = wait_event_interruptible_timeout(nxt->wait,
+						       !nxt_draining(nxt) || nxt_gone(nxt),
+						       left);
+		if (ret < 0)
+			return -ERESTARTSYS;
+		if (nxt_gone(nxt))
+			return -ENODEV;
+	}
+}
+
+/* Takes @io_mutex for a transaction; -EAGAIN rather than wait if @nonblock. */
+static int nxt_io_lock(struct nxt_usb *nxt, bool nonblock)
+{
+	if (nonblock)
+		return mutex_trylock(&nxt->io_mutex) ? 0 : -EAGAIN;
+	return mutex_lock_interruptible(&nxt->io_mutex) ? -ERESTARTSYS : 0;
+}
+
+/*
+ * Submits the telegram of @x, which holds the slot. @x is live (can be
+ * answered, timed out, or failed by a reset) from here on only: the timer
+ * is armed once the URB is submitted, so that its unlink cannot miss it.
+ */
+static int nxt_submit(struct nxt_usb *nxt, struct nxt_xfer *x, struct urb *urb,
+		      unsigned int timeout_ms)
+{
 	int ret;
 
-	if (mutex_lock_interruptible(&nxt->io_mutex))
-		return -EINTR;
+	lockdep_assert_held(&nxt->io_mutex);
+	usb_fill_bulk_urb(urb, nxt->udev, nxt->out_pipe, urb->transfer_buffer,
+			  x->len, nxt_out_complete, x);
+	spin_lock_irq(&nxt->lock);
+	if (x->status != -EINPROGRESS) {
+		/* Failed while it waited (the brick went away). */
+		ret = x->status;
+		spin_unlock_irq(&nxt->lock);
+		return ret;
+	}
+	x->urb = urb;
+	x->sent = true;
+	x->deadline = jiffies + msecs_to_jiffies(timeout_ms);
+	spin_unlock_irq(&nxt->lock);
+
+	usb_anchor_urb(urb, &nxt->out_anchor);
+	ret = usb_submit_urb(urb, GFP_KERNEL);
+	spin_lock_irq(&nxt->lock);
+	if (ret)
+		x->sent = false;
+	else if (nxt->cur == x && x->status == -EINPROGRESS)
+		mod_timer(&nxt->timer, x->deadline);
+	spin_unlock_irq(&nxt->lock);
+	if (ret) {
+		usb_unanchor_urb(urb);
+		dev_err_ratelimited(&nxt->udev->dev, "cannot send a telegram: %d\n", ret);
+	}
+	return ret;
+}
+
+/* Sends the telegram of @x, which holds the slot. */
+static int nxt_send(struct nxt_usb *nxt, struct nxt_xfer *x, struct urb *urb,
+		    unsigned int timeout_ms, bool nonblock)
+{
+	int ret;
+
+	/* Let stale packets come and be dropped before this telegram goes. */
+	ret = nxt_drain_wait(nxt, nonblock);
+	if (ret)
+		return ret;
+	/* Held across a USB reset: O_NONBLOCK does not wait for one. */
+	ret = nxt_io_lock(nxt, nonblock);
+	if (ret)
+		return ret;
 	if (!nxt->intf) {
 		ret = -ENODEV;
 		goto out;
@@ -471,31 +651,11 @@ static int nxt_send(struct nxt_usb *nxt, struct nxt_xfer *x, struct urb *urb,
 	ret = nxt_recover_locked(nxt);
 	if (ret)
 		goto out;
-
-	/* Let stale packets come and be dropped before this telegram goes. */
-	spin_lock_irq(&nxt->lock);
-	until = nxt->drain_until;
-	spin_unlock_irq(&nxt->lock);
-	if (time_before(jiffies, until) &&
-	    schedule_timeout_interruptible(until - jiffies)) {
-		ret = -EINTR;
+	/* A reader (re)started just now drains too. */
+	ret = nxt_drain_wait(nxt, nonblock);
+	if (ret)
 		goto out;
-	}
-
-	usb_fill_bulk_urb(urb, nxt->udev, nxt->out_pipe, urb->transfer_buffer,
-			  x->len, nxt_out_complete, x);
-	spin_lock_irq(&nxt->lock);
-	x->urb = urb;
-	x->deadline = jiffies + msecs_to_jiffies(timeout_ms);
-	mod_timer(&nxt->timer, x->deadline);
-	spin_unlock_irq(&nxt->lock);
-
-	usb_anchor_urb(urb, &nxt->out_anchor);
-	ret = usb_submit_urb(urb, GFP_KERNEL);
-	if (ret) {
-		usb_unanchor_urb(urb);
-		dev_err_ratelimited(&nxt->udev->dev, "cannot send a telegram: %d\n", ret);
-	}
+	ret = nxt_submit(nxt, x, urb, timeout_ms);
 out:
 	mutex_unlock(&nxt->io_mutex);
 	return ret;
@@ -514,9 +674,12 @@ out:
  * sent; its reply, if its type asks for one, arrives in @x later (see
  * nxt_xfer_wait()).
  *
- * Return: 0, or -%EINVAL / -%EMSGSIZE for a bad telegram, -%EAGAIN,
- * -%ERESTARTSYS or -%EINTR, -%ENODEV, -%ENOMEM, -%ETIMEDOUT if the brick did
- * not take the telegram in time, -%EPIPE if it stalled, -%EIO.
+ * Return: 0, or -%EINVAL / -%EMSGSIZE for a bad telegram, -%EAGAIN
+ * (@nonblock: the brick is busy, a late reply is being drained or a reset
+ * is under way; nothing was sent), -%ERESTARTSYS (a signal before anything
+ * was sent), -%EINTR (a signal while the telegram was being sent), -%ENODEV,
+ * -%ENOMEM, -%ETIMEDOUT if the brick did not take the telegram in time,
+ * -%EPIPE if it stalled, -%EIO.
  */
 int nxt_xfer_start(struct nxt_usb *nxt, struct nxt_xfer *x, const u8 *tg,
 		   size_t len, unsigned int timeout_ms, bool nonblock)
@@ -561,7 +724,7 @@ int nxt_xfer_start(struct nxt_usb *nxt, struct nxt_xfer *x, const u8 *tg,
 		return err;
 	}
 
-	ret = nxt_send(nxt, x, urb, timeout_ms);
+	ret = nxt_send(nxt, x, urb, timeout_ms, nonblock);
 	if (ret) {
 		spin_lock_irq(&nxt->lock);
 		x->out_done = true;
@@ -664,6 +827,8 @@ static void nxt_usb_free(struct kref *kref)
 {
 	struct nxt_usb *nxt = container_of(kref, struct nxt_usb, kref);
 
+	/* A drain that a last transaction started after disconnect(). */
+	cancel_delayed_work_sync(&nxt->drain_work);
 	usb_free_urb(nxt->in_urb);
 	kfree(nxt->in_buf);
 	usb_put_dev(nxt->udev);
@@ -688,16 +853,32 @@ void nxt_usb_put(struct nxt_usb *nxt)
 	kref_put(&nxt->kref, nxt_usb_free);
 }
 
-/* Ends the transaction in the slot and stops every transfer. @io_mutex held. */
+/*
+ * Ends the transaction in the slot with @err and stops every transfer.
+ * A transaction whose telegram is not sent yet (it waits for @io_mutex)
+ * is left alone: it goes after a reset, and fails by itself after a
+ * suspend or a disconnect. @io_mutex held.
+ */
 static void nxt_stop_io(struct nxt_usb *nxt, int err)
 {
 	lockdep_assert_held(&nxt->io_mutex);
 	spin_lock_irq(&nxt->lock);
-	if (nxt->cur && nxt->cur->status == -EINPROGRESS)
+	if (nxt->cur && nxt->cur->sent && nxt->cur->status == -EINPROGRESS)
 		nxt_finish(nxt, nxt->cur, err);
 	spin_unlock_irq(&nxt->lock);
 	usb_kill_anchored_urbs(&nxt->out_anchor);
 	usb_kill_urb(nxt->in_urb);
+}
+
+/* Whether a sent transaction is still waiting for its reply. */
+static bool nxt_in_flight(struct nxt_usb *nxt)
+{
+	bool busy;
+
+	spin_lock_irq(&nxt->lock);
+	busy = nxt->cur && nxt->cur->sent && nxt->cur->status == -EINPROGRESS;
+	spin_unlock_irq(&nxt->lock);
+	return busy;
 }
 
 static int nxt_usb_probe(struct usb_interface *intf,
@@ -730,11 +911,10 @@ static int nxt_usb_probe(struct usb_interface *intf,
 	init_usb_anchor(&nxt->out_anchor);
 	timer_setup(&nxt->timer, nxt_timer_fn, 0);
 	INIT_DELAYED_WORK(&nxt->recover_work, nxt_recover_work);
+	INIT_DELAYED_WORK(&nxt->drain_work, nxt_drain_work);
 	nxt_info_init(&nxt->info);
 	nxt->udev = usb_get_dev(interface_to_usbdev(intf));
 	nxt->intf = intf;
-	/* Not 0: jiffies starts 5 minutes before wrapping on 32-bit machines. */
-	nxt->drain_until = jiffies;
 	nxt->out_pipe = usb_sndbulkpipe(nxt->udev, usb_endpoint_num(out));
 	nxt->in_pipe = usb_rcvbulkpipe(nxt->udev, usb_endpoint_num(in));
 
@@ -777,11 +957,16 @@ static void nxt_usb_disconnect(struct usb_interface *intf)
 	nxt->intf = NULL;
 	spin_lock_irq(&nxt->lock);
 	nxt->gone = true;
+	if (nxt->cur && nxt->cur->status == -EINPROGRESS)
+		nxt_finish(nxt, nxt->cur, -ENODEV);
 	spin_unlock_irq(&nxt->lock);
-	nxt_stop_io(nxt, -ENODEV);
+	/* Poisoned: a completion or a late work item cannot resubmit them. */
+	usb_poison_anchored_urbs(&nxt->out_anchor);
+	usb_poison_urb(nxt->in_urb);
 	mutex_unlock(&nxt->io_mutex);
 
 	cancel_delayed_work_sync(&nxt->recover_work);
+	cancel_delayed_work_sync(&nxt->drain_work);
 	timer_delete_sync(&nxt->timer);
 	wake_up_all(&nxt->wait);
 
@@ -794,8 +979,19 @@ static void nxt_usb_disconnect(struct usb_interface *intf)
  * A USB reset (nxt-python resets the brick before using it) keeps the
  * driver bound: transfers stop in pre_reset() and start again in
  * post_reset(), and @io_mutex is held in between. A transaction in flight
- * fails with -EIO, since its reply is lost.
+ * fails with -EIO, since its reply is lost; one that holds the slot but
+ * has not sent its telegram yet sends it after the reset.
  */
+/* A reset cleared the endpoints' halts: none is left to clear. */
+static void nxt_forget_halts(struct nxt_usb *nxt)
+{
+	spin_lock_irq(&nxt->lock);
+	nxt->halted_in = false;
+	nxt->halted_out = false;
+	nxt->stalls = 0;
+	spin_unlock_irq(&nxt->lock);
+}
+
 static int nxt_usb_pre_reset(struct usb_interface *intf)
 {
 	struct nxt_usb *nxt = usb_get_intfdata(intf);
@@ -810,10 +1006,7 @@ static int nxt_usb_post_reset(struct usb_interface *intf)
 {
 	struct nxt_usb *nxt = usb_get_intfdata(intf);
 
-	spin_lock_irq(&nxt->lock);
-	nxt->halted_in = false;
-	nxt->halted_out = false;
-	spin_unlock_irq(&nxt->lock);
+	nxt_forget_halts(nxt);
 	nxt->suspended = false;
 	nxt_info_invalidate(&nxt->info, true);
 	nxt_reader_start_locked(nxt);
@@ -821,12 +1014,25 @@ static int nxt_usb_post_reset(struct usb_interface *intf)
 	return 0;
 }
 
+/*
+ * Nothing new is sent once @suspended is set; the transaction in flight
+ * gets up to NXT_SUSPEND_WAIT_MS to finish (the brick answers within a few
+ * milliseconds), and fails with -EIO after that. An autosuspend does not
+ * interrupt one at all.
+ */
 static int nxt_usb_suspend(struct usb_interface *intf, pm_message_t message)
 {
 	struct nxt_usb *nxt = usb_get_intfdata(intf);
 
 	mutex_lock(&nxt->io_mutex);
+	if (PMSG_IS_AUTO(message) && (nxt_in_flight(nxt) || !nxt_slot_free(nxt))) {
+		mutex_unlock(&nxt->io_mutex);
+		return -EBUSY;
+	}
 	nxt->suspended = true;
+	if (!wait_event_timeout(nxt->wait, !nxt_in_flight(nxt),
+				msecs_to_jiffies(NXT_SUSPEND_WAIT_MS)))
+		dev_warn(&intf->dev, "suspended with a transaction in flight\n");
 	nxt_stop_io(nxt, -EIO);
 	mutex_unlock(&nxt->io_mutex);
 	return 0;
@@ -848,6 +1054,8 @@ static int nxt_usb_reset_resume(struct usb_interface *intf)
 {
 	struct nxt_usb *nxt = usb_get_intfdata(intf);
 
+	/* The brick was reset: its endpoints are no longer halted. */
+	nxt_forget_halts(nxt);
 	nxt_info_invalidate(&nxt->info, true);
 	return nxt_usb_resume(intf);
 }

@@ -13,8 +13,15 @@
  * A 64-byte IN transfer is kept pending from the first transaction on (the
  * "reader"), so the brick never freezes waiting for a host to collect a
  * reply; a packet that does not answer the transaction in the slot is
- * dropped as stale. After a timeout, and when the reader starts, packets
- * are drained for NXT_DRAIN_MS before the next telegram goes out.
+ * dropped as stale.
+ *
+ * A transaction is live (a packet can answer it, its timer end it, a reset
+ * fail it) only from when its telegram is submitted (@sent), not from when
+ * it takes the slot: until then it only waits for the drain and @io_mutex.
+ * When the reader starts, packets are drained for NXT_DRAIN_MS before the
+ * next telegram goes out; when a sent transaction ends without its reply,
+ * for as long as that reply may come late (nxt_reply_late_ms()), or until
+ * it has come.
  *
  * Locking
  * -------
@@ -25,7 +32,8 @@
  *
  * @lock (spinlock, taken in URB completions and the timer) protects the
  * slot @cur and the state of the transaction in it, the @queue of waiters
- * for it, @reader_running, @drain_until, @gone and the reply hand-off.
+ * for it, @reader_running, @drain_until, @orphan, @stalls, the halt flags,
+ * @gone and the reply hand-off.
  * Order: @io_mutex, then @lock.
  *
  * Lifetime
@@ -62,26 +70,35 @@
  * struct nxt_info - what the sysfs attributes show, cached
  * @lock: one query at a time; protects the values below. The valid flags
  *	are also cleared without it (nxt_info_invalidate()).
- * @versions_valid: @protocol and @firmware were read since the last reset
+ * @versions_valid: GetVersions was asked since the last reset
+ * @versions_err: its result: 0 (@protocol and @firmware hold the reply)
+ *	or a negative errno, kept for NXT_INFO_MAX_AGE after @versions_time
+ * @versions_time: 64-bit jiffies of the last GetVersions
  * @protocol: protocol version, major and minor
  * @firmware: firmware version, major and minor
- * @device_valid: @device was read at @device_time
- * @device_time: jiffies of the last GetDeviceInfo
+ * @device_valid: GetDeviceInfo was asked at @device_time
+ * @device_err: its result: 0 (@device holds the reply) or a negative errno
+ * @device_time: 64-bit jiffies of the last GetDeviceInfo
  * @device: name, Bluetooth address and free flash
- * @battery_valid: @battery was read at @battery_time
- * @battery_time: jiffies of the last GetBatteryLevel
+ * @battery_valid: GetBatteryLevel was asked at @battery_time
+ * @battery_err: its result: 0 (@battery holds the reply) or a negative errno
+ * @battery_time: 64-bit jiffies of the last GetBatteryLevel
  * @battery: battery voltage in millivolts
  */
 struct nxt_info {
 	struct mutex lock;	/* see above */
 	bool versions_valid;
+	int versions_err;
+	u64 versions_time;
 	u8 protocol[2];
 	u8 firmware[2];
 	bool device_valid;
-	unsigned long device_time;
+	int device_err;
+	u64 device_time;
 	struct nxt_device_info device;
 	bool battery_valid;
-	unsigned long battery_time;
+	int battery_err;
+	u64 battery_time;
 	u16 battery;
 };
 
@@ -100,7 +117,10 @@ struct nxt_info {
  * @queue: transactions waiting for the slot, first come first (@lock)
  * @gone: disconnected; set with @intf cleared (@lock)
  * @reader_running: @in_urb is submitted (@lock)
- * @drain_until: jiffies until which no telegram is sent (@lock)
+ * @drain_until: 64-bit jiffies until which no telegram is sent (@lock)
+ * @orphan: a transaction ended without the reply to its telegram, which
+ *	the brick took: the drain ends when that reply comes (@lock)
+ * @orphan_op: the opcode of that telegram (@lock)
  * @wait: woken when the slot is freed, a transaction progresses or the
  *	brick goes away
  * @in_urb: the reader's URB
@@ -109,8 +129,10 @@ struct nxt_info {
  * @timer: ends the transaction in the slot when its time is up
  * @recover_work: clears a halted endpoint and restarts the reader; sending a
  *	telegram does the same first (nxt_recover_locked())
+ * @drain_work: wakes @wait when a drain ends
  * @halted_in: the IN endpoint stalled (@lock)
  * @halted_out: the OUT endpoint stalled (@lock)
+ * @stalls: IN stalls in a row, with no packet in between (@lock)
  * @info: the cached brick information behind the sysfs attributes
  */
 struct nxt_usb {
@@ -129,7 +151,9 @@ struct nxt_usb {
 	struct list_head queue;
 	bool gone;
 	bool reader_running;
-	unsigned long drain_until;
+	u64 drain_until;
+	bool orphan;
+	u8 orphan_op;
 	wait_queue_head_t wait;
 
 	struct urb *in_urb;
@@ -137,8 +161,10 @@ struct nxt_usb {
 	struct usb_anchor out_anchor;
 	struct timer_list timer;
 	struct delayed_work recover_work;
+	struct delayed_work drain_work;
 	bool halted_in;
 	bool halted_out;
+	u8 stalls;
 
 	struct nxt_info info;
 };
@@ -151,6 +177,10 @@ struct nxt_usb {
  * @len: its length
  * @want_reply: the telegram's type asks for a reply
  * @urb: the OUT URB, while the telegram is being sent
+ * @sent: the telegram was submitted: from then on only can a packet answer
+ *	the transaction, its timer end it, or a reset fail it (@lock)
+ * @delivered: the OUT URB completed without error: the brick has the
+ *	telegram (@lock)
  * @deadline: jiffies by which the transaction must have finished
  * @out_done: the OUT URB has completed (@lock)
  * @timed_out: the timer unlinked the OUT URB (@lock)
@@ -169,6 +199,8 @@ struct nxt_xfer {
 	unsigned int len;
 	bool want_reply;
 	struct urb *urb;
+	bool sent;
+	bool delivered;
 	unsigned long deadline;
 	bool out_done;
 	bool timed_out;

@@ -18,7 +18,10 @@
  * (enum nxt_status), copied back to userspace as is. When it is not
  * NXT_STATUS_SUCCESS, the ioctl still copies the structure back and then
  * fails with the errno that the status maps to (see
- * Documentation/lego/nxt-usb.rst). Members named reserved must be zero.
+ * Documentation/lego/nxt-usb.rst; NXT_STATUS_PENDING is EINPROGRESS). Any
+ * other error, EAGAIN included (O_NONBLOCK: the brick is busy and nothing
+ * was sent), leaves the structure as it was. Members named reserved must
+ * be zero.
  * All multi-byte members are in host byte order; the driver converts them
  * to and from the brick's little-endian wire format.
  */
@@ -519,7 +522,8 @@ struct nxt_keep_alive {
  * struct nxt_ls_status - LSGetStatus
  * @port: in: 0 to 3
  * @bytes_ready: out: bytes the sensor's answer holds, ready for LSRead
- * @status: out: the brick's status byte (NXT_STATUS_PENDING while busy)
+ * @status: out: the brick's status byte (NXT_STATUS_PENDING while busy:
+ *	the ioctl then fails with EINPROGRESS)
  * @reserved: zero
  */
 struct nxt_ls_status {
@@ -568,8 +572,12 @@ struct nxt_ls_read {
  *
  * Errors: EINVAL (@length under NXT_TELEGRAM_MIN, or a type byte that is
  * not a command), EMSGSIZE (@length over NXT_TELEGRAM_MAX), ETIMEDOUT (no
- * reply within the file's timeout), EPROTO (a reply of the wrong type,
- * opcode or length), ENODEV (the brick was unplugged), EINTR.
+ * reply within the file's timeout), EPROTO (only packets that were not the
+ * reply came within the timeout: wrong type, opcode, length, or echoed port
+ * or inbox), EPIPE (an endpoint stalled), EIO (a USB reset or suspend, or a
+ * transfer error), ENODEV (the brick was unplugged), EAGAIN (O_NONBLOCK
+ * and the brick busy: nothing was sent), EINTR (a signal after the
+ * telegram was sent).
  */
 #define NXT_IOC_TRANSACT	_IOWR(NXT_IOC_MAGIC, 0x00, struct nxt_transaction)
 

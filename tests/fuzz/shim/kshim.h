@@ -109,6 +109,7 @@ static inline void *memchr_inv(const void *start, int c, size_t bytes)
 #define WARN_ON(cond)		WARN_ON_ONCE(cond)
 #define BUG_ON(cond)		do { if (cond) abort(); } while (0)
 #define BUILD_BUG_ON(cond)	_Static_assert(!(cond), #cond)
+#define BUILD_BUG_ON_ZERO(e)	((int)(sizeof(struct { int:(-!!(e)); })))
 #ifndef static_assert
 #define static_assert(expr, ...)	_Static_assert(expr, #expr)
 #endif
