@@ -165,6 +165,23 @@ static void ev3_uart_write_wakeup(struct tty_struct *tty)
 }
 
 /*
+ * Set new termios as TCSETS would (locked termios respected, the driver's
+ * set_termios called). Not on a pty master: it has no line settings of its
+ * own, and tty_set_termios() warns on one; its termios are only stored.
+ */
+static void ev3_uart_set_termios(struct tty_struct *tty, struct ktermios *t)
+{
+	if (tty->driver->type == TTY_DRIVER_TYPE_PTY &&
+	    tty->driver->subtype == PTY_TYPE_MASTER) {
+		down_write(&tty->termios_rwsem);
+		tty->termios = *t;
+		up_write(&tty->termios_rwsem);
+		return;
+	}
+	tty_set_termios(tty, t);
+}
+
+/*
  * Through tty_set_termios(), like a TCSETS would: locked termios are
  * respected, and the driver writes back the speed it could set. A tty with
  * no set_termios (a pty master) has no speed to set. A speed within 2 % is
@@ -182,7 +199,7 @@ static int ev3_uart_set_speed(struct tty_struct *tty, unsigned int baud)
 	t = tty->termios;
 	up_read(&tty->termios_rwsem);
 	tty_termios_encode_baud_rate(&t, baud, baud);
-	tty_set_termios(tty, &t);
+	ev3_uart_set_termios(tty, &t);
 	if (!tty->ops->set_termios)
 		return 0;
 	down_read(&tty->termios_rwsem);
@@ -206,7 +223,7 @@ static void ev3_uart_setup_tty(struct tty_struct *tty)
 	t.c_cflag &= ~(CSIZE | PARENB | CSTOPB | CRTSCTS);
 	t.c_cflag |= CS8 | CREAD | CLOCAL | HUPCL;
 	tty_termios_encode_baud_rate(&t, EV3_UART_SPEED_MIN, EV3_UART_SPEED_MIN);
-	tty_set_termios(tty, &t);
+	ev3_uart_set_termios(tty, &t);
 }
 
 static void ev3_uart_queue(struct ev3_uart_port *port, struct work_struct *work)
