@@ -811,7 +811,10 @@ class Sequence:
         except OSError as e:
             value, err = None, e.errno
         self.note('sysfs', err)
-        if err and err not in TRANSACTION - {E.EAGAIN, E.EINTR} | {E.ENOENT}:
+        # The transaction's errno, ENOENT once the brick is gone, or the
+        # errno of the status byte of a (hostile) reply (nxt_info_query()).
+        sysfs_ok = TRANSACTION - {E.EAGAIN, E.EINTR} | {E.ENOENT} | set(STATUS_ERRNO.values())
+        if err and (err not in sysfs_ok or self.honest and err not in TRANSACTION | {E.ENOENT}):
             self.fail(i, op, 'reading %s gave %s' % (op[1], ename(err)))
         if err == E.EPIPE and self.honest:
             self.fail(i, op, 'EPIPE from an honest brick')
@@ -851,6 +854,7 @@ class Worker:
         self.proc.start()
         child.close()
         self.busy = None        # (seed, started)
+        self.last_status, self.status_since = None, time.monotonic()
 
     def kill(self):
         try:
@@ -932,11 +936,13 @@ def usb_reset(serial):
 
 class Fuzzer:
     def __init__(self, seed, workers=3, per_epoch=24, udc='dummy_udc.0',
-                 serial='0016530F0E01', op_bound=30.0, log=print):
+                 serial='0016530F0E01', op_bound=30.0, hang_s=None, log=print):
         self.seed = seed
         self.per_epoch = per_epoch
         self.udc, self.serial = udc, serial
         self.op_bound = op_bound
+        # A sequence's call still running after this long is a hang.
+        self.hang_s = hang_s if hang_s is not None else 2 * op_bound + 30
         self.log = log
         self.failures = []
         self.failed_epochs = []
@@ -1057,6 +1063,7 @@ class Fuzzer:
                     seed = todo.popleft()
                     w.conn.send((seed, node, sysfs, honest))
                     w.busy = (seed, time.monotonic())
+                    w.last_status, w.status_since = None, time.monotonic()
             busy = [w for w in self.workers if w.busy]
             if not busy:
                 break
@@ -1080,7 +1087,7 @@ class Fuzzer:
                     replies.extend((res['seed'], r) for r in res['replies'])
                     for m in res['failures']:
                         self.fail(eseed, m)
-                elif time.monotonic() - w.busy[1] > self.op_bound * 3 + 30:
+                elif self._stuck(w):
                     self._hang(eseed, w)
         for t in reset_threads:
             t.join(60)
@@ -1095,10 +1102,17 @@ class Fuzzer:
                           % (seed, r.hex()))
         self.info['replies_checked'] += len(replies)
 
+    def _stuck(self, w):
+        """The worker's current call has run longer than hang_s."""
+        what = w.status.value
+        if what != w.last_status:
+            w.last_status, w.status_since = what, time.monotonic()
+        return time.monotonic() - w.status_since > self.hang_s
+
     def _hang(self, eseed, w):
         what = w.status.value.decode(errors='replace')
-        self.fail(eseed, 'worker %d hung (> %.0f s) in %s; kernel stacks:\n%s' % (
-            w.index, self.op_bound * 3 + 30, what, kernel_stacks(w.proc.pid)))
+        self.fail(eseed, 'worker %d hung (one call > %.0f s) in %s; kernel stacks:\n%s' % (
+            w.index, self.hang_s, what, kernel_stacks(w.proc.pid)))
         w.kill()
         if w.proc.is_alive():
             self.fail(eseed, 'worker %d cannot be killed (stuck in the kernel)' % w.index)
