@@ -39,7 +39,8 @@ unsolicited reply, garbage, a stall or a vanish.
 
 Every packet put on the IN endpoint is recorded in `sent` (64-byte chunks
 of longer writes), so that a test can check that whatever a client got was
-sent by the brick and is not, say, stale kernel memory.
+sent by the brick and is not, say, stale kernel memory; `pairs` holds each
+(command, reply) the firmware answered unspoilt.
 
 Usage: python3 tests/emulator/nxt_hostile.py [--udc dummy_udc.0]
     [--profile NAME] [--seed N] [--verbose]   (runs until SIGTERM/SIGINT)
@@ -121,6 +122,7 @@ class HostileBrick(nb.RawGadgetBrick):
         self.late_max = late_max
         self.noreply_hostility = noreply_hostility
         self.sent = set()
+        self.pairs = set()      # (command, reply) of every unspoilt reply
         self.actions = collections.Counter()
         self.vanished = threading.Event()
         self._sent_lock = threading.Lock()
@@ -276,6 +278,9 @@ class HostileBrick(nb.RawGadgetBrick):
             reply = self.fw.handle(packet)
             action = self.choose(packet, reply)
             self.actions[action] += 1
+            if action in ('ok', 'late', 'dup') and reply is not None:
+                with self._sent_lock:
+                    self.pairs.add((bytes(packet), bytes(reply)))
             self.log('command %s: %s' % (packet.hex(), action))
             if self.fw.busy:
                 self._stopping.wait(self.fw.busy)

@@ -9,7 +9,8 @@ soak` runs thousands (part 6 of tests/soak/soak.py).
 
 The other tests show that the fuzzer's checks can fail: a brick whose
 replies the fuzzer did not see sent, a wrong errno expectation, a call
-that hangs, a brick that lies about its reply lengths.
+that hangs, a brick that answers with its previous reply to the same
+opcode (which the driver cannot tell), a reply of the wrong length or opcode.
 """
 import errno
 import os
@@ -50,10 +51,10 @@ def one_epoch(seed, tamper=None, sequences=12, **kw):
     return fz
 
 
-def honest_seed():
+def honest_seed(sequences=12):
     """An epoch seed whose plan is an honest brick with no mid-epoch unplug."""
     for s in range(1000):
-        p = nxt_fuzz.epoch_plan(s, 12)
+        p = nxt_fuzz.epoch_plan(s, sequences)
         if p['profile'] == 'honest' and p['unplug_after'] is None and not p['resets']:
             return s
     raise AssertionError('no such seed')
@@ -67,6 +68,24 @@ def test_a_reply_the_brick_did_not_send_is_caught():
     assert any('never sent' in m for m in fz.failures), fz.failures
 
 
+def test_a_stale_reply_is_caught():
+    # A brick that answers each command with its previous reply to the same
+    # opcode: right type, opcode and length, sent by the brick, so the
+    # driver cannot tell; only the exact pairing of an honest epoch can.
+    def stale(brick):
+        last = {}
+        act = brick.act
+
+        def stale_act(action, packet, reply):
+            if action == 'ok' and reply is not None:
+                key = (packet[0], packet[1])
+                reply, last[key] = last.get(key, reply), reply
+            act(action, packet, reply)
+        brick.act = stale_act
+    fz = one_epoch(honest_seed(40), tamper=stale, sequences=40)
+    assert any('did not send in answer' in m for m in fz.failures), fz.failures
+
+
 def test_a_wrong_errno_expectation_is_caught(monkeypatch):
     # Pretend the documentation said ENODATA is not what read() gives with
     # nothing asked: the (correct) driver now fails the check.
@@ -76,7 +95,7 @@ def test_a_wrong_errno_expectation_is_caught(monkeypatch):
         return orig(self, i, op, what, err, tuple(e for e in extra if e != errno.ENODATA),
                     nonblock)
     monkeypatch.setattr(nxt_fuzz.Sequence, 'allowed', strict)
-    fz = one_epoch(honest_seed(), sequences=20)
+    fz = one_epoch(honest_seed(20), sequences=20)
     assert any('ENODATA' in m for m in fz.failures), fz.failures
 
 

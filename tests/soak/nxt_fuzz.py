@@ -466,7 +466,7 @@ def describe(op):
 def epoch_plan(seed, sequences):
     r = random.Random(seed)
     profile = r.choices(['honest', 'flaky', 'hostile', 'silent', 'babbler', 'liar'],
-                        [25, 25, 20, 10, 10, 10])[0]
+                        [30, 20, 20, 10, 10, 10])[0]
     plan = dict(seed=seed, profile=profile, sequences=sequences,
                 late_max=r.choice([0.05, 0.3, 1.0]),
                 noreply_hostility=0 if profile == 'honest' else r.choice([0.02, 0.2]))
@@ -475,6 +475,9 @@ def epoch_plan(seed, sequences):
     plan['unplug_after'] = r.randrange(sequences) if r.random() < 0.5 else None
     plan['unplug_delay'] = r.uniform(0, 0.3)
     plan['resets'] = sorted(r.randrange(sequences) for _ in range(r.choice([0, 0, 0, 1, 2])))
+    if profile == 'honest' and r.random() < 0.6:
+        # Left alone until the end: the strictest checks apply.
+        plan['unplug_after'], plan['resets'] = None, []
     return plan
 
 
@@ -505,8 +508,11 @@ class Slot:
 class Sequence:
     """Runs one sequence in a worker process and checks each call."""
 
-    def __init__(self, seed, node, sysfs, honest, status, bound):
+    def __init__(self, seed, node, sysfs, honest, status, bound, strict=False):
         self.seed, self.node, self.sysfs, self.honest = seed, node, sysfs, honest
+        self.strict = strict
+        self.pairs = []
+        self.strict_failures = []   # failures unless the brick rebooted itself
         self.status = status
         self.bound = bound
         self.slots = {}
@@ -536,6 +542,10 @@ class Sequence:
             ok = False
         if self.honest and err == E.EPIPE:
             ok = False
+        if ok and self.strict and err in (E.EIO, E.EPIPE, E.ENODEV):
+            self.strict_failures.append('sequence %#x op %d (%s): %s from an honest brick '
+                                        'that was neither reset nor unplugged' % (
+                                            self.seed, i, describe(op)[:200], ename(err)))
         if not ok:
             self.fail(i, op, '%s failed with %s, not a documented errno for it' % (what, ename(err)))
 
@@ -602,6 +612,8 @@ class Sequence:
 
     def op_alarm(self, i, op):
         _, ms, restart = op
+        if self.strict:         # no signals where replies are paired exactly
+            return
         signal.siginterrupt(signal.SIGALRM, not restart)
         signal.setitimer(signal.ITIMER_REAL, ms / 1000.0)
         self.armed = True
@@ -637,6 +649,7 @@ class Sequence:
         self.replies.append(reply)
         if tg is None:
             return
+        self.pairs.append((bytes(tg), bytes(reply)))
         bad = check_reply(tg, reply)
         if bad:
             self.fail(i, op, '%s: %s (%s)' % (what, bad, reply.hex()))
@@ -787,6 +800,8 @@ class Sequence:
 
     def op_set_timeout(self, i, op, slot):
         ms = op[2]
+        if self.strict and 1 <= ms < 1000:      # no timeouts where replies are paired
+            ms = 2000
         err, _ = ioctl_buf(slot.fd, nxt.ioctl_number('SET_TIMEOUT'), struct.pack('<I', ms))
         self.note('set_timeout', err)
         want = 0 if 1 <= ms <= 60000 else E.EINVAL
@@ -814,7 +829,11 @@ class Sequence:
         # The transaction's errno, ENOENT once the brick is gone, or the
         # errno of the status byte of a (hostile) reply (nxt_info_query()).
         sysfs_ok = TRANSACTION - {E.EAGAIN, E.EINTR} | {E.ENOENT} | set(STATUS_ERRNO.values())
-        if err and (err not in sysfs_ok or self.honest and err not in TRANSACTION | {E.ENOENT}):
+        if self.strict and err in (E.EIO, E.EPIPE, E.ENODEV, E.ENOENT):
+            self.strict_failures.append('sequence %#x op %d (%s): %s from an honest brick '
+                                        'that was neither reset nor unplugged' % (
+                                            self.seed, i, describe(op), ename(err)))
+        elif err and (err not in sysfs_ok or self.honest and err not in TRANSACTION | {E.ENOENT}):
             self.fail(i, op, 'reading %s gave %s' % (op[1], ename(err)))
         if err == E.EPIPE and self.honest:
             self.fail(i, op, 'EPIPE from an honest brick')
@@ -833,10 +852,11 @@ def worker_main(conn, status, bound):
             return
         if msg is None:
             return
-        seed, node, sysfs, honest = msg
-        seq = Sequence(seed, node, sysfs, honest, status, bound)
+        seed, node, sysfs, honest, strict = msg
+        seq = Sequence(seed, node, sysfs, honest, status, bound, strict)
         seq.run(gen_sequence(seed))
-        conn.send(dict(seed=seed, failures=seq.failures, replies=seq.replies,
+        conn.send(dict(seed=seed, failures=seq.failures, replies=seq.replies, pairs=seq.pairs,
+                       strict_failures=seq.strict_failures,
                        errnos=dict(seq.errnos), calls=seq.calls, slowest=seq.slowest))
 
 
@@ -1038,7 +1058,13 @@ class Fuzzer:
         resets = list(plan['resets'])
         reset_threads = []
         replies = []
+        pairs = []
+        errnos = collections.Counter()
+        strict_failures = []
         stop = False
+        # An honest brick, not reset or unplugged until the sequences end:
+        # no EIO, EPIPE or ENODEV, and (below) replies paired exactly.
+        strict = honest and not plan['resets'] and plan['unplug_after'] is None
         while True:
             now = time.monotonic()
             if unplug_at is None and plan['unplug_after'] is not None and \
@@ -1061,7 +1087,7 @@ class Fuzzer:
             for w in self.workers:
                 if w.busy is None and todo and not stop:
                     seed = todo.popleft()
-                    w.conn.send((seed, node, sysfs, honest))
+                    w.conn.send((seed, node, sysfs, honest, strict))
                     w.busy = (seed, time.monotonic())
                     w.last_status, w.status_since = None, time.monotonic()
             busy = [w for w in self.workers if w.busy]
@@ -1085,6 +1111,9 @@ class Fuzzer:
                     self.slowest = max(self.slowest, res['slowest'])
                     self.errnos.update(res['errnos'])
                     replies.extend((res['seed'], r) for r in res['replies'])
+                    pairs.extend((res['seed'], tg, r) for tg, r in res['pairs'])
+                    errnos.update(res['errnos'])
+                    strict_failures.extend(res['strict_failures'])
                     for m in res['failures']:
                         self.fail(eseed, m)
                 elif self._stuck(w):
@@ -1101,6 +1130,23 @@ class Fuzzer:
                 self.fail(eseed, 'sequence %#x got a reply the brick never sent: %s'
                           % (seed, r.hex()))
         self.info['replies_checked'] += len(replies)
+        # Replies carry no sequence number: after a timeout or a signal a
+        # late reply may answer a later command with the same opcode. With
+        # neither, each reply must be the brick's answer to that very command.
+        if not brick.vanished.is_set():     # BootCommand makes even a real brick go
+            for m in strict_failures:
+                self.fail(eseed, m)
+        lost = [k for k in errnos if k.endswith((':ETIMEDOUT', ':EINTR', ':EPROTO'))]
+        self.info['strict_epochs'] += strict
+        if strict and not lost and not brick.vanished.is_set():
+            self.info['paired_epochs'] += 1
+            with brick._sent_lock:
+                answered = set(brick.pairs)
+            for seed, tg, r in pairs:
+                if (tg, r) not in answered:
+                    self.fail(eseed, 'sequence %#x: %s got %s, which the brick did not send '
+                              'in answer to it' % (seed, tg.hex(), r.hex()))
+            self.info['replies_paired'] += len(pairs)
 
     def _stuck(self, w):
         """The worker's current call has run longer than hang_s."""
