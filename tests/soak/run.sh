@@ -4,7 +4,7 @@
 #
 # Usage: tests/soak/run.sh [--short] [SOAK.PY OPTIONS...]
 #   --short   a few dozen cycles of each part, 60 s of streams (< 5 min);
-#             without it the full soak (about 40 minutes of VM time)
+#             without it the full soak (about 75 minutes of VM time)
 # Other options go to tests/soak/soak.py (e.g. --parts 1,4; see its --help).
 # Output: .build/soak/ (console.log, results.json); exit 0 only if every part
 # passed, kmemleak found no leak and the console has no splat.
@@ -16,8 +16,8 @@ rm -rf "$out"
 mkdir -p "$out"
 console=$out/console.log
 t0=$SECONDS
-# The full soak takes about 40 minutes under TCG; leave room for a slow host.
-tests/vm-run --timeout 5400 --log "$console" --share "$out" -- \
+# The full soak takes about 75 minutes under TCG; leave room for a slow host.
+tests/vm-run --timeout 9000 --log "$console" --share "$out" -- \
 	python3 tests/soak/soak.py --json "$out/results.json" "$@"
 rc=$?
 vm_s=$((SECONDS - t0))

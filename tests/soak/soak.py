@@ -70,7 +70,7 @@ FULL = dict(cycles=1000, lines=8, fuzz_seconds=600, fuzz_workers=4, race_seconds
 SHORT = dict(cycles=30, lines=4, fuzz_seconds=60, fuzz_workers=3, race_seconds=20,
              unplugs=24, transactions=80)
 FULL.update(nxt_sequences=10000, nxt_seed=None)
-SHORT.update(nxt_sequences=300, nxt_seed=None)
+SHORT.update(nxt_sequences=200, nxt_seed=None)
 
 CTX = multiprocessing.get_context('fork')
 
