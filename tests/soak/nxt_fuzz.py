@@ -193,8 +193,10 @@ def gen_direct(rng, op):
         body = bytes([u8(r, 10), size if r.random() < 0.9 else r.randrange(256)]) + msg[:size]
     elif op == 0x0f:
         tx = r.randint(0, 17)
-        body = bytes([u8(r, 4), tx, r.randint(0, 17)]) + bytes(
-            [0x02, r.choice([0x00, 0x08, 0x10, 0x41, 0x42])] + [r.randrange(256) for _ in range(16)])[:tx]
+        head = bytes([u8(r, 4), tx, r.randint(0, 17)])
+        data = [0x02, r.choice([0x00, 0x08, 0x10, 0x41, 0x42])] + [
+            r.randrange(256) for _ in range(16)]
+        body = head + bytes(data[:tx])
     elif op == 0x13:
         body = bytes([u8(r, 20), u8(r, 10), u8(r, 2)])
     elif op in (0x19, 0x1c, 0x1e, 0x20):
@@ -216,7 +218,9 @@ def gen_system(rng, op):
     if op in (0x80, 0x85, 0x86, 0x8c, 0x90):
         body = gen_name(r)
     elif op in (0x81, 0x89, 0x8b):
-        body = gen_name(r) + struct.pack('<I', r.choice([0, 1, 64, 300, 5000, r.randrange(1 << 32)]))
+        name = gen_name(r)
+        size = r.choice([0, 1, 64, 300, 5000, r.randrange(1 << 32)])
+        body = name + struct.pack('<I', size)
     elif op == 0x82:
         body = struct.pack('<BH', handle(), r.choice([0, 1, 58, 59, 64, r.randrange(65536)]))
     elif op == 0x83:
@@ -524,7 +528,8 @@ class Sequence:
         self.slowest = 0.0
 
     def fail(self, i, op, msg):
-        self.failures.append('sequence %#x op %d (%s): %s' % (self.seed, i, describe(op)[:200], msg))
+        self.failures.append('sequence %#x op %d (%s): %s' % (
+            self.seed, i, describe(op)[:200], msg))
 
     def note(self, what, err):
         self.errnos['%s:%s' % (what, ename(err))] += 1
@@ -547,7 +552,8 @@ class Sequence:
                                         'that was neither reset nor unplugged' % (
                                             self.seed, i, describe(op)[:200], ename(err)))
         if not ok:
-            self.fail(i, op, '%s failed with %s, not a documented errno for it' % (what, ename(err)))
+            self.fail(i, op, '%s failed with %s, not a documented errno for it'
+                      % (what, ename(err)))
 
     def run(self, ops):
         for i, op in enumerate(ops):
@@ -820,9 +826,14 @@ class Sequence:
 
     def op_sysfs(self, i, op):
         path = os.path.join(self.sysfs, op[1])
+        value, err = None, 0
         try:
-            with open(path) as f:
-                value, err = f.read().strip(), 0
+            fd = os.open(path, os.O_RDONLY)
+            try:
+                # Raw reads: a buffered one turns EAGAIN (status 0x20) into None.
+                value = os.read(fd, 4096).decode('ascii', 'replace').strip()
+            finally:
+                os.close(fd)
         except OSError as e:
             value, err = None, e.errno
         self.note('sysfs', err)
@@ -956,14 +967,14 @@ def usb_reset(serial):
 
 class Fuzzer:
     def __init__(self, seed, workers=3, per_epoch=24, udc='dummy_udc.0',
-                 serial='0016530F0E01', op_bound=30.0, hang_s=None, log=print):
+                 serial='0016530F0E01', op_bound=30.0, hang_s=None, log=None):
         self.seed = seed
         self.per_epoch = per_epoch
         self.udc, self.serial = udc, serial
         self.op_bound = op_bound
         # A sequence's call still running after this long is a hang.
         self.hang_s = hang_s if hang_s is not None else 2 * op_bound + 30
-        self.log = log
+        self.log = log or (lambda m: print(m, flush=True))
         self.failures = []
         self.failed_epochs = []
         self.sequences = 0
@@ -1010,7 +1021,13 @@ class Fuzzer:
         k = 0
         while self.sequences < sequences:
             n = min(self.per_epoch, sequences - self.sequences)
-            self.run_epoch(derive(self.seed, 'epoch', k), n)
+            eseed = derive(self.seed, 'epoch', k)
+            before = self.sequences
+            self.run_epoch(eseed, n)
+            self.log('nxt_fuzz: epoch %d (%#x, %s): %d sequences; %d of %d in %.0f s, '
+                     '%d failure(s)' % (k, eseed, epoch_plan(eseed, n)['profile'],
+                                        self.sequences - before, self.sequences, sequences,
+                                        time.monotonic() - self.t0, len(self.failures)))
             k += 1
         return not self.failures
 
@@ -1208,16 +1225,17 @@ class Fuzzer:
 
     def summary(self):
         return dict(seed=self.seed, epochs=self.epochs, sequences=self.sequences,
-                    calls=self.calls, seconds=round(time.monotonic() - self.t0), failures=len(self.failures),
+                    calls=self.calls, seconds=round(time.monotonic() - self.t0),
+                    failures=len(self.failures),
                     slowest_call_s=round(self.slowest, 2), info=dict(self.info),
                     brick_actions=dict(self.actions),
                     errnos=dict(sorted(self.errnos.items())))
 
 
-def run(sequences, seed, workers=3, per_epoch=24, log=print, **kw):
+def run(sequences, seed, workers=3, per_epoch=24, log=None, **kw):
     """Run the fuzzer; returns the Fuzzer (failures, counts)."""
     fz = Fuzzer(seed, workers=workers, per_epoch=per_epoch, log=log, **kw)
-    log('nxt_fuzz: seed %#x: %d sequences, %d per epoch, %d processes (replay: %s)'
+    fz.log('nxt_fuzz: seed %#x: %d sequences, %d per epoch, %d processes (replay: %s)'
         % (seed, sequences, per_epoch, workers, fz.replay_command()))
     try:
         fz.run(sequences)
