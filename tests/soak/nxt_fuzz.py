@@ -517,6 +517,7 @@ class Sequence:
         self.strict = strict
         self.pairs = []
         self.strict_failures = []   # failures unless the brick rebooted itself
+        self.eproto = []            # failures unless a timeout or signal came first
         self.status = status
         self.bound = bound
         self.slots = {}
@@ -547,6 +548,9 @@ class Sequence:
             ok = False
         if self.honest and err == E.EPIPE:
             ok = False
+        if ok and self.strict and err == E.EPROTO:
+            self.eproto.append('sequence %#x op %d (%s): EPROTO from an honest brick' % (
+                self.seed, i, describe(op)[:200]))
         if ok and self.strict and err in (E.EIO, E.EPIPE, E.ENODEV):
             self.strict_failures.append('sequence %#x op %d (%s): %s from an honest brick '
                                         'that was neither reset nor unplugged' % (
@@ -840,7 +844,10 @@ class Sequence:
         # The transaction's errno, ENOENT once the brick is gone, or the
         # errno of the status byte of a (hostile) reply (nxt_info_query()).
         sysfs_ok = TRANSACTION - {E.EAGAIN, E.EINTR} | {E.ENOENT} | set(STATUS_ERRNO.values())
-        if self.strict and err in (E.EIO, E.EPIPE, E.ENODEV, E.ENOENT):
+        if self.strict and err == E.EPROTO:
+            self.eproto.append('sequence %#x op %d (%s): EPROTO from an honest brick' % (
+                self.seed, i, describe(op)))
+        elif self.strict and err in (E.EIO, E.EPIPE, E.ENODEV, E.ENOENT):
             self.strict_failures.append('sequence %#x op %d (%s): %s from an honest brick '
                                         'that was neither reset nor unplugged' % (
                                             self.seed, i, describe(op), ename(err)))
@@ -867,7 +874,7 @@ def worker_main(conn, status, bound):
         seq = Sequence(seed, node, sysfs, honest, status, bound, strict)
         seq.run(gen_sequence(seed))
         conn.send(dict(seed=seed, failures=seq.failures, replies=seq.replies, pairs=seq.pairs,
-                       strict_failures=seq.strict_failures,
+                       strict_failures=seq.strict_failures, eproto=seq.eproto,
                        errnos=dict(seq.errnos), calls=seq.calls, slowest=seq.slowest))
 
 
@@ -1078,6 +1085,7 @@ class Fuzzer:
         pairs = []
         errnos = collections.Counter()
         strict_failures = []
+        eproto = []
         stop = False
         # An honest brick, not reset or unplugged until the sequences end:
         # no EIO, EPIPE or ENODEV, and (below) replies paired exactly.
@@ -1131,6 +1139,7 @@ class Fuzzer:
                     pairs.extend((res['seed'], tg, r) for tg, r in res['pairs'])
                     errnos.update(res['errnos'])
                     strict_failures.extend(res['strict_failures'])
+                    eproto.extend(res['eproto'])
                     for m in res['failures']:
                         self.fail(eseed, m)
                 elif self._stuck(w):
@@ -1153,9 +1162,13 @@ class Fuzzer:
         if not brick.vanished.is_set():     # BootCommand makes even a real brick go
             for m in strict_failures:
                 self.fail(eseed, m)
-        lost = [k for k in errnos if k.endswith((':ETIMEDOUT', ':EINTR', ':EPROTO'))]
+        lost = [k for k in errnos if k.endswith((':ETIMEDOUT', ':EINTR'))]
         self.info['strict_epochs'] += strict
         if strict and not lost and not brick.vanished.is_set():
+            # Without a timeout or a signal no reply comes late, so the
+            # driver must take every reply of the firmware as it is.
+            for m in eproto:
+                self.fail(eseed, m)
             self.info['paired_epochs'] += 1
             with brick._sent_lock:
                 answered = set(brick.pairs)

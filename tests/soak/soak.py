@@ -870,7 +870,7 @@ def part_nxt_fuzz(p, sequences, seed):
     fz = nxt_fuzz.run(sequences, seed, workers=3, per_epoch=100,
                       log=lambda m: print('soak: part 6: ' + m, flush=True))
     p.count = fz.sequences
-    p.info.update(seed=seed, epochs=fz.epochs, calls=fz.calls,
+    p.info.update(seed='%#x' % seed, epochs=fz.epochs, calls=fz.calls,
                   **{k: v for k, v in fz.info.items() if not k.startswith('profile_')})
     for m in fz.failures:
         p.fail('%s (run seed %#x)' % (m, seed))
