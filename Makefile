@@ -12,7 +12,7 @@
 #   make bench         benchmarks; writes tests/bench/results.md (BENCH_ARGS=--quick)
 #   make fuzz          libFuzzer on the EV3 and NXT protocol cores (long run;
 #                      FUZZ_ARGS= passes options to tests/fuzz/run.sh)
-#   make soak          the robustness soak in the test VM (~40 min; SOAK_ARGS=--short)
+#   make soak          the robustness soak in the test VM (hours; SOAK_ARGS=--short)
 #   make install       modules (updates/), uapi headers, tools, udev rules and
 #                      systemd units; DESTDIR=, PREFIX=/usr/local, KDIR=
 #   make install-userspace  the same without the modules (with DKMS)

@@ -2,9 +2,10 @@
 """Robustness soak of the LEGO drivers: runs inside the test VM.
 
 Usage (in the VM, e.g. through tests/soak/run.sh, which boots it):
-  python3 tests/soak/soak.py [--short] [--parts 1,2,3,4,5] [--json FILE]
+  python3 tests/soak/soak.py [--short] [--parts 1,2,3,4,5,6] [--json FILE]
                              [--cycles N] [--fuzz-seconds S] [--race-seconds S]
                              [--unplugs N] [--transactions N] [--no-kmemleak]
+                             [--nxt-sequences N] [--nxt-seed N]
 
 Parts (each reports its count and its failures):
   1  EV3 sensor plug/unplug cycles on several null-modem lines at once; each
@@ -22,6 +23,8 @@ Parts (each reports its count and its failures):
   7  EV3 generated handshakes (tests/guest/ev3_fuzz.py): --ev3-cases cases from
      --ev3-seed (default random, printed), each through attach, registration,
      every attribute, a buffered capture, mode switches, a WRITE and a detach.
+  8  the whole-driver NXT fuzzer (nxt_fuzz.py): random open/write/read/poll/
+     ioctl/close sequences from 3 processes, hostile bricks, resets, unplugs.
 Then a kmemleak scan (twice): any leak fails the run (--lego-leaks-only: only
 leaks whose backtrace names a lego_ module, for runs after other tests).
 
@@ -51,6 +54,7 @@ sys.path.insert(0, os.path.join(HERE, '..', 'emulator'))
 import ev3  # noqa: E402
 import ev3_sensor as es  # noqa: E402
 import nxtdev as nxt  # noqa: E402
+import nxt_fuzz  # noqa: E402
 
 N_TTY, N_LEGOEV3 = 0, 29
 TIOCVHANGUP = 0x5437
@@ -68,6 +72,8 @@ FULL = dict(cycles=1000, lines=8, fuzz_seconds=600, fuzz_workers=4, race_seconds
             unplugs=500, transactions=500, ev3_cases=10000)
 SHORT = dict(cycles=30, lines=4, fuzz_seconds=60, fuzz_workers=3, race_seconds=20,
              unplugs=24, transactions=80, ev3_cases=200)
+FULL.update(nxt_sequences=10000, nxt_seed=None)
+SHORT.update(nxt_sequences=200, nxt_seed=None)
 
 CTX = multiprocessing.get_context('fork')
 
@@ -879,6 +885,23 @@ def part_ev3_fuzz(p, cases, seed):
         p.fail('%d cases run of %d' % (res['count'], cases))
 
 
+# ---- part 8: the whole-driver NXT fuzzer -------------------------------------
+
+def part_nxt_fuzz(p, sequences, seed):
+    """nxt_fuzz.py's run of `sequences` sequences (seed: random, printed)."""
+    if seed is None:
+        seed = random.SystemRandom().randrange(1 << 32)
+    fz = nxt_fuzz.run(sequences, seed, workers=3, per_epoch=100,
+                      log=lambda m: print('soak: part 8: ' + m, flush=True))
+    p.count = fz.sequences
+    p.info.update(seed='%#x' % seed, epochs=fz.epochs, calls=fz.calls,
+                  **{k: v for k, v in fz.info.items() if not k.startswith('profile_')})
+    for m in fz.failures:
+        p.fail('%s (run seed %#x)' % (m, seed))
+    if fz.failed_epochs:
+        print('soak: part 8: replay: ' + fz.replay_command(fz.failed_epochs[0]), flush=True)
+
+
 # ---- kmemleak ---------------------------------------------------------------
 
 def kmemleak_available():
@@ -924,7 +947,8 @@ def run(parts, params, lego_leaks_only=False, kmemleak=True):
     results = []
     names = {1: 'EV3 plug/unplug cycles', 2: 'random/mutated streams',
              3: 'attach/detach races', 4: 'brick unplugs mid-transfer',
-             5: '8 clients, one brick', 7: 'EV3 generated handshakes'}
+             5: '8 clients, one brick', 7: 'EV3 generated handshakes',
+             8: 'NXT whole-driver fuzzer'}
     for n in parts:
         p = Part(n, names[n])
         t0 = time.monotonic()
@@ -942,6 +966,8 @@ def run(parts, params, lego_leaks_only=False, kmemleak=True):
                 part_hammer(p, params['transactions'])
             elif n == 7:
                 part_ev3_fuzz(p, params['ev3_cases'], params.get('ev3_seed'))
+            elif n == 8:
+                part_nxt_fuzz(p, params['nxt_sequences'], params['nxt_seed'])
         except Exception:
             p.fail('exception: ' + traceback.format_exc(limit=6))
         p.seconds = time.monotonic() - t0
@@ -949,7 +975,7 @@ def run(parts, params, lego_leaks_only=False, kmemleak=True):
                                                                 p.seconds, p.info), flush=True)
         results.append(p)
     if kmemleak:
-        p = Part(6, 'kmemleak scan')
+        p = Part(max(names) + 1, 'kmemleak scan')
         t0 = time.monotonic()
         if not kmemleak_available():
             p.fail('%s is not writable (kmemleak missing or debugfs not mounted)' % KMEMLEAK)
@@ -980,7 +1006,7 @@ def main():
                                  formatter_class=argparse.RawDescriptionHelpFormatter,
                                  epilog=__doc__.split('\n', 2)[2])
     ap.add_argument('--short', action='store_true', help='a few dozen cycles each, 60 s of streams')
-    ap.add_argument('--parts', default='1,2,3,4,5,7')
+    ap.add_argument('--parts', default='1,2,3,4,5,7,8')
     ap.add_argument('--json', metavar='FILE', help='also write the results as JSON')
     ap.add_argument('--cycles', type=int)
     ap.add_argument('--lines', type=int)
@@ -990,6 +1016,8 @@ def main():
     ap.add_argument('--transactions', type=int, help='per client, in part 5')
     ap.add_argument('--ev3-cases', type=int, help='generated EV3 handshakes, in part 7')
     ap.add_argument('--ev3-seed', type=int, help='first seed of part 7 (default: random)')
+    ap.add_argument('--nxt-sequences', type=int, help='part 8: sequences (10000)')
+    ap.add_argument('--nxt-seed', type=lambda v: int(v, 0), help='part 8: run seed')
     ap.add_argument('--no-kmemleak', action='store_true')
     ap.add_argument('--lego-leaks-only', action='store_true')
     args = ap.parse_args()
@@ -998,9 +1026,9 @@ def main():
         return 2
     try:
         parts = sorted({int(x) for x in args.parts.split(',')})
-        assert parts and all(1 <= x <= 5 or x == 7 for x in parts)
+        assert parts and all(1 <= x <= 5 or x in (7, 8) for x in parts)
     except (ValueError, AssertionError):
-        print('soak.py: --parts takes numbers 1 to 5 and 7, e.g. 1,3', file=sys.stderr)
+        print('soak.py: --parts takes numbers 1 to 5, 7 and 8, e.g. 1,3', file=sys.stderr)
         return 2
     params = dict(SHORT if args.short else FULL, ev3_seed=None)
     for k in params:

@@ -1,0 +1,126 @@
+"""The whole-driver NXT fuzzer (tests/soak/nxt_fuzz.py) in `make check`.
+
+A few hundred random sequences of open/write/read/poll/ioctl/close from
+three processes against honest and hostile emulated bricks, with USB
+resets and unplugs (about two minutes in the TCG guest). The run seed is
+LEGO_NXT_FUZZ_SEED if set, else a fixed one, and is printed with every
+failure, together with the command that replays the failed epoch. `make
+soak` runs thousands (part 8 of tests/soak/soak.py).
+
+The other tests show that the fuzzer's checks can fail: a brick whose
+replies the fuzzer did not see sent, a wrong errno expectation, a call
+that hangs, a brick that answers with its previous reply to the same
+opcode (which the driver cannot tell), a reply of the wrong length or opcode.
+"""
+import errno
+import os
+import sys
+import time
+
+import pytest
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), '..', 'soak'))
+import nxt_fuzz  # noqa: E402
+
+SEED = int(os.environ.get('LEGO_NXT_FUZZ_SEED', '0x17'), 0)
+SEQUENCES = int(os.environ.get('LEGO_NXT_FUZZ_SEQUENCES', '300'))
+
+
+def test_fuzz_sequences(record_testsuite_property):
+    fz = nxt_fuzz.run(SEQUENCES, SEED, workers=3, per_epoch=30)
+    s = fz.summary()
+    print(s)
+    record_testsuite_property('nxt_fuzz_sequences', fz.sequences)
+    record_testsuite_property('nxt_fuzz_calls', fz.calls)
+    assert not fz.failures, 'seed %#x (replay: %s):\n%s' % (
+        SEED, fz.replay_command(fz.failed_epochs[0]), '\n'.join(fz.failures))
+    assert fz.sequences >= SEQUENCES
+    # The run did what it is for: hostile replies, unplugs, checked replies.
+    assert sum(n for a, n in s['brick_actions'].items() if a != 'ok') > 20
+    assert s['info'].get('replies_checked', 0) > 50
+    assert fz.calls > 5 * SEQUENCES
+
+
+def one_epoch(seed, tamper=None, sequences=12, **kw):
+    fz = nxt_fuzz.Fuzzer(seed, workers=2, per_epoch=sequences, log=lambda m: None, **kw)
+    fz.tamper = tamper
+    try:
+        fz.run_epoch(seed, sequences)
+    finally:
+        fz.close()
+    return fz
+
+
+def honest_seed(sequences=12):
+    """An epoch seed whose plan is an honest brick with no mid-epoch unplug."""
+    for s in range(1000):
+        p = nxt_fuzz.epoch_plan(s, sequences)
+        if p['profile'] == 'honest' and p['unplug_after'] is None and not p['resets']:
+            return s
+    raise AssertionError('no such seed')
+
+
+def test_a_reply_the_brick_did_not_send_is_caught():
+    # The brick forgets what it sent: every reply a client got is "unknown".
+    def forget(brick):
+        brick._record = lambda data: None
+    fz = one_epoch(honest_seed(), tamper=forget)
+    assert any('never sent' in m for m in fz.failures), fz.failures
+
+
+def test_a_stale_reply_is_caught():
+    # A brick that answers each command with its previous reply to the same
+    # opcode: right type, opcode and length, sent by the brick, so the
+    # driver cannot tell; only the exact pairing of an honest epoch can.
+    def stale(brick):
+        last = {}
+        act = brick.act
+
+        def stale_act(action, packet, reply):
+            if action == 'ok' and reply is not None:
+                key = (packet[0], packet[1])
+                reply, last[key] = last.get(key, reply), reply
+            act(action, packet, reply)
+        brick.act = stale_act
+    fz = one_epoch(honest_seed(40), tamper=stale, sequences=40)
+    assert any('did not send in answer' in m for m in fz.failures), fz.failures
+
+
+def test_a_wrong_errno_expectation_is_caught(monkeypatch):
+    # Pretend the documentation said ENODATA is not what read() gives with
+    # nothing asked: the (correct) driver now fails the check.
+    orig = nxt_fuzz.Sequence.allowed
+
+    def strict(self, i, op, what, err, extra, nonblock=False):
+        return orig(self, i, op, what, err, tuple(e for e in extra if e != errno.ENODATA),
+                    nonblock)
+    monkeypatch.setattr(nxt_fuzz.Sequence, 'allowed', strict)
+    fz = one_epoch(honest_seed(20), sequences=20)
+    assert any('ENODATA' in m for m in fz.failures), fz.failures
+
+
+def test_a_hang_is_caught(monkeypatch):
+    # A "system call" that never returns: the worker is reported (with its
+    # kernel stacks) and killed, and the epoch goes on.
+    monkeypatch.setattr(nxt_fuzz.Sequence, 'op_sleep',
+                        lambda self, i, op: time.sleep(3600))
+    k = next(k for k in range(1000) if any(
+        op[0] == 'sleep' for op in nxt_fuzz.gen_sequence(nxt_fuzz.derive(k, 'seq', 0))))
+    fz = nxt_fuzz.Fuzzer(k, workers=1, per_epoch=1, hang_s=3, log=lambda m: None)
+    try:
+        fz.run_epoch(k, 1)
+    finally:
+        fz.close()
+    assert any('hung' in m and 'kernel stacks' in m for m in fz.failures), fz.failures
+
+
+@pytest.mark.parametrize('lie', ['length', 'opcode'])
+def test_a_lying_driver_is_caught(lie):
+    # Stand in for a driver bug: the check of what the client got must catch
+    # a reply of the wrong length or opcode (the driver itself refuses them,
+    # so the fuzzer's reply check is exercised directly here).
+    tg = b'\x00\x0b'
+    good = b'\x02\x0b\x00\x8f\x1e'
+    bad = good + b'\0' if lie == 'length' else b'\x02\x0c\x00\x8f\x1e'
+    assert nxt_fuzz.check_reply(tg, good) is None
+    assert nxt_fuzz.check_reply(tg, bad)
