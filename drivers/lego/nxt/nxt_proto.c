@@ -933,7 +933,9 @@ static int nxt_decode_message_read(const u8 *reply, void *arg)
 
 	if (r->size > NXT_MESSAGE_MAX)
 		return -EPROTO;
-	a->local_inbox = r->local_inbox;
+	/* Echoed by a reply of success only (an error's reply is cut short). */
+	if (r->h.status == NXT_STATUS_SUCCESS)
+		a->local_inbox = r->local_inbox;
 	a->size = r->size;
 	memset(a->data, 0, sizeof(a->data));
 	memcpy(a->data, r->data, r->size);

@@ -497,6 +497,16 @@ static void nxt_test_reply_echo(struct kunit *test)
 	KUNIT_EXPECT_EQ(test, m.size, 2);
 	msg[3] = 0x04;
 	KUNIT_EXPECT_EQ(test, nxt_reply_check(tg, len, msg, sizeof(msg)), -ENOMSG);
+	/*
+	 * An error reply echoes nothing: the local inbox, an input too, stays
+	 * as the caller gave it (the whole-driver fuzzer saw 9 become 0).
+	 */
+	msg[2] = 0x40;
+	m.local_inbox = 9;
+	KUNIT_EXPECT_EQ(test, nxt_command_decode(cmd, msg, sizeof(msg), &m), 0);
+	KUNIT_EXPECT_EQ(test, m.local_inbox, 9);
+	KUNIT_EXPECT_EQ(test, m.status, 0x40);
+	KUNIT_EXPECT_EQ(test, m.size, 0);
 }
 
 /* How long a lost reply is waited for: DeleteUserFlash takes seconds. */

@@ -478,6 +478,7 @@ struct nxt_motor_position {
  * @inbox: in: MessageWrite: the inbox, 0 to 9; MessageRead: the remote
  *	inbox, 0 to 19 (10 to 19 hold a slave brick's messages to its master)
  * @local_inbox: MessageRead: in: the local inbox, 0 to 9; out: as echoed
+ *	by a reply of success (an error leaves it as it was)
  * @remove: MessageRead: in: 1 to take the message out of the queue
  * @size: bytes in @data, its terminating NUL included, 1 to
  *	NXT_MESSAGE_MAX (MessageWrite: in; MessageRead: out)
