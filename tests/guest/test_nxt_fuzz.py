@@ -14,6 +14,7 @@ opcode (which the driver cannot tell), a reply of the wrong length or opcode.
 """
 import errno
 import os
+import subprocess
 import sys
 import time
 
@@ -22,6 +23,7 @@ import pytest
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), '..', 'soak'))
 import nxt_fuzz  # noqa: E402
 
+TOP = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
 SEED = int(os.environ.get('LEGO_NXT_FUZZ_SEED', '0x17'), 0)
 SEQUENCES = int(os.environ.get('LEGO_NXT_FUZZ_SEQUENCES', '300'))
 
@@ -124,3 +126,16 @@ def test_a_lying_driver_is_caught(lie):
     bad = good + b'\0' if lie == 'length' else b'\x02\x0c\x00\x8f\x1e'
     assert nxt_fuzz.check_reply(tg, good) is None
     assert nxt_fuzz.check_reply(tg, bad)
+
+
+@pytest.mark.parametrize('mode,count', [('short', 60), ('stall', 30)])
+def test_write_does_not_report_the_replys_error(mode, count):
+    """Found by the fuzzer: write() failed with the reply's EPROTO (a short
+    reply) or EPIPE (an IN stall) when the reply was judged before the
+    writer woke, although the brick had taken the telegram. write()
+    succeeds now, and the error is read()'s (tests/soak/nxt_write_reply_error.py,
+    which exits 1 for any such write)."""
+    r = subprocess.run([sys.executable, os.path.join(TOP, 'tests/soak/nxt_write_reply_error.py'),
+                        mode, str(count)], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert 'write() ' in r.stdout

@@ -672,7 +672,8 @@ out:
  *
  * Claims the brick's slot and sends @tg. Returns once the telegram has been
  * sent; its reply, if its type asks for one, arrives in @x later (see
- * nxt_xfer_wait()).
+ * nxt_xfer_wait()), and so does its error if the reply was judged before
+ * this returned: once the brick has the telegram, this returns 0.
  *
  * Return: 0, or -%EINVAL / -%EMSGSIZE for a bad telegram, -%EAGAIN
  * (@nonblock: the brick is busy, a late reply is being drained or a reset
@@ -745,9 +746,15 @@ int nxt_xfer_start(struct nxt_usb *nxt, struct nxt_xfer *x, const u8 *tg,
 		spin_unlock_irq(&nxt->lock);
 	}
 
+	/*
+	 * Once the brick has the telegram, sending it succeeded, whatever
+	 * became of its reply meanwhile (a bad one, an IN stall): that is
+	 * nxt_xfer_wait()'s to report. A caller told otherwise would send
+	 * again a command the brick has run.
+	 */
 	spin_lock_irq(&nxt->lock);
 	x->urb = NULL;
-	ret = x->status == -EINPROGRESS ? 0 : x->status;
+	ret = x->status == -EINPROGRESS || x->delivered ? 0 : x->status;
 	spin_unlock_irq(&nxt->lock);
 	usb_free_urb(urb);
 	return ret;
