@@ -36,6 +36,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 sys.path.insert(0, os.path.join(HERE, '..', 'emulator'))
 import ev3  # noqa: E402
+from kstacks import kernel_stacks  # noqa: E402
 import ev3_gen as gen  # noqa: E402
 import ev3_sensor as es  # noqa: E402
 
@@ -687,16 +688,6 @@ class Runner:
 
 CTX = multiprocessing.get_context('fork')
 
-
-def kernel_stacks(pid):
-    out = []
-    for task in glob.glob('/proc/%d/task/*' % pid):
-        try:
-            with open(task + '/stack') as f:
-                out.append('%s:\n%s' % (os.path.basename(task), f.read()))
-        except OSError:
-            pass
-    return '\n'.join(out)
 
 
 def _quiet_thread_errors():

@@ -49,7 +49,6 @@ import collections
 import ctypes
 import errno
 import fcntl
-import glob
 import hashlib
 import importlib.util
 import json
@@ -71,6 +70,7 @@ sys.path.insert(0, os.path.join(HERE, '..', 'guest'))
 sys.path.insert(0, os.path.join(HERE, '..', 'emulator'))
 import nxtdev as nxt  # noqa: E402
 import nxt_hostile as nh  # noqa: E402
+from kstacks import kernel_stacks  # noqa: E402
 
 CTX = multiprocessing.get_context('fork')
 MAX_FAILURES = 40
@@ -937,16 +937,6 @@ class Kmsg:
     def splats(self):
         return [ln for ln in self.lines() if any(p.search(ln) for p in self.patterns)]
 
-
-def kernel_stacks(pid):
-    out = []
-    for task in glob.glob('/proc/%d/task/*' % pid):
-        try:
-            with open(task + '/stack') as f:
-                out.append('%s:\n%s' % (os.path.basename(task), f.read()))
-        except OSError:
-            pass
-    return '\n'.join(out)
 
 
 def usb_reset(serial):

@@ -55,6 +55,7 @@ import ev3  # noqa: E402
 import ev3_sensor as es  # noqa: E402
 import nxtdev as nxt  # noqa: E402
 import nxt_fuzz  # noqa: E402
+from kstacks import kernel_stacks  # noqa: E402
 
 N_TTY, N_LEGOEV3 = 0, 29
 TIOCVHANGUP = 0x5437
@@ -120,17 +121,6 @@ def child_fail(res, msg):
 def bump(res, key, n=1):
     res['info'][key] = res['info'].get(key, 0) + n
 
-
-def kernel_stacks(pid):
-    """The kernel stacks of a (hung) process's threads, for the report."""
-    out = []
-    for task in glob.glob('/proc/%d/task/*' % pid):
-        try:
-            with open(task + '/stack') as f:
-                out.append('%s:\n%s' % (os.path.basename(task), f.read()))
-        except OSError:
-            pass
-    return '\n'.join(out)
 
 
 def run_children(part, targets, timeout):
