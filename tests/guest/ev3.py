@@ -135,6 +135,15 @@ def wait_attr_int(path, attr, want, timeout=3.0):
     return got
 
 
+def wait_handshakes(emu, n, timeout=10.0):
+    """The host registers the sensor as soon as it has sent its ACK; the
+    emulator counts the handshake once its thread has read that ACK."""
+    deadline = time.monotonic() + timeout
+    while emu.handshakes < n and time.monotonic() < deadline:
+        time.sleep(0.02)
+    return emu.handshakes
+
+
 def wait_value(path, index, want, timeout=3.0):
     return wait_attr_int(path, 'value%d' % index, want, timeout)
 

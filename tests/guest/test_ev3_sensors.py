@@ -7,7 +7,8 @@ import time
 
 import pytest
 
-from ev3 import ev3_sensor, find_sensor, read_attr, wait_gone, wait_value, write_attr
+from ev3 import (ev3_sensor, find_sensor, read_attr, wait_gone, wait_handshakes, wait_value,
+                 write_attr)
 
 KINDS = ['color', 'us', 'gyro', 'gyro-old', 'ir', 'fcl-humidity']
 
@@ -35,7 +36,7 @@ def test_handshake_registers_sensor(line, kind):
         uevent = f.read().split('\n')
     assert 'LEGO_DRIVER_NAME=' + sdef.driver in uevent
     assert 'LEGO_ADDRESS=ttyNM0' in uevent
-    assert emu.handshakes == 1
+    assert wait_handshakes(emu, 1, timeout=2) == 1, emu.events
 
 
 @pytest.mark.parametrize('kind', KINDS)

@@ -12,8 +12,8 @@ import time
 
 import pytest
 
-from ev3 import (SerialLine, find_sensor, read_attr, serial_pair, wait_gone, wait_value,
-                 write_attr)
+from ev3 import (SerialLine, find_sensor, read_attr, serial_pair, wait_gone, wait_handshakes,
+                 wait_value, write_attr)
 
 PAIR = serial_pair()
 
@@ -37,15 +37,6 @@ def connect(ln, kind):
     path = find_sensor(ln.address, timeout=15)
     assert path, 'no sensor on %s (emulator events: %s)' % (ln.address, emu.events)
     return emu, path
-
-
-def wait_handshakes(emu, n, timeout=10.0):
-    """The host registers the sensor as soon as it has sent its ACK; the
-    emulator counts the handshake once it has read that ACK."""
-    deadline = time.monotonic() + timeout
-    while emu.handshakes < n and time.monotonic() < deadline:
-        time.sleep(0.02)
-    return emu.handshakes
 
 
 def wait_speed(ln, baud, timeout=3.0):
