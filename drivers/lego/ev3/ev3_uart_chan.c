@@ -32,56 +32,6 @@
 /* The largest scale IIO_VAL_INT_PLUS_NANO can show. */
 #define EV3_UART_SCALE_MAX_NANO	((u64)S32_MAX * NANO + NANO - 1)
 
-/**
- * ev3_uart_mul_div() - @a * @b / @c, rounded to the nearest integer
- * @a: first factor
- * @b: second factor
- * @c: divisor
- * @q: the quotient
- *
- * The product is formed in 128 bits from 32-bit halves and divided bit by
- * bit, so this is exact for any inputs, on 32-bit hosts too, and cannot
- * trap (mul_u64_u64_div_u64() raises a divide error on x86 when the
- * quotient does not fit).
- *
- * Return: 0, or -%EOVERFLOW if @c is 0 or the quotient exceeds %S64_MAX.
- */
-int ev3_uart_mul_div(u64 a, u64 b, u64 c, u64 *q)
-{
-	u64 a_lo = (u32)a, a_hi = a >> 32, b_lo = (u32)b, b_hi = b >> 32;
-	u64 p0 = a_lo * b_lo, p1 = a_lo * b_hi, p2 = a_hi * b_lo;
-	u64 mid = (p0 >> 32) + (u32)p1 + (u32)p2;
-	u64 hi = a_hi * b_hi + (p1 >> 32) + (p2 >> 32) + (mid >> 32);
-	u64 lo = (mid << 32) | (u32)p0;
-	u64 res = 0, carry;
-	int i;
-
-	if (!c)
-		return -EOVERFLOW;
-	/* Round: add c / 2 to the 128-bit product. */
-	lo += c / 2;
-	if (lo < c / 2)
-		hi++;
-	/* The quotient has more than 64 bits. */
-	if (hi >= c)
-		return -EOVERFLOW;
-	for (i = 0; i < 64; i++) {
-		carry = hi >> 63;
-		hi = hi << 1 | lo >> 63;
-		lo <<= 1;
-		res <<= 1;
-		if (carry || hi >= c) {
-			hi -= c;
-			res |= 1;
-		}
-	}
-	if (res > S64_MAX)
-		return -EOVERFLOW;
-	*q = res;
-	return 0;
-}
-EXPORT_SYMBOL_IF_KUNIT(ev3_uart_mul_div);
-
 static u64 ev3_uart_abs64(s64 v)
 {
 	return v < 0 ? -(u64)v : (u64)v;
@@ -152,14 +102,15 @@ int ev3_uart_chan_scale(const struct ev3_uart_mode *m, u64 unit_nano,
 	}
 
 	if (!raw_span || !si_span) {
-		if (ev3_uart_mul_div(unit_nano, 1, ev3_pow10[dec], &scale))
+		if (ev3_uart_mul_div(unit_nano, 1, ev3_pow10[dec], true, &scale))
 			return -ERANGE;
 		return ev3_uart_set_scale(c, scale, false);
 	}
 
 	/* |raw_span| < 2^32 and 10^9 < 2^30: the divisor fits. */
 	if (ev3_uart_mul_div(ev3_uart_abs64(si_span), unit_nano,
-			     (u64)ev3_uart_abs64(raw_span) * ev3_pow10[dec], &scale))
+			     (u64)ev3_uart_abs64(raw_span) * ev3_pow10[dec], true,
+			     &scale))
 		return -ERANGE;
 	neg = (si_span < 0) != (raw_span < 0);
 	if (ev3_uart_set_scale(c, scale, neg))
@@ -168,7 +119,7 @@ int ev3_uart_chan_scale(const struct ev3_uart_mode *m, u64 unit_nano,
 	/* |si_min| <= 2^31 and |raw_span| < 2^32: the product fits. */
 	abs_min = ev3_uart_abs64(m->si_min);
 	if (ev3_uart_mul_div(abs_min * ev3_uart_abs64(raw_span), MICRO,
-			     ev3_uart_abs64(si_span), &off))
+			     ev3_uart_abs64(si_span), true, &off))
 		return -ERANGE;
 	offset = ((m->si_min < 0) != neg) ? -(s64)off : (s64)off;
 	if (check_sub_overflow(offset, (s64)m->raw_min * (s64)MICRO, &offset))

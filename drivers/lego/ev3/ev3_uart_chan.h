@@ -57,7 +57,6 @@ struct ev3_uart_chan {
 	s32 offset_val2;
 };
 
-int ev3_uart_mul_div(u64 a, u64 b, u64 c, u64 *q);
 int ev3_uart_chan_scale(const struct ev3_uart_mode *m, u64 unit_nano,
 			struct ev3_uart_chan *c);
 unsigned int ev3_uart_chans_build(const struct ev3_uart_sensor *desc,

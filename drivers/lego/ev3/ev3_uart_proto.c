@@ -151,6 +151,59 @@ s64 ev3_uart_msg_time(s64 now, size_t rest, unsigned int msg_len, u32 speed,
 }
 EXPORT_SYMBOL_IF_KUNIT(ev3_uart_msg_time);
 
+/**
+ * ev3_uart_mul_div() - @a * @b / @c, exactly
+ * @a: first factor
+ * @b: second factor
+ * @c: divisor
+ * @round: round to the nearest integer; else truncate (C's division)
+ * @q: the quotient
+ *
+ * The product is formed in 128 bits from 32-bit halves and divided bit by
+ * bit, so this is exact for any inputs, on 32-bit hosts too, and cannot
+ * trap (mul_u64_u64_div_u64() raises a divide error on x86 when the
+ * quotient does not fit).
+ *
+ * Return: 0, or -%EOVERFLOW if @c is 0 or the quotient exceeds %S64_MAX.
+ */
+int ev3_uart_mul_div(u64 a, u64 b, u64 c, bool round, u64 *q)
+{
+	u64 a_lo = (u32)a, a_hi = a >> 32, b_lo = (u32)b, b_hi = b >> 32;
+	u64 p0 = a_lo * b_lo, p1 = a_lo * b_hi, p2 = a_hi * b_lo;
+	u64 mid = (p0 >> 32) + (u32)p1 + (u32)p2;
+	u64 hi = a_hi * b_hi + (p1 >> 32) + (p2 >> 32) + (mid >> 32);
+	u64 lo = (mid << 32) | (u32)p0;
+	u64 res = 0, carry;
+	int i;
+
+	if (!c)
+		return -EOVERFLOW;
+	/* Round: add c / 2 to the 128-bit product. */
+	if (round) {
+		lo += c / 2;
+		if (lo < c / 2)
+			hi++;
+	}
+	/* The quotient has more than 64 bits. */
+	if (hi >= c)
+		return -EOVERFLOW;
+	for (i = 0; i < 64; i++) {
+		carry = hi >> 63;
+		hi = hi << 1 | lo >> 63;
+		lo <<= 1;
+		res <<= 1;
+		if (carry || hi >= c) {
+			hi -= c;
+			res |= 1;
+		}
+	}
+	if (res > S64_MAX)
+		return -EOVERFLOW;
+	*q = res;
+	return 0;
+}
+EXPORT_SYMBOL_IF_KUNIT(ev3_uart_mul_div);
+
 static const u32 ev3_pow10[EV3_UART_MAX_DECIMALS + 1] = {
 	1, 10, 100, 1000, 10000, 100000, 1000000, 10000000, 100000000,
 	1000000000,
@@ -262,26 +315,26 @@ s32 ev3_uart_scale_value(const struct ev3_uart_mode *mode, s32 raw)
 	s64 raw_span = (s64)mode->raw_max - mode->raw_min;
 	s64 si_span = (s64)mode->si_max - mode->si_min;
 	s64 off = (s64)raw - mode->raw_min;
-	s64 num, v;
+	bool neg = (off < 0) != ((si_span < 0) != (raw_span < 0));
+	u64 q;
+	s64 v;
 
 	if ((mode->raw_min == mode->si_min && mode->raw_max == mode->si_max) ||
 	    !raw_span)
 		return raw;
 
 	/*
-	 * Both spans are below 2^33, so the product can overflow 64 bits;
-	 * then divide first. A raw value far outside a narrow RAW range can
-	 * overflow that too: its result is far beyond the s32 range.
+	 * off * si_span / raw_span, truncated towards zero as C does, exactly:
+	 * both spans are below 2^33, so the product needs up to 66 bits. A
+	 * quotient beyond 2^63 is far beyond the s32 range.
 	 */
-	if (check_mul_overflow(off, si_span, &num)) {
-		if (check_mul_overflow(div64_s64(off, raw_span), si_span, &v))
-			return ((off < 0) != (raw_span < 0)) != (si_span < 0) ?
-			       S32_MIN : S32_MAX;
-	} else {
-		v = div64_s64(num, raw_span);
-	}
+	if (ev3_uart_mul_div(off < 0 ? -(u64)off : (u64)off,
+			     si_span < 0 ? -(u64)si_span : (u64)si_span,
+			     raw_span < 0 ? -(u64)raw_span : (u64)raw_span, false, &q))
+		return neg ? S32_MIN : S32_MAX;
+	v = neg ? -(s64)q : (s64)q;
 	if (check_add_overflow(v, (s64)mode->si_min, &v))
-		return mode->si_min < 0 ? S32_MIN : S32_MAX;
+		return neg ? S32_MIN : S32_MAX;
 
 	return clamp_t(s64, v, S32_MIN, S32_MAX);
 }

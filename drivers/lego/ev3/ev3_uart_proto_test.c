@@ -1070,6 +1070,18 @@ static void test_scale_value(struct kunit *test)
 	KUNIT_EXPECT_EQ(test, ev3_uart_scale_value(&m, S32_MAX), S32_MAX);
 	m.raw_max = -16777217;
 	KUNIT_EXPECT_EQ(test, ev3_uart_scale_value(&m, S32_MAX), S32_MIN);
+	/*
+	 * Found by the whole-driver fuzzer: RAW -2e9..0 onto SI
+	 * -2e9..2147483520, raw 1e9. The product needs 66 bits; dividing
+	 * first gave 1 * span - 2e9 = 2147483520, the exact value is
+	 * 4221225280, saturated.
+	 */
+	m.raw_min = -2000000000;
+	m.raw_max = 0;
+	m.si_min = -2000000000;
+	m.si_max = 2147483520;
+	KUNIT_EXPECT_EQ(test, ev3_uart_scale_value(&m, 1000000000), S32_MAX);
+	KUNIT_EXPECT_EQ(test, ev3_uart_scale_value(&m, -1000000000), 73741760);
 }
 
 static void test_float_values(struct kunit *test)
@@ -1122,20 +1134,26 @@ static void test_mul_div(struct kunit *test)
 {
 	u64 q;
 
-	KUNIT_EXPECT_EQ(test, ev3_uart_mul_div(10, 3, 4, &q), 0);
+	KUNIT_EXPECT_EQ(test, ev3_uart_mul_div(10, 3, 4, true, &q), 0);
 	KUNIT_EXPECT_EQ(test, q, 8ULL);			/* 7.5 rounds up */
-	KUNIT_EXPECT_EQ(test, ev3_uart_mul_div(7, 1, 4, &q), 0);
+	KUNIT_EXPECT_EQ(test, ev3_uart_mul_div(7, 1, 4, true, &q), 0);
 	KUNIT_EXPECT_EQ(test, q, 2ULL);			/* 1.75 */
+	KUNIT_EXPECT_EQ(test, ev3_uart_mul_div(7, 1, 4, false, &q), 0);
+	KUNIT_EXPECT_EQ(test, q, 1ULL);			/* truncated */
+	/* 3e9 * 4147483520 / 2e9: 66 bits, then exactly 6221225280. */
+	KUNIT_EXPECT_EQ(test, ev3_uart_mul_div(3000000000ULL, 4147483520ULL, 2000000000ULL,
+					       false, &q), 0);
+	KUNIT_EXPECT_EQ(test, q, 6221225280ULL);
 	/* Products beyond 64 bits are exact. */
-	KUNIT_EXPECT_EQ(test, ev3_uart_mul_div(1ULL << 40, 1ULL << 40, 1ULL << 30, &q), 0);
+	KUNIT_EXPECT_EQ(test, ev3_uart_mul_div(1ULL << 40, 1ULL << 40, 1ULL << 30, true, &q), 0);
 	KUNIT_EXPECT_EQ(test, q, 1ULL << 50);
-	KUNIT_EXPECT_EQ(test, ev3_uart_mul_div(U64_MAX, U64_MAX, U64_MAX, &q), -EOVERFLOW);
-	KUNIT_EXPECT_EQ(test, ev3_uart_mul_div(1ULL << 62, 4, 2, &q), -EOVERFLOW);
-	KUNIT_EXPECT_EQ(test, ev3_uart_mul_div(1ULL << 62, 2, 2, &q), 0);
+	KUNIT_EXPECT_EQ(test, ev3_uart_mul_div(U64_MAX, U64_MAX, U64_MAX, true, &q), -EOVERFLOW);
+	KUNIT_EXPECT_EQ(test, ev3_uart_mul_div(1ULL << 62, 4, 2, true, &q), -EOVERFLOW);
+	KUNIT_EXPECT_EQ(test, ev3_uart_mul_div(1ULL << 62, 2, 2, true, &q), 0);
 	KUNIT_EXPECT_EQ(test, q, 1ULL << 62);
-	KUNIT_EXPECT_EQ(test, ev3_uart_mul_div(1, 1, 0, &q), -EOVERFLOW);
+	KUNIT_EXPECT_EQ(test, ev3_uart_mul_div(1, 1, 0, true, &q), -EOVERFLOW);
 	/* The quotient the divide error came from: 2e7 C over a 1-wide range. */
-	KUNIT_EXPECT_EQ(test, ev3_uart_mul_div(20000000, 1000000000000ULL, 1, &q),
+	KUNIT_EXPECT_EQ(test, ev3_uart_mul_div(20000000, 1000000000000ULL, 1, true, &q),
 			-EOVERFLOW);
 }
 
