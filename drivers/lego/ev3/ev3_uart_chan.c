@@ -32,11 +32,6 @@
 /* The largest scale IIO_VAL_INT_PLUS_NANO can show. */
 #define EV3_UART_SCALE_MAX_NANO	((u64)S32_MAX * NANO + NANO - 1)
 
-static u64 ev3_uart_abs64(s64 v)
-{
-	return v < 0 ? -(u64)v : (u64)v;
-}
-
 static const u64 ev3_pow10[EV3_UART_MAX_DECIMALS + 1] = {
 	1, 10, 100, 1000, 10000, 100000, 1000000, 10000000, 100000000,
 	1000000000,

@@ -328,9 +328,8 @@ s32 ev3_uart_scale_value(const struct ev3_uart_mode *mode, s32 raw)
 	 * both spans are below 2^33, so the product needs up to 66 bits. A
 	 * quotient beyond 2^63 is far beyond the s32 range.
 	 */
-	if (ev3_uart_mul_div(off < 0 ? -(u64)off : (u64)off,
-			     si_span < 0 ? -(u64)si_span : (u64)si_span,
-			     raw_span < 0 ? -(u64)raw_span : (u64)raw_span, false, &q))
+	if (ev3_uart_mul_div(ev3_uart_abs64(off), ev3_uart_abs64(si_span),
+			     ev3_uart_abs64(raw_span), false, &q))
 		return neg ? S32_MIN : S32_MAX;
 	v = neg ? -(s64)q : (s64)q;
 	if (check_add_overflow(v, (s64)mode->si_min, &v))

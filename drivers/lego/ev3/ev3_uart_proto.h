@@ -268,6 +268,12 @@ int ev3_uart_build_write(u8 *buf, const u8 *data, size_t len);
 int ev3_uart_f32_to_fixed(u32 bits, unsigned int decimals, s32 *out);
 int ev3_uart_read_value(const struct ev3_uart_mode *mode, const u8 *data,
 			size_t len, unsigned int index, s32 *out);
+/* |@v| as a u64, exact for S64_MIN too. */
+static inline u64 ev3_uart_abs64(s64 v)
+{
+	return v < 0 ? -(u64)v : (u64)v;
+}
+
 int ev3_uart_mul_div(u64 a, u64 b, u64 c, bool round, u64 *q);
 s32 ev3_uart_scale_value(const struct ev3_uart_mode *mode, s32 raw);
 const char *ev3_uart_driver_name(u8 type);
