@@ -1005,7 +1005,7 @@ def main():
     ap.add_argument('--unplugs', type=int)
     ap.add_argument('--transactions', type=int, help='per client, in part 5')
     ap.add_argument('--ev3-cases', type=int, help='generated EV3 handshakes, in part 7')
-    ap.add_argument('--ev3-seed', type=int, help='first seed of part 7 (default: random)')
+    ap.add_argument('--ev3-seed', type=lambda v: int(v, 0), help='first seed of part 7 (default: random)')
     ap.add_argument('--nxt-sequences', type=int, help='part 8: sequences (10000)')
     ap.add_argument('--nxt-seed', type=lambda v: int(v, 0), help='part 8: run seed')
     ap.add_argument('--no-kmemleak', action='store_true')
