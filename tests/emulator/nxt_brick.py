@@ -1378,18 +1378,26 @@ class RawGadgetBrick:
 
     # ---- the command loop (the firmware's comm module) ----
 
+    def _next_command(self):
+        """The next command packet from the host, or None (not configured
+        yet, or the read was flushed by a reset or disconnect): call again."""
+        if not self.configured.wait(0.1):
+            return None
+        gen = self.times_configured
+        try:
+            packet = self._io(USB_RAW_IOCTL_EP_READ, self._ep_out, length=64)
+        except OSError as e:
+            # Reset or disconnect: the request was flushed.
+            self._after_flush(e, gen)
+            return None
+        self.commands += 1
+        return packet
+
     def _command_loop(self):
         while not self._stopping.is_set():
-            if not self.configured.wait(0.1):
+            packet = self._next_command()
+            if packet is None:
                 continue
-            gen = self.times_configured
-            try:
-                packet = self._io(USB_RAW_IOCTL_EP_READ, self._ep_out, length=64)
-            except OSError as e:
-                # Reset or disconnect: the request was flushed.
-                self._after_flush(e, gen)
-                continue
-            self.commands += 1
             self.log('command %s' % packet.hex())
             if self.hostile == 'disconnect':
                 self._unplug_soon('unplugging instead of replying')

@@ -266,15 +266,9 @@ class HostileBrick(nb.RawGadgetBrick):
 
     def _command_loop(self):
         while not self._stopping.is_set():
-            if not self.configured.wait(0.1):
+            packet = self._next_command()
+            if packet is None:
                 continue
-            gen = self.times_configured
-            try:
-                packet = self._io(nb.USB_RAW_IOCTL_EP_READ, self._ep_out, length=64)
-            except OSError as e:
-                self._after_flush(e, gen)
-                continue
-            self.commands += 1
             reply = self.fw.handle(packet)
             action = self.choose(packet, reply)
             self.actions[action] += 1
