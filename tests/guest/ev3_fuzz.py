@@ -586,8 +586,13 @@ class Runner:
             deadline = time.monotonic() + 4
             while time.monotonic() < deadline and len(data) < scan_size * 8:
                 data += ev3.drain(fd, 0.3)
-            with open(iio + '/buffer/enable', 'w') as f:
-                f.write('0')
+            try:
+                with open(iio + '/buffer/enable', 'w') as f:
+                    f.write('0')
+            except OSError as e:
+                # ENOENT: the sensor was lost during the capture (check()
+                # makes that a SensorLost once its directory is gone).
+                self.check(False, 'buffer disable: %s' % ename(e.errno))
             data += ev3.drain(fd, 0.2)
         finally:
             os.close(fd)
