@@ -88,6 +88,23 @@ class SensorDir:
         self.close()
 
 
+def _attrs_complete(sd, deadline):
+    """Wait until the sensor's attributes are all there. The directory
+    appears before device_add() creates the class's attribute group, one
+    file at a time, binary files last: a reader that finds the directory
+    early can see "address" and not yet "fw_version" (seen on the KCSAN
+    kernel). "direct" is the group's last file."""
+    while True:
+        try:
+            os.stat('direct', dir_fd=sd.fd)
+            return True
+        except FileNotFoundError:
+            if time.monotonic() >= deadline or not os.path.exists(
+                    '/proc/self/fd/%d/address' % sd.fd):
+                return False            # or gone already
+            time.sleep(0.01)
+
+
 def open_sensor(address, timeout=10.0, gone_from=None):
     """The held directory (SensorDir) of the sensor at `address`, other
     than the directory `gone_from`, waiting for it; None if none turns up."""
@@ -101,7 +118,7 @@ def open_sensor(address, timeout=10.0, gone_from=None):
             except OSError:
                 continue
             try:
-                if sd.read('address') == address:
+                if sd.read('address') == address and _attrs_complete(sd, deadline):
                     return sd
             except OSError:
                 pass
