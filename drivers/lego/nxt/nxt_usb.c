@@ -738,10 +738,15 @@ int nxt_xfer_start(struct nxt_usb *nxt, struct nxt_xfer *x, const u8 *tg,
 	}
 
 	if (wait_event_interruptible(nxt->wait, nxt_out_done(nxt, x))) {
-		/* Its completion runs before usb_kill_urb() returns. */
+		/*
+		 * Its completion runs before usb_kill_urb() returns and
+		 * finishes @x with -EINTR if the kill stopped it. If the
+		 * brick took the telegram first, @x goes on: the caller is
+		 * told it was sent, and its reply is still to be read.
+		 */
 		usb_kill_urb(urb);
 		spin_lock_irq(&nxt->lock);
-		if (x->status == -EINPROGRESS)
+		if (x->status == -EINPROGRESS && !x->delivered)
 			nxt_finish(nxt, x, -EINTR);
 		spin_unlock_irq(&nxt->lock);
 	}
