@@ -23,6 +23,8 @@
 #include "nxtctl.h"
 
 #define DEFAULT_TIMEOUT_MS	1000
+#define DEFAULT_WAIT_MS		60000	/* motor --wait */
+#define WAIT_POLL_MS		50
 
 int nxt_fd = -1;
 static unsigned int timeout_ms = DEFAULT_TIMEOUT_MS;
@@ -34,6 +36,9 @@ static long dev_timeout;	/* -t, 0 for the driver's */
 #endif
 
 static int open_device(const char *dev, long timeout);
+static double now_ms(void);
+static void sleep_ms(unsigned int ms);
+static const char *run_state_name(unsigned int s);
 
 /* The device is opened on first use, after the arguments were checked. */
 static int ensure_device(void)
@@ -628,6 +633,46 @@ static int cmd_stop_sound(int argc, char **argv)
 	return do_ioctl(NXT_IOC_STOP_SOUND_PLAYBACK, &s, &s.status, "StopSoundPlayback");
 }
 
+/*
+ * --wait: poll GetOutputState until the motor on @port (each of the three
+ * for NXT_OUTPUT_ALL) is back in run state idle, as the firmware puts it
+ * when it reaches its tacho limit; give up after @wait_ms.
+ */
+static int wait_motors(__u8 port, long wait_ms)
+{
+	struct nxt_output_state o, last = { 0 };
+	double deadline = now_ms() + wait_ms;
+	unsigned int busy = port == NXT_OUTPUT_ALL ? 7 : 1u << port;
+	__u8 p;
+	int ret;
+
+	for (;;) {
+		for (p = 0; p < 3; p++) {
+			if (!(busy & 1u << p))
+				continue;
+			memset(&o, 0, sizeof(o));
+			o.port = p;
+			ret = do_ioctl(NXT_IOC_GET_OUTPUT_STATE, &o, &o.status,
+				       "GetOutputState");
+			if (ret)
+				return ret;
+			if (o.run_state == NXT_RUN_STATE_IDLE)
+				busy &= ~(1u << p);
+			else
+				last = o;
+		}
+		if (!busy)
+			return EXIT_OK;
+		if (now_ms() > deadline) {
+			fprintf(stderr, "nxtctl: motor %c: %s: still %s after %ld ms (tacho_count %d of %u)\n",
+				'A' + last.port, strerror(ETIMEDOUT), run_state_name(last.run_state),
+				wait_ms, last.tacho_count, last.tacho_limit);
+			return EXIT_DEVICE;
+		}
+		sleep_ms(WAIT_POLL_MS);
+	}
+}
+
 static int cmd_motor(int argc, char **argv)
 {
 	struct opt opts[] = {
@@ -636,10 +681,12 @@ static int cmd_motor(int argc, char **argv)
 		{ .name = "regulated" },
 		{ .name = "sync" },
 		{ .name = "turn-ratio", .has_arg = 1 },
+		{ .name = "wait" },
+		{ .name = "wait-timeout", .has_arg = 1 },
 		{}
 	};
 	struct nxt_output_state o = { 0 };
-	long power, limit = 0, turn = 0;
+	long power, limit = 0, turn = 0, wait_ms = DEFAULT_WAIT_MS;
 	int npos, ret;
 	char *pos[2];
 
@@ -649,6 +696,16 @@ static int cmd_motor(int argc, char **argv)
 	ret = motor_port("motor", pos[0], 1, &o.port);
 	if (ret)
 		return ret;
+	if (opts[6].set) {
+		ret = num_arg("motor", "--wait-timeout", opts[6].arg, 1, 3600000, &wait_ms);
+		if (ret)
+			return ret;
+	}
+	if (!strcmp(pos[1], "stop") || !strcmp(pos[1], "coast") ||
+	    !strcmp(pos[1], "brake")) {
+		if (opts[5].set)
+			return usage_error("motor", "motor: --wait is for a move with --tacho-limit");
+	}
 	if (!strcmp(pos[1], "stop") || !strcmp(pos[1], "coast")) {
 		/* Power off, the motor coasts to a stop. */
 		o.run_state = NXT_RUN_STATE_IDLE;
@@ -677,6 +734,8 @@ static int cmd_motor(int argc, char **argv)
 	}
 	if (opts[2].set && opts[3].set)
 		return usage_error("motor", "motor: --regulated and --sync exclude each other");
+	if (opts[5].set && (!limit || !power))
+		return usage_error("motor", "motor: --wait needs a POWER other than 0 and a --tacho-limit");
 	o.power = power;
 	o.mode = NXT_MODE_MOTORON;
 	if (opts[1].set)
@@ -689,7 +748,10 @@ static int cmd_motor(int argc, char **argv)
 	o.turn_ratio = turn;
 	o.run_state = NXT_RUN_STATE_RUNNING;
 	o.tacho_limit = limit;
-	return do_ioctl(NXT_IOC_SET_OUTPUT_STATE, &o, &o.status, "SetOutputState");
+	ret = do_ioctl(NXT_IOC_SET_OUTPUT_STATE, &o, &o.status, "SetOutputState");
+	if (ret || !opts[5].set)
+		return ret;
+	return wait_motors(o.port, wait_ms);
 }
 
 static const char *run_state_name(unsigned int s)
@@ -1164,12 +1226,15 @@ static const struct command commands[] = {
 	{ "stop-sound", cmd_stop_sound, "",
 	  "Stop playing sound.\n" },
 	{ "motor", cmd_motor,
-	  "PORT POWER [--tacho-limit DEG] [--brake] [--regulated|--sync] [--turn-ratio N]\n"
+	  "PORT POWER [--tacho-limit=DEG] [--wait] [--wait-timeout=MS] [--brake] [--regulated|--sync] [--turn-ratio=N]\n"
 	  "       nxtctl motor PORT stop|brake",
 	  "Run the motor on PORT (A, B, C or all) at POWER (-100 to 100), for\n"
 	  "DEG degrees with --tacho-limit (0: no limit). --brake brakes between\n"
 	  "the PWM pulses, --regulated turns on speed regulation, --sync\n"
 	  "synchronises two motors (with --turn-ratio -100 to 100).\n"
+	  "--wait waits until the move with --tacho-limit is over (the brick\n"
+	  "reports run state idle), at most --wait-timeout ms (default 60000);\n"
+	  "for 'all', until all three motors are.\n"
 	  "'stop' turns the power off (the motor coasts), 'brake' holds the\n"
 	  "motor still (power 0, brake and regulation on).\n" },
 	{ "motor-state", cmd_motor_state, "PORT",
