@@ -112,6 +112,7 @@ const char *status_name(unsigned int status)
 
 int brick_error(const char *what, unsigned int status)
 {
+	progress_end();
 	fprintf(stderr, "nxtctl: %s: %s (status 0x%02x)\n", what,
 		status_name(status), status);
 	return EXIT_BRICK;
@@ -119,6 +120,7 @@ int brick_error(const char *what, unsigned int status)
 
 int sys_error(const char *what, int err)
 {
+	progress_end();
 	if (err == ETIMEDOUT)
 		fprintf(stderr, "nxtctl: %s: %s: the brick did not answer within %u ms\n",
 			what, strerror(err), timeout_ms);

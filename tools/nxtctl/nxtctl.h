@@ -49,6 +49,8 @@ int system_cmd(struct nxt_transaction *t, __u8 op, const void *args,
 	       size_t len, const char *what);
 int check_name(const char *cmd, const char *name);
 
+void progress_end(void);
+
 int cmd_upload(int argc, char **argv);
 int cmd_download(int argc, char **argv);
 int cmd_ls(int argc, char **argv);
