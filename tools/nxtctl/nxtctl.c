@@ -1290,6 +1290,16 @@ static const struct command commands[] = {
 	  "NAME.*, *.EXT or a full name): size in bytes and name.\n" },
 	{ "rm", cmd_rm, "NAME",
 	  "Delete the file NAME from the brick.\n" },
+	{ "release", cmd_release, "[--serial=SERIAL]",
+	  "Hand the brick to libusb programs (nxt-python's usb backend, NBC/NXC,\n"
+	  "NeXTTool, leJOS): unbind lego_nxt_usb from it, so /dev/nxtN goes\n"
+	  "away. -d takes /dev/nxtN or the brick's /dev/bus/usb/BBB/DDD;\n"
+	  "--serial picks the brick by its USB serial number. Needs write\n"
+	  "access to /dev/bus/usb/BBB/DDD only. Prints the serial and that node.\n" },
+	{ "claim", cmd_claim, "[--serial=SERIAL]",
+	  "Take a released brick back: lego_nxt_usb binds to it again and\n"
+	  "/dev/nxtN comes back (printed). The brick is -d /dev/bus/usb/BBB/DDD,\n"
+	  "--serial SERIAL, or the only released NXT.\n" },
 	{ "help", cmd_help, "[COMMAND]",
 	  "Print the help of COMMAND, or the list of commands.\n" },
 };

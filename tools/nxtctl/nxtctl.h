@@ -55,6 +55,8 @@ int cmd_upload(int argc, char **argv);
 int cmd_download(int argc, char **argv);
 int cmd_ls(int argc, char **argv);
 int cmd_rm(int argc, char **argv);
+int cmd_release(int argc, char **argv);
+int cmd_claim(int argc, char **argv);
 
 /* Options of a subcommand: "--name" or "--name VALUE". */
 struct opt {
