@@ -709,12 +709,12 @@ def driver_of(usbdir):
     return os.path.basename(os.readlink(link)) if os.path.lexists(link) else None
 
 
-def libusb_battery(brick):
+def libusb_battery(serial=SERIAL):
     """GetBatteryLevel through pyusb, as a libusb program would: the
     endpoints 0x01 OUT and 0x82 IN of interface 0. Returns (mV, device)."""
     import usb.core
     dev = usb.core.find(idVendor=0x0694, idProduct=0x0002,
-                        custom_match=lambda d: d.serial_number == SERIAL)
+                        custom_match=lambda d: d.serial_number == serial)
     assert dev is not None
     dev.set_configuration()
     dev.write(0x01, b'\x00\x0b', timeout=2000)
@@ -739,7 +739,7 @@ def test_release_and_claim(brick, ctl):
               3, 'cannot open ' + old)
         # A libusb program talks to the brick.
         brick.fw.battery_mv = 7111
-        mv, dev = libusb_battery(brick)
+        mv, dev = libusb_battery()
         assert mv == 7111
         try:
             # Releasing again is no error; claiming while the program
@@ -820,3 +820,60 @@ def test_release_and_claim_without_root(brick, tmp_path):
             with open(nxt.DRIVER + '/bind', 'w') as f:
                 f.write(os.path.basename(usbdir) + ':1.0')
         brick.node = nxt.node_of(SERIAL)
+
+
+# The rule Documentation/lego/nxtctl.rst gives for keeping the driver off
+# chosen bricks for good.
+UDEV_RULE = ('ACTION=="bind", SUBSYSTEM=="usb", ENV{DEVTYPE}=="usb_interface", '
+             'DRIVER=="lego_nxt_usb", ATTRS{serial}=="%s", '
+             'RUN+="/bin/sh -c \'echo $kernel > /sys/bus/usb/drivers/lego_nxt_usb/unbind\'"\n')
+
+
+def test_udev_rule_keeps_the_driver_off_a_brick(brick):
+    import signal
+    import usb.util
+    udevd = '/lib/systemd/systemd-udevd'
+    if not os.access(udevd, os.X_OK):
+        pytest.skip('no systemd-udevd')
+    with open(DOC) as f:
+        assert UDEV_RULE % '001653XXXXXX' in f.read(), 'the page shows another rule'
+    rules = '/run/udev/rules.d'
+    os.makedirs(rules, exist_ok=True)
+    rule = os.path.join(rules, '70-nxt-libusb.rules')
+    with open(rule, 'w') as f:
+        f.write(UDEV_RULE % SERIAL2)
+    subprocess.run([udevd, '--daemon'], check=True)
+    other = nxt.Brick('dummy_udc.1', SERIAL2)
+    try:
+        other.fw.battery_mv = 6543
+        other.emu.start()
+        assert other.emu.wait_configured(15), 'brick not configured'
+        node, usbdir = None, None
+        deadline = time.monotonic() + 15
+        while time.monotonic() < deadline:
+            node, usbdir = usb_node(SERIAL2)
+            if usbdir and os.path.isdir(os.path.join(usbdir, os.path.basename(usbdir) + ':1.0')) \
+                    and driver_of(usbdir) is None:
+                break
+            time.sleep(0.1)
+        assert usbdir and driver_of(usbdir) is None, 'the rule did not unbind the driver'
+        # Bound a moment: wait for the driver's own node to go too.
+        assert wait_for(lambda: not nxt.interface_of(SERIAL2) and
+                        len(glob.glob('/dev/nxt[0-9]*')) == 1, 10), glob.glob('/dev/nxt*')
+        # The libusb program has it; the other brick stays with the driver.
+        mv, dev = libusb_battery(SERIAL2)
+        usb.util.dispose_resources(dev)
+        assert mv == 6543
+        assert nxt.node_of(SERIAL, 1) == brick.node
+        # claim cannot beat the rule: the driver is unbound again at once.
+        subprocess.run([NXTCTL, 'claim', '--serial=' + SERIAL2], capture_output=True, text=True)
+        assert wait_for(lambda: driver_of(usbdir) is None, 10)
+    finally:
+        other.unplug()
+        out = subprocess.run(['pidof', 'systemd-udevd'], capture_output=True, text=True).stdout
+        for pid in [int(p) for p in out.split()]:
+            os.kill(pid, signal.SIGTERM)
+        assert wait_for(lambda: subprocess.run(['pidof', 'systemd-udevd'],
+                                               capture_output=True).returncode != 0, 20)
+        os.unlink(rule)
+        assert wait_for(lambda: usb_node(SERIAL2)[1] is None, 10)

@@ -162,14 +162,15 @@ static int node_of(const struct usb_brick *b, char *node, size_t size)
 
 /*
  * Every NXT on the USB buses, with --serial only that one, and with
- * @released only those whose interface 0 has no driver. Returns how many
+ * @released only those that lego_nxt_usb does not have (no driver, or
+ * usbfs for a libusb program). Returns how many
  * matched, the first in @b.
  */
 static int scan_bricks(const char *serial, int released, struct usb_brick *b,
 		       char *names, size_t size)
 {
 	struct usb_brick cur;
-	char dir[PATH_MAX], drv[PATH_MAX + 300];
+	char dir[PATH_MAX], drv[PATH_MAX + 300], real[PATH_MAX];
 	struct dirent *e;
 	int n = 0;
 	DIR *d;
@@ -187,7 +188,7 @@ static int scan_bricks(const char *serial, int released, struct usb_brick *b,
 		if (serial && strcasecmp(serial, cur.serial))
 			continue;
 		snprintf(drv, sizeof(drv), "%s/%s:1.0/driver", dir, e->d_name);
-		if (released && access(drv, F_OK) == 0)
+		if (released && realpath(drv, real) && !strcmp(strrchr(real, '/') + 1, NXT_DRIVER))
 			continue;
 		if (!n)
 			*b = cur;
