@@ -848,7 +848,7 @@ def test_udev_rule_keeps_the_driver_off_a_brick(brick):
     daemon = subprocess.Popen([udevd, '--debug'], stdout=log, stderr=subprocess.STDOUT)
     other = nxt.Brick('dummy_udc.1', SERIAL2)
     try:
-        time.sleep(2)          # udevd reads its rules before it listens
+        time.sleep(3)          # udevd reads its rules before it listens
         other.fw.battery_mv = 6543
         other.emu.start()
         assert other.emu.wait_configured(15), 'brick not configured'
