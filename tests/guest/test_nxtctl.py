@@ -134,6 +134,7 @@ def test_help_lists_every_command_and_matches_the_doc():
     (['motor', 'A', '50', '--tacho-limit=90', '--wait', '--wait-timeout=0'],
      ['--wait-timeout']),
     (['motor', 'A', '-x'], ["unknown option '-x'"]),
+    (['mailbox-send', '1', '-hello'], ["unknown option '-h'"]),
     (['release', 'extra'], ['too many arguments']),
     (['claim', '--serial'], ["option '--serial' needs a value"]),
     (['claim', '--serial=001653C0FFEE'], ['-d and --serial exclude each other']),

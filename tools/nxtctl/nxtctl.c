@@ -260,7 +260,8 @@ int parse_opts(const char *cmd, int argc, char **argv, struct opt *opts,
 			goto positional;
 		}
 		idx = optind ? optind : 1;
-		c = getopt_long(argc, av, "+:d:t:h", lo, NULL);
+		/* No -h here: main() takes "-h" alone, "-hello" is no help. */
+		c = getopt_long(argc, av, "+:d:t:", lo, NULL);
 		if (c == -1) {
 			if (optind >= argc && !(optind == idx + 1 && !strcmp(av[idx], "--")))
 				break;
