@@ -19,6 +19,40 @@
 
 #define LOCAL_MAX	(16 * 1024 * 1024)	/* far more than the flash holds */
 
+/*
+ * A progress bar on standard error, only when it is a terminal:
+ * "download Demo.rxe [#########.........]  33%  85/256 bytes".
+ */
+#define BAR_WIDTH	30
+
+static int show_progress = -1;
+
+static void progress(const char *what, const char *name, size_t done, size_t total)
+{
+	char bar[BAR_WIDTH + 1];
+	size_t fill, pct;
+
+	if (show_progress < 0)
+		show_progress = isatty(STDERR_FILENO);
+	if (!show_progress)
+		return;
+	pct = total ? done * 100 / total : 100;
+	fill = total ? done * BAR_WIDTH / total : BAR_WIDTH;
+	memset(bar, '#', fill);
+	memset(bar + fill, '.', BAR_WIDTH - fill);
+	bar[BAR_WIDTH] = 0;
+	fprintf(stderr, "\r%s %s [%s] %3zu%%  %zu/%zu bytes", what, name, bar, pct,
+		done, total);
+}
+
+/* End the bar's line, after success or before an error message. */
+void progress_end(void)
+{
+	if (show_progress > 0)
+		fputc('\n', stderr);
+	show_progress = -1;
+}
+
 /* A name as the 20-byte NUL-padded field of the system commands. */
 static void name_field(__u8 *field, const char *name)
 {
@@ -181,6 +215,7 @@ int cmd_upload(int argc, char **argv)
 		goto out;
 	}
 
+	progress("upload", remote, 0, size);
 	for (off = 0; off < size; off += n) {
 		n = size - off;
 		if (n > NXT_WRITE_CHUNK)
@@ -198,13 +233,16 @@ int cmd_upload(int argc, char **argv)
 			ret = brick_error("Write", t.reply[2]);
 			goto fail;
 		}
+		progress("upload", remote, off + n, size);
 		if ((size_t)get_le16(t.reply + 4) != n) {
+			progress_end();
 			fprintf(stderr, "nxtctl: Write: the brick took %u of %zu bytes\n",
 				get_le16(t.reply + 4), n);
 			ret = EXIT_DEVICE;
 			goto fail;
 		}
 	}
+	progress_end();
 	ret = close_handle(handle, "Close");
 	if (ret)
 		goto out;
@@ -236,11 +274,50 @@ static int write_all(int fd, const __u8 *buf, size_t len)
 	return 0;
 }
 
+/*
+ * The temporary file a download goes to, next to @local so that rename()
+ * replaces @local at once: ".NAME.XXXXXX" in the same directory, with the
+ * mode an existing @local has, or 0666 less the umask.
+ */
+static int open_temp(const char *local, char **tmp)
+{
+	const char *base = strrchr(local, '/');
+	size_t dirlen = base ? (size_t)(base - local) + 1 : 0;
+	struct stat st;
+	mode_t mode, mask;
+	int fd;
+
+	base = base ? base + 1 : local;
+	*tmp = malloc(dirlen + strlen(base) + 9);
+	if (!*tmp) {
+		errno = ENOMEM;
+		return -1;
+	}
+	sprintf(*tmp, "%.*s.%s.XXXXXX", (int)dirlen, local, base);
+	fd = mkstemp(*tmp);
+	if (fd < 0) {
+		free(*tmp);
+		*tmp = NULL;
+		return -1;
+	}
+	if (stat(local, &st) == 0 && S_ISREG(st.st_mode)) {
+		mode = st.st_mode & 07777;
+	} else {
+		mask = umask(0);
+		umask(mask);
+		mode = 0666 & ~mask;
+	}
+	/* Not fatal if it fails: the file stays 0600. */
+	(void)fchmod(fd, mode);
+	return fd;
+}
+
 int cmd_download(int argc, char **argv)
 {
 	struct nxt_transaction t;
 	__u8 field[NXT_NAME_LEN], handle;
 	const char *local;
+	char *tmp = NULL;
 	__u32 size, off, n;
 	int npos, ret, fd;
 	char *pos[2];
@@ -262,16 +339,18 @@ int cmd_download(int argc, char **argv)
 	handle = t.reply[3];
 	size = get_le32(t.reply + 4);
 
+	/* A failed download leaves an existing LOCAL as it was. */
 	if (!strcmp(local, "-"))
 		fd = STDOUT_FILENO;
 	else
-		fd = open(local, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+		fd = open_temp(local, &tmp);
 	if (fd < 0) {
 		fprintf(stderr, "nxtctl: cannot create %s: %s\n", local, strerror(errno));
 		close_quietly(handle);
 		return EXIT_DEVICE;
 	}
 
+	progress("download", pos[0], 0, size);
 	for (off = 0; off < size; off += n) {
 		n = size - off;
 		if (n > NXT_READ_CHUNK)
@@ -290,31 +369,49 @@ int cmd_download(int argc, char **argv)
 			goto fail;
 		}
 		if (t.reply_length < 6 + n) {
+			progress_end();
 			fprintf(stderr, "nxtctl: Read: short reply (%u bytes for %u data bytes)\n",
 				t.reply_length, n);
 			ret = EXIT_DEVICE;
 			goto fail;
 		}
 		if (write_all(fd, t.reply + 6, n)) {
+			progress_end();
 			fprintf(stderr, "nxtctl: cannot write %s: %s\n", local, strerror(errno));
 			ret = EXIT_DEVICE;
 			goto fail;
 		}
+		progress("download", pos[0], off + n, size);
 	}
+	progress_end();
 	ret = close_handle(handle, "Close");
-	if (fd != STDOUT_FILENO && close(fd)) {
-		fprintf(stderr, "nxtctl: cannot write %s: %s\n", local, strerror(errno));
-		unlink(local);
-		return EXIT_DEVICE;
+	if (fd == STDOUT_FILENO)
+		return ret;
+	if (ret) {
+		close(fd);
+		goto remove;
 	}
-	return ret;
+	if (fsync(fd) || close(fd)) {
+		fprintf(stderr, "nxtctl: cannot write %s: %s\n", local, strerror(errno));
+		ret = EXIT_DEVICE;
+		goto remove;
+	}
+	if (rename(tmp, local)) {
+		fprintf(stderr, "nxtctl: cannot create %s: %s\n", local, strerror(errno));
+		ret = EXIT_DEVICE;
+		goto remove;
+	}
+	free(tmp);
+	return EXIT_OK;
 
 fail:
 	close_quietly(handle);
-	if (fd != STDOUT_FILENO) {
-		close(fd);
-		unlink(local);
-	}
+	if (fd == STDOUT_FILENO)
+		return ret;
+	close(fd);
+remove:
+	unlink(tmp);
+	free(tmp);
 	return ret;
 }
 

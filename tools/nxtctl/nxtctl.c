@@ -9,6 +9,7 @@
 #include <ctype.h>
 #include <errno.h>
 #include <fcntl.h>
+#include <getopt.h>
 #include <glob.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -22,13 +23,22 @@
 #include "nxtctl.h"
 
 #define DEFAULT_TIMEOUT_MS	1000
+#define DEFAULT_WAIT_MS		60000	/* motor --wait */
+#define WAIT_POLL_MS		50
 
 int nxt_fd = -1;
 static unsigned int timeout_ms = DEFAULT_TIMEOUT_MS;
-static const char *dev_path;	/* -d */
+const char *dev_path;		/* -d */
 static long dev_timeout;	/* -t, 0 for the driver's */
 
+#ifndef NXTCTL_VERSION
+#define NXTCTL_VERSION "unknown"
+#endif
+
 static int open_device(const char *dev, long timeout);
+static double now_ms(void);
+static void sleep_ms(unsigned int ms);
+static const char *run_state_name(unsigned int s);
 
 /* The device is opened on first use, after the arguments were checked. */
 static int ensure_device(void)
@@ -102,6 +112,7 @@ const char *status_name(unsigned int status)
 
 int brick_error(const char *what, unsigned int status)
 {
+	progress_end();
 	fprintf(stderr, "nxtctl: %s: %s (status 0x%02x)\n", what,
 		status_name(status), status);
 	return EXIT_BRICK;
@@ -109,6 +120,7 @@ int brick_error(const char *what, unsigned int status)
 
 int sys_error(const char *what, int err)
 {
+	progress_end();
 	if (err == ETIMEDOUT)
 		fprintf(stderr, "nxtctl: %s: %s: the brick did not answer within %u ms\n",
 			what, strerror(err), timeout_ms);
@@ -122,6 +134,7 @@ int sys_error(const char *what, int err)
 
 static const struct command *find_command(const char *name);
 static void print_usage(FILE *f, const struct command *c);
+static void print_help(const struct command *c);
 
 int usage_error(const char *cmd, const char *fmt, ...)
 {
@@ -188,40 +201,132 @@ static int do_ioctl(unsigned long req, void *arg, const __u8 *status,
 
 /* ---- argument parsing ---- */
 
+/* The options every command takes, after the command's own. */
+#define OPT_DEVICE	'd'
+#define OPT_TIMEOUT	't'
+#define OPT_HELP	'h'
+#define OPT_CMD		256	/* + the index in the command's table */
+
+static int set_timeout_opt(const char *cmd, const char *s);
+
+/* A negative number is a value ("motor A -50"), not an option. */
+static int is_number(const char *s)
+{
+	return s[0] == '-' && s[1] >= '0' && s[1] <= '9';
+}
+
+/*
+ * Parse the arguments of @cmd (argv[0] is its first argument) with
+ * getopt_long: the options in @opts ("--name", "--name=VALUE" or "--name
+ * VALUE"), -d/--device and -t/--timeout, and at least @min, at most @max
+ * positional arguments into @pos. Options and positional arguments may
+ * come in any order; "--" ends the options.
+ */
 int parse_opts(const char *cmd, int argc, char **argv, struct opt *opts,
 	       char **pos, int *npos, int min, int max)
 {
-	int i, n = 0, no_more = 0;
-	struct opt *o;
+	int i, n = 0, nopts, c, idx, ret = EXIT_OK;
+	struct option *lo;
+	char **av, *arg;
 
-	for (i = 0; i < argc; i++) {
-		if (!no_more && !strcmp(argv[i], "--")) {
-			no_more = 1;
-			continue;
+	for (nopts = 0; opts && opts[nopts].name; nopts++)
+		;
+	lo = calloc(nopts + 4, sizeof(*lo));
+	av = calloc(argc + 2, sizeof(*av));
+	if (!lo || !av) {
+		free(lo);
+		free(av);
+		fprintf(stderr, "nxtctl: %s\n", strerror(ENOMEM));
+		return EXIT_DEVICE;
+	}
+	for (i = 0; i < nopts; i++) {
+		lo[i].name = opts[i].name;
+		lo[i].has_arg = opts[i].has_arg ? required_argument : no_argument;
+		lo[i].val = OPT_CMD + i;
+	}
+	lo[i++] = (struct option){ "device", required_argument, NULL, OPT_DEVICE };
+	lo[i++] = (struct option){ "timeout", required_argument, NULL, OPT_TIMEOUT };
+	lo[i++] = (struct option){ "help", no_argument, NULL, OPT_HELP };
+	av[0] = (char *)cmd;
+	if (argc)
+		memcpy(av + 1, argv, argc * sizeof(*av));
+	argc++;
+
+	opterr = 0;
+	optind = 0;		/* a fresh scan (glibc and musl) */
+	for (;;) {
+		if (optind > 0 && optind < argc && is_number(av[optind])) {
+			arg = av[optind++];
+			goto positional;
 		}
-		if (no_more || strncmp(argv[i], "--", 2)) {
-			if (n >= max)
-				return usage_error(cmd, "%s: too many arguments", cmd);
-			pos[n++] = argv[i];
-			continue;
-		}
-		for (o = opts; o && o->name; o++)
-			if (!strcmp(argv[i] + 2, o->name))
+		idx = optind ? optind : 1;
+		/* No -h here: main() takes "-h" alone, "-hello" is no help. */
+		c = getopt_long(argc, av, "+:d:t:", lo, NULL);
+		if (c == -1) {
+			if (optind >= argc && !(optind == idx + 1 && !strcmp(av[idx], "--")))
 				break;
-		if (!o || !o->name)
-			return usage_error(cmd, "%s: unknown option '%s'", cmd, argv[i]);
-		o->set = 1;
-		if (o->has_arg) {
-			if (i + 1 >= argc)
-				return usage_error(cmd, "%s: option '%s' needs a value",
-						   cmd, argv[i]);
-			o->arg = argv[++i];
+			if (optind == idx + 1 && !strcmp(av[idx], "--")) {
+				/* Everything after "--" is an argument. */
+				while (optind < argc) {
+					if (n >= max) {
+						ret = usage_error(cmd, "%s: too many arguments", cmd);
+						goto out;
+					}
+					pos[n++] = av[optind++];
+				}
+				break;
+			}
+			arg = av[optind++];
+positional:
+			if (n >= max) {
+				ret = usage_error(cmd, "%s: too many arguments", cmd);
+				goto out;
+			}
+			pos[n++] = arg;
+			continue;
+		}
+		switch (c) {
+		case OPT_DEVICE:
+			dev_path = optarg;
+			break;
+		case OPT_TIMEOUT:
+			ret = set_timeout_opt(cmd, optarg);
+			if (ret)
+				goto out;
+			break;
+		case OPT_HELP:	/* main() sees most; "--he" comes here */
+			print_help(find_command(cmd));
+			ret = EXIT_HELP;
+			goto out;
+		case ':':
+			ret = usage_error(cmd, "%s: option '%s' needs a value", cmd,
+					  av[optind - 1]);
+			goto out;
+		case '?':
+			arg = av[optind - 1];
+			if (strncmp(arg, "--", 2))
+				ret = usage_error(cmd, "%s: unknown option '-%c'", cmd, optopt);
+			else if (optopt)
+				ret = usage_error(cmd, "%s: option '%.*s' takes no value", cmd,
+						  (int)strcspn(arg, "="), arg);
+			else
+				ret = usage_error(cmd, "%s: unknown option '%s'", cmd, arg);
+			goto out;
+		default:
+			opts[c - OPT_CMD].set = 1;
+			opts[c - OPT_CMD].arg = optarg;
+			break;
 		}
 	}
-	if (n < min)
-		return usage_error(cmd, "%s: missing arguments", cmd);
+	if (n < min) {
+		ret = usage_error(cmd, "%s: missing arguments", cmd);
+		goto out;
+	}
 	*npos = n;
-	return EXIT_OK;
+out:
+	free(lo);
+	free(av);
+	return ret;
 }
 
 static int parse_long(const char *s, long min, long max, long *val)
@@ -235,6 +340,14 @@ static int parse_long(const char *s, long min, long max, long *val)
 		return -1;
 	*val = v;
 	return 0;
+}
+
+static int set_timeout_opt(const char *cmd, const char *s)
+{
+	if (parse_long(s, 1, 60000, &dev_timeout))
+		return usage_error(cmd, "%s%s-t: the timeout is 1 to 60000 ms, not '%s'",
+				   cmd ? cmd : "", cmd ? ": " : "", s);
+	return EXIT_OK;
 }
 
 static int num_arg(const char *cmd, const char *what, const char *s, long min,
@@ -523,6 +636,46 @@ static int cmd_stop_sound(int argc, char **argv)
 	return do_ioctl(NXT_IOC_STOP_SOUND_PLAYBACK, &s, &s.status, "StopSoundPlayback");
 }
 
+/*
+ * --wait: poll GetOutputState until the motor on @port (each of the three
+ * for NXT_OUTPUT_ALL) is back in run state idle, as the firmware puts it
+ * when it reaches its tacho limit; give up after @wait_ms.
+ */
+static int wait_motors(__u8 port, long wait_ms)
+{
+	struct nxt_output_state o, last = { 0 };
+	double deadline = now_ms() + wait_ms;
+	unsigned int busy = port == NXT_OUTPUT_ALL ? 7 : 1u << port;
+	__u8 p;
+	int ret;
+
+	for (;;) {
+		for (p = 0; p < 3; p++) {
+			if (!(busy & 1u << p))
+				continue;
+			memset(&o, 0, sizeof(o));
+			o.port = p;
+			ret = do_ioctl(NXT_IOC_GET_OUTPUT_STATE, &o, &o.status,
+				       "GetOutputState");
+			if (ret)
+				return ret;
+			if (o.run_state == NXT_RUN_STATE_IDLE)
+				busy &= ~(1u << p);
+			else
+				last = o;
+		}
+		if (!busy)
+			return EXIT_OK;
+		if (now_ms() > deadline) {
+			fprintf(stderr, "nxtctl: motor %c: %s: still %s after %ld ms (tacho_count %d of %u)\n",
+				'A' + last.port, strerror(ETIMEDOUT), run_state_name(last.run_state),
+				wait_ms, last.tacho_count, last.tacho_limit);
+			return EXIT_DEVICE;
+		}
+		sleep_ms(WAIT_POLL_MS);
+	}
+}
+
 static int cmd_motor(int argc, char **argv)
 {
 	struct opt opts[] = {
@@ -531,10 +684,12 @@ static int cmd_motor(int argc, char **argv)
 		{ .name = "regulated" },
 		{ .name = "sync" },
 		{ .name = "turn-ratio", .has_arg = 1 },
+		{ .name = "wait" },
+		{ .name = "wait-timeout", .has_arg = 1 },
 		{}
 	};
 	struct nxt_output_state o = { 0 };
-	long power, limit = 0, turn = 0;
+	long power, limit = 0, turn = 0, wait_ms = DEFAULT_WAIT_MS;
 	int npos, ret;
 	char *pos[2];
 
@@ -544,6 +699,16 @@ static int cmd_motor(int argc, char **argv)
 	ret = motor_port("motor", pos[0], 1, &o.port);
 	if (ret)
 		return ret;
+	if (opts[6].set) {
+		ret = num_arg("motor", "--wait-timeout", opts[6].arg, 1, 3600000, &wait_ms);
+		if (ret)
+			return ret;
+	}
+	if (!strcmp(pos[1], "stop") || !strcmp(pos[1], "coast") ||
+	    !strcmp(pos[1], "brake")) {
+		if (opts[5].set)
+			return usage_error("motor", "motor: --wait is for a move with --tacho-limit");
+	}
 	if (!strcmp(pos[1], "stop") || !strcmp(pos[1], "coast")) {
 		/* Power off, the motor coasts to a stop. */
 		o.run_state = NXT_RUN_STATE_IDLE;
@@ -572,6 +737,8 @@ static int cmd_motor(int argc, char **argv)
 	}
 	if (opts[2].set && opts[3].set)
 		return usage_error("motor", "motor: --regulated and --sync exclude each other");
+	if (opts[5].set && (!limit || !power))
+		return usage_error("motor", "motor: --wait needs a POWER other than 0 and a --tacho-limit");
 	o.power = power;
 	o.mode = NXT_MODE_MOTORON;
 	if (opts[1].set)
@@ -584,7 +751,10 @@ static int cmd_motor(int argc, char **argv)
 	o.turn_ratio = turn;
 	o.run_state = NXT_RUN_STATE_RUNNING;
 	o.tacho_limit = limit;
-	return do_ioctl(NXT_IOC_SET_OUTPUT_STATE, &o, &o.status, "SetOutputState");
+	ret = do_ioctl(NXT_IOC_SET_OUTPUT_STATE, &o, &o.status, "SetOutputState");
+	if (ret || !opts[5].set)
+		return ret;
+	return wait_motors(o.port, wait_ms);
 }
 
 static const char *run_state_name(unsigned int s)
@@ -1059,12 +1229,15 @@ static const struct command commands[] = {
 	{ "stop-sound", cmd_stop_sound, "",
 	  "Stop playing sound.\n" },
 	{ "motor", cmd_motor,
-	  "PORT POWER [--tacho-limit DEG] [--brake] [--regulated|--sync] [--turn-ratio N]\n"
+	  "PORT POWER [--tacho-limit=DEG] [--wait] [--wait-timeout=MS] [--brake] [--regulated|--sync] [--turn-ratio=N]\n"
 	  "       nxtctl motor PORT stop|brake",
 	  "Run the motor on PORT (A, B, C or all) at POWER (-100 to 100), for\n"
 	  "DEG degrees with --tacho-limit (0: no limit). --brake brakes between\n"
 	  "the PWM pulses, --regulated turns on speed regulation, --sync\n"
 	  "synchronises two motors (with --turn-ratio -100 to 100).\n"
+	  "--wait waits until the move with --tacho-limit is over (the brick\n"
+	  "reports run state idle), at most --wait-timeout ms (default 60000);\n"
+	  "for 'all', until all three motors are.\n"
 	  "'stop' turns the power off (the motor coasts), 'brake' holds the\n"
 	  "motor still (power 0, brake and regulation on).\n" },
 	{ "motor-state", cmd_motor_state, "PORT",
@@ -1118,6 +1291,16 @@ static const struct command commands[] = {
 	  "NAME.*, *.EXT or a full name): size in bytes and name.\n" },
 	{ "rm", cmd_rm, "NAME",
 	  "Delete the file NAME from the brick.\n" },
+	{ "release", cmd_release, "[--serial=SERIAL]",
+	  "Hand the brick to libusb programs (nxt-python's usb backend, NBC/NXC,\n"
+	  "NeXTTool, leJOS): unbind lego_nxt_usb from it, so /dev/nxtN goes\n"
+	  "away. -d takes /dev/nxtN or the brick's /dev/bus/usb/BBB/DDD;\n"
+	  "--serial picks the brick by its USB serial number. Needs write\n"
+	  "access to /dev/bus/usb/BBB/DDD only. Prints the serial and that node.\n" },
+	{ "claim", cmd_claim, "[--serial=SERIAL]",
+	  "Take a released brick back: lego_nxt_usb binds to it again and\n"
+	  "/dev/nxtN comes back (printed). The brick is -d /dev/bus/usb/BBB/DDD,\n"
+	  "--serial SERIAL, or the only released NXT.\n" },
 	{ "help", cmd_help, "[COMMAND]",
 	  "Print the help of COMMAND, or the list of commands.\n" },
 };
@@ -1140,20 +1323,27 @@ static void print_usage(FILE *f, const struct command *c)
 		*c->args ? " " : "", c->args);
 }
 
+static void print_help(const struct command *c)
+{
+	print_usage(stdout, c);
+	printf("\n%s", c->help);
+}
+
 static void print_main_help(FILE *f)
 {
 	size_t i;
 
 	fputs("usage: nxtctl [-d DEVICE] [-t TIMEOUT_MS] COMMAND [ARGS...]\n"
-	      "       nxtctl help COMMAND | nxtctl COMMAND --help\n"
+	      "       nxtctl help COMMAND | nxtctl COMMAND --help | nxtctl --version\n"
 	      "\n"
 	      "Drive a LEGO MINDSTORMS NXT brick through /dev/nxtN.\n"
 	      "\n"
-	      "  -d DEVICE      the brick's device (default: $NXT_DEVICE, else the\n"
-	      "                 first /dev/nxt*)\n"
-	      "  -t TIMEOUT_MS  how long to wait for each reply, 1 to 60000\n"
-	      "                 (default: the driver's, 1000)\n"
-	      "  -h, --help     this help\n"
+	      "  -d, --device=DEVICE       the brick's device (default: $NXT_DEVICE,\n"
+	      "                            else the first /dev/nxt*)\n"
+	      "  -t, --timeout=TIMEOUT_MS  how long to wait for each reply, 1 to 60000\n"
+	      "                            (default: the driver's, 1000)\n"
+	      "  -h, --help                this help\n"
+	      "  -V, --version             print the version\n"
 	      "\n"
 	      "Commands:\n", f);
 	for (i = 0; i < NCOMMANDS; i++)
@@ -1161,9 +1351,12 @@ static void print_main_help(FILE *f)
 			*commands[i].args ? " " : "",
 			(int)strcspn(commands[i].args, "\n"), commands[i].args);
 	fputs("\n"
+	      "Options take their value as --opt=VALUE or --opt VALUE and may come\n"
+	      "after the command: nxtctl motor A 50 --tacho-limit=360 --wait\n"
+	      "\n"
 	      "Exit status: 0 success, 1 the brick answered with an error status,\n"
 	      "2 usage error, 3 device, transport or local I/O error.\n"
-	      "See Documentation/lego/nxtctl.rst.\n", f);
+	      "See nxtctl(1).\n", f);
 }
 
 static int cmd_help(int argc, char **argv)
@@ -1179,56 +1372,65 @@ static int cmd_help(int argc, char **argv)
 	c = find_command(argv[0]);
 	if (!c)
 		return usage_error(NULL, "unknown command '%s'", argv[0]);
-	print_usage(stdout, c);
-	printf("\n%s", c->help);
+	print_help(c);
 	return EXIT_OK;
 }
 
 int main(int argc, char **argv)
 {
+	static const struct option lo[] = {
+		{ "device", required_argument, NULL, 'd' },
+		{ "timeout", required_argument, NULL, 't' },
+		{ "help", no_argument, NULL, 'h' },
+		{ "version", no_argument, NULL, 'V' },
+		{}
+	};
 	const struct command *c;
-	const char *dev = NULL;
-	long timeout = 0;
-	int i, ret;
+	int i, ret, opt;
 
-	for (i = 1; i < argc && argv[i][0] == '-'; i++) {
-		if (!strcmp(argv[i], "-h") || !strcmp(argv[i], "--help")) {
+	opterr = 0;
+	while ((opt = getopt_long(argc, argv, "+:d:t:hV", lo, NULL)) != -1) {
+		switch (opt) {
+		case 'd':
+			dev_path = optarg;
+			break;
+		case 't':
+			ret = set_timeout_opt(NULL, optarg);
+			if (ret)
+				return ret;
+			break;
+		case 'h':
 			print_main_help(stdout);
 			return EXIT_OK;
+		case 'V':
+			printf("nxtctl %s\n", NXTCTL_VERSION);
+			return EXIT_OK;
+		case ':':
+			return usage_error(NULL, "option '%s' needs a value", argv[optind - 1]);
+		default:
+			if (strncmp(argv[optind - 1], "--", 2))
+				return usage_error(NULL, "unknown option '-%c'", optopt);
+			return usage_error(NULL, "unknown option '%s'", argv[optind - 1]);
 		}
-		if (!strcmp(argv[i], "--")) {
-			i++;
-			break;
-		}
-		if (!strcmp(argv[i], "-d") && i + 1 < argc) {
-			dev = argv[++i];
-			continue;
-		}
-		if (strcmp(argv[i], "-t") || i + 1 >= argc)
-			return usage_error(NULL, "unknown or incomplete option '%s'", argv[i]);
-		if (parse_long(argv[++i], 1, 60000, &timeout))
-			return usage_error(NULL, "-t: the timeout is 1 to 60000 ms, not '%s'",
-					   argv[i]);
 	}
-	if (i >= argc)
+	if (optind >= argc)
 		return usage_error(NULL, "no command given");
-	c = find_command(argv[i]);
+	c = find_command(argv[optind]);
 	if (!c)
-		return usage_error(NULL, "unknown command '%s'", argv[i]);
-	argc -= i + 1;
-	argv += i + 1;
+		return usage_error(NULL, "unknown command '%s'", argv[optind]);
+	argc -= optind + 1;
+	argv += optind + 1;
 	for (i = 0; i < argc; i++) {
 		if (!strcmp(argv[i], "--"))
 			break;
-		if (!strcmp(argv[i], "--help")) {
-			print_usage(stdout, c);
-			printf("\n%s", c->help);
+		if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
+			print_help(c);
 			return EXIT_OK;
 		}
 	}
-	dev_path = dev;
-	dev_timeout = timeout;
 	ret = c->fn(argc, argv);
+	if (ret == EXIT_HELP)
+		ret = EXIT_OK;
 	if (nxt_fd >= 0)
 		close(nxt_fd);
 	if (fflush(stdout) || ferror(stdout)) {

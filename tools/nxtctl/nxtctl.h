@@ -18,6 +18,7 @@
 #define EXIT_BRICK	1	/* the brick answered with an error status */
 #define EXIT_USAGE	2	/* bad command line */
 #define EXIT_DEVICE	3	/* device, transport or local I/O error */
+#define EXIT_HELP	(-1)	/* --help printed: exit 0 without running */
 
 /* System command opcodes used by nxtctl. */
 #define NXT_SYS_OPEN_READ	0x80
@@ -37,6 +38,7 @@
 #define NXT_WRITE_CHUNK		(NXT_TELEGRAM_MAX - 3)
 
 extern int nxt_fd;
+extern const char *dev_path;
 
 const char *status_name(unsigned int status);
 int brick_error(const char *what, unsigned int status);
@@ -47,10 +49,14 @@ int system_cmd(struct nxt_transaction *t, __u8 op, const void *args,
 	       size_t len, const char *what);
 int check_name(const char *cmd, const char *name);
 
+void progress_end(void);
+
 int cmd_upload(int argc, char **argv);
 int cmd_download(int argc, char **argv);
 int cmd_ls(int argc, char **argv);
 int cmd_rm(int argc, char **argv);
+int cmd_release(int argc, char **argv);
+int cmd_claim(int argc, char **argv);
 
 /* Options of a subcommand: "--name" or "--name VALUE". */
 struct opt {
