@@ -65,110 +65,9 @@ def apply_udev_rule(path):
         subprocess.run(cmd.replace('/sys%p', path).split(), check=True)
 
 
-# ---- EV3 ----
-
-def on_sensor(line, emu, fn, tries=3):
-    """fn(path of the sensor's directory), run again if the sensor
-    reconnected meanwhile. On a loaded host the emulator, a thread of this
-    process, can miss the driver's keep-alives for a second and start over
-    as a real sensor does; the driver then drops the sensor ("too many line
-    errors") and connects it again, in a new directory with new IIO and
-    sysfs files. A failure with no new handshake within 5 s is a failure."""
-    for attempt in range(tries):
-        path = find_sensor(line.address, timeout=30)
-        assert path, 'no sensor on %s' % line.address
-        n = emu.handshakes
-        try:
-            return fn(path)
-        except (AssertionError, OSError):
-            if attempt == tries - 1 or ev3.wait_handshakes(emu, n + 1, timeout=5) <= n:
-                raise
-            print('%s reconnected (handshake %d), trying again' % (line.address, n + 1))
-
-def test_ev3dev2_color(line):
-    from ev3dev2.sensor.lego import ColorSensor
-    emu = line.plug('color')
-    reflected = random.randint(1, 99)
-    colour = random.randint(1, 7)
-    emu.set_values(0, [reflected])      # COL-REFLECT
-    emu.set_values(2, [colour])         # COL-COLOR
-
-    def check(path):
-        apply_udev_rule(path)
-        out = run([sys.executable, os.path.join(EXAMPLES, 'ev3dev2-color.py'),
-                   '--address', line.address, '--count', '2', '--interval', '0.1'])
-        lines = [s for s in out.splitlines() if not s.startswith('Import warning')]
-        assert lines[0] == 'sensor at %s' % line.address, out
-        want = 'reflected %d %%  colour %d %s' % (reflected, colour, ColorSensor.COLORS[colour])
-        assert lines[1:] == [want, want], out
-        # The example switched modes through the class: the last was COL-COLOR.
-        assert read_attr(path, 'mode') == 'COL-COLOR'
-    on_sensor(line, emu, check)
-
-
-def test_iio_capture(line, built):
-    emu = line.plug('gyro')
-    angle = random.choice([-1, 1]) * random.randint(1, 179)
-    rate = angle // 2 + 1
-    emu.set_values(0, [angle])          # GYRO-ANG: angl0
-    emu.set_values(1, [rate])           # GYRO-RATE
-    on_sensor(line, emu, lambda path: check_iio_capture(line, built, angle, rate))
-
-
-def check_iio_capture(line, built, angle, rate):
-    dev = iio_device('lego-ev3-gyro')
-    assert dev
-    # Start in another mode: enabling the buffer switches to angl0's.
-    write_attr(dev, 'mode', 'GYRO-RATE')
-    assert wait_attr_int(dev, 'in_anglvel0_raw', rate) == rate
-    scale = float(read_attr(dev, 'in_angl0_scale'))
-    before = time.time()
-    # The IIO device is found by its label, the sensor's address.
-    out = run([os.path.join(built, 'iio-capture'), '-n', '40', line.address, 'angl0'])
-    after = time.time()
-    samples = [tuple(s.split()) for s in out.splitlines()]
-    assert len(samples) == 40, out
-    stamps = [int(t) for t, _, _ in samples]
-    assert [int(r) for _, r, _ in samples] == [angle] * 40, out
-    for _, _, value in samples:
-        assert float(value) == pytest.approx(angle * scale, abs=1e-6)
-    assert all(b > a for a, b in zip(stamps, stamps[1:])), 'timestamps not increasing'
-    # CLOCK_REALTIME by default.
-    assert before - 1 < stamps[0] / 1e9 <= stamps[-1] / 1e9 < after + 1
-    assert read_attr(dev, 'mode') == 'GYRO-ANG'
-    assert read_attr(dev, 'buffer/enable') == '0'   # libiio disabled it again
-
-
-def test_shell_session_ev3_part(line):
-    emu = line.plug('color')
-    reflected = random.randint(1, 99)
-    colour = random.randint(1, 7)
-    emu.set_values(0, [reflected])
-    emu.set_values(2, [colour])
-    assert not os.path.exists('/dev/nxt0'), 'the NXT part would follow'
-
-    def check(path):
-        assert wait_attr_int(path, 'value0', reflected) == reflected
-        modes = read_attr(path, 'modes')
-        out = run(['sh', os.path.join(EXAMPLES, 'shell-session.sh'), 'COL-COLOR'])
-        assert out.splitlines() == [
-            '$ cd %s' % path,
-            '$ cat address driver_name modes mode',
-            line.address, 'lego-ev3-color', modes, 'COL-REFLECT',
-            '$ cat num_values decimals units value0',
-            '1', '0', 'pct', str(reflected),
-            '$ set +x',
-            '$ echo COL-COLOR',
-            '$ cat mode units value0',
-            'COL-COLOR', 'col', str(colour),
-            '$ set +x',
-        ], out
-    on_sensor(line, emu, check)
-
-
 # ---- NXT ----
 
-def test_nxt_ioctl(brick, built):
+def test_nxt_ioctl(built, brick):
     exe = [os.path.join(built, 'nxt-ioctl'), '-d', brick.node]
     fw = brick.fw
     old = fw.battery_mv
@@ -312,3 +211,106 @@ def test_nxt_push_through_module_runner(brick, tmp_path):
                        capture_output=True, text=True, timeout=TIMEOUT)
     assert p.returncode != 0
     assert "No module named 'nxt.backend.lego_nxt_linux'" in p.stderr
+
+
+# ---- EV3 ----
+
+def on_sensor(line, emu, fn, tries=3):
+    """fn(path of the sensor's directory), run again if the sensor
+    reconnected meanwhile. On a loaded host the emulator, a thread of this
+    process, can miss the driver's keep-alives for a second and start over
+    as a real sensor does; the driver then drops the sensor ("too many line
+    errors") and connects it again, in a new directory with new IIO and
+    sysfs files. A failure with no new handshake within 20 s is a failure."""
+    for attempt in range(tries):
+        path = find_sensor(line.address, timeout=30)
+        assert path, 'no sensor on %s' % line.address
+        n = emu.handshakes
+        try:
+            return fn(path)
+        except (AssertionError, OSError) as e:
+            print('\n%s: %s' % (type(e).__name__, e))
+            if attempt == tries - 1 or ev3.wait_handshakes(emu, n + 1, timeout=20) <= n:
+                raise
+            print('%s reconnected (handshake %d), trying again' % (line.address, n + 1))
+
+def test_ev3dev2_color(line):
+    from ev3dev2.sensor.lego import ColorSensor
+    emu = line.plug('color')
+    reflected = random.randint(1, 99)
+    colour = random.randint(1, 7)
+    emu.set_values(0, [reflected])      # COL-REFLECT
+    emu.set_values(2, [colour])         # COL-COLOR
+
+    def check(path):
+        apply_udev_rule(path)
+        out = run([sys.executable, os.path.join(EXAMPLES, 'ev3dev2-color.py'),
+                   '--address', line.address, '--count', '2', '--interval', '0.1'])
+        lines = [s for s in out.splitlines() if not s.startswith('Import warning')]
+        assert lines[0] == 'sensor at %s' % line.address, out
+        want = 'reflected %d %%  colour %d %s' % (reflected, colour, ColorSensor.COLORS[colour])
+        assert lines[1:] == [want, want], out
+        # The example switched modes through the class: the last was COL-COLOR.
+        assert read_attr(path, 'mode') == 'COL-COLOR'
+    on_sensor(line, emu, check)
+
+
+def test_iio_capture(line, built):
+    emu = line.plug('gyro', period_scale=10)    # GYRO-ANG at ~70 Hz, not 670
+    angle = random.choice([-1, 1]) * random.randint(1, 179)
+    rate = angle // 2 + 1
+    emu.set_values(0, [angle])          # GYRO-ANG: angl0
+    emu.set_values(1, [rate])           # GYRO-RATE
+    on_sensor(line, emu, lambda path: check_iio_capture(line, built, angle, rate))
+
+
+def check_iio_capture(line, built, angle, rate):
+    dev = iio_device('lego-ev3-gyro')
+    assert dev
+    # Start in another mode: enabling the buffer switches to angl0's.
+    write_attr(dev, 'mode', 'GYRO-RATE')
+    assert wait_attr_int(dev, 'in_anglvel0_raw', rate) == rate
+    scale = float(read_attr(dev, 'in_angl0_scale'))
+    before = time.time()
+    # The IIO device is found by its label, the sensor's address.
+    out = run([os.path.join(built, 'iio-capture'), '-n', '40', line.address, 'angl0'])
+    after = time.time()
+    samples = [tuple(s.split()) for s in out.splitlines()]
+    assert len(samples) == 40, out
+    stamps = [int(t) for t, _, _ in samples]
+    assert [int(r) for _, r, _ in samples] == [angle] * 40, out
+    for _, _, value in samples:
+        assert float(value) == pytest.approx(angle * scale, abs=1e-6)
+    assert all(b > a for a, b in zip(stamps, stamps[1:])), 'timestamps not increasing'
+    # CLOCK_REALTIME by default.
+    assert before - 1 < stamps[0] / 1e9 <= stamps[-1] / 1e9 < after + 1
+    assert read_attr(dev, 'mode') == 'GYRO-ANG'
+    assert read_attr(dev, 'buffer/enable') == '0'   # libiio disabled it again
+
+
+def test_shell_session_ev3_part(line):
+    emu = line.plug('color')
+    reflected = random.randint(1, 99)
+    colour = random.randint(1, 7)
+    emu.set_values(0, [reflected])
+    emu.set_values(2, [colour])
+
+    def check(path):
+        assert wait_attr_int(path, 'value0', reflected) == reflected
+        modes = read_attr(path, 'modes')
+        out = run(['sh', os.path.join(EXAMPLES, 'shell-session.sh'), 'COL-COLOR'])
+        want = [
+            '$ cd %s' % path,
+            '$ cat address driver_name modes mode',
+            line.address, 'lego-ev3-color', modes, 'COL-REFLECT',
+            '$ cat num_values decimals units value0',
+            '1', '0', 'pct', str(reflected),
+            '$ set +x',
+            '$ echo COL-COLOR',
+            '$ cat mode units value0',
+            'COL-COLOR', 'col', str(colour),
+            '$ set +x',
+        ]
+        # The NXT part follows while the module's brick is plugged in.
+        assert out.splitlines()[:len(want)] == want, out
+    on_sensor(line, emu, check)
