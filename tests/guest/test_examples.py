@@ -130,7 +130,7 @@ def test_shell_session_nxt_part(brick):
     assert lines[-7:] == [
         '$ cd /sys/class/usbmisc/%s/device' % name,
         '$ cat brick_name bt_address firmware_version battery_mv',
-        'NXT', HOST, '1.29', str(brick.fw.battery_mv),
+        'NXT', HOST.lower(), '1.29', str(brick.fw.battery_mv),   # bt_address: lower case
         '$ set +x',
     ], out
 
