@@ -21,6 +21,8 @@ debs+=(gcc-aarch64-linux-gnu gcc-arm-linux-gnueabihf libc6-dev-arm64-cross libc6
 debs+=(qemu-system-arm debootstrap qemu-user-static file)
 # libusb headers and pkg-config for the NXT benchmark's C client (tests/bench/nxt)
 debs+=(libusb-1.0-0-dev pkg-config)
+# examples/iio-capture.c (built and run by tests/guest/test_examples.py)
+debs+=(libiio-dev)
 # tests/fuzz (libFuzzer, ASan, UBSan) and tests/bench/proto (callgrind)
 debs+=(clang-14 libclang-rt-14-dev valgrind)
 

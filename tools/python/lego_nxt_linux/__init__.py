@@ -1,4 +1,4 @@
-# SPDX-License-Identifier: GPL-2.0
+# SPDX-License-Identifier: GPL-3.0-or-later
 """nxt-python support for the lego_nxt_usb kernel driver.
 
 Pass :func:`lego_nxt_linux.get_backend` (or a :class:`Backend`) to

@@ -1,4 +1,4 @@
-# SPDX-License-Identifier: GPL-2.0
+# SPDX-License-Identifier: GPL-3.0-or-later
 """An nxt-python backend over the lego_nxt_usb character devices.
 
 lego_nxt_usb gives each NXT brick on USB a node ``/dev/nxtN`` that carries
