@@ -522,11 +522,16 @@ static void print_all(FILE *f, const struct sensor *list, int n, char **sel,
 		fprintf(f, "No EV3 sensors found.\n");
 }
 
-static const char *no_sensors_hint(bool no_class)
+/* Why there is nothing to show, and what to do. */
+static void no_sensors(FILE *f, bool no_class)
 {
+	fprintf(f, "%s: no EV3 sensors: ", prog);
 	if (no_class)
-		return "no EV3 sensors: the lego-sensor class does not exist (is the lego_ev3_uart module loaded? modprobe lego_ev3_uart)";
-	return "no EV3 sensors found (is a sensor wired and its tty attached? see lego-ev3-attach(8))";
+		fprintf(f, "the lego-sensor class does not exist (%s)\n",
+			"is the lego_ev3_uart module loaded? modprobe lego_ev3_uart");
+	else
+		fprintf(f, "none found (%s)\n",
+			"is a sensor wired and its tty attached? see lego-ev3-attach(8)");
 }
 
 /* ---- mode ------------------------------------------------------------- */
@@ -642,7 +647,7 @@ static int watch(char **sel, int nsel, bool json, double interval)
 			fprintf(f, "Every %.1fs: lego-sensors%*s%s\n\n", interval,
 				20, "", stamp);
 			if (n < 0)
-				fprintf(f, "%s.\n", no_sensors_hint(true));
+				no_sensors(f, true);
 			else
 				print_all(f, list, n, sel, nsel, false, false);
 			if (!tty)
@@ -748,7 +753,7 @@ int main(int argc, char **argv)
 
 	n = read_sensors(&list);
 	if (n <= 0 && !do_watch) {
-		err("%s", no_sensors_hint(n < 0));
+		no_sensors(stderr, n < 0);
 		free(list);
 		return EXIT_FAIL;
 	}
@@ -760,7 +765,7 @@ int main(int argc, char **argv)
 
 	if (mode) {
 		if (n <= 0) {
-			err("%s", no_sensors_hint(n < 0));
+			no_sensors(stderr, n < 0);
 			free(list);
 			return EXIT_FAIL;
 		}
