@@ -96,7 +96,7 @@ def steady(addresses, check, tries=4):
             assert all(sds), 'sensor(s) %s did not come back' % addresses
             try:
                 result = check([sd.path for sd in sds])
-            except (AssertionError, KeyError, ValueError):
+            except (AssertionError, KeyError, ValueError, OSError):
                 if all(alive(sd) for sd in sds):
                     raise
                 continue
@@ -114,10 +114,14 @@ def iio_of(path):
     one with the same parent (the tty) and the sensor's address as label."""
     tty = os.path.realpath(os.path.join(path, 'device'))
     found = []
+    address = read_attr(path, 'address')
     for d in glob.glob(IIO + '/iio:device*'):
-        if os.path.dirname(os.path.realpath(d)) == tty and \
-                read_attr(d, 'label') == read_attr(path, 'address'):
-            found.append(os.path.basename(d))
+        try:
+            if os.path.dirname(os.path.realpath(d)) == tty and \
+                    read_attr(d, 'label') == address:
+                found.append(os.path.basename(d))
+        except FileNotFoundError:
+            pass                # another sensor's, gone meanwhile
     assert len(found) <= 1, found
     return found[0] if found else None
 
