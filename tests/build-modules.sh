@@ -38,7 +38,8 @@ fi
 # The guest tests' check of the uapi header, compiled here: a compiler in
 # the emulated guest is slow.
 "$cc" -Wall -Wextra -Werror -I "$top/include/uapi" -o "$out/uapi-check" "$top/tests/guest/nxt_uapi_check.c"
-# The userspace tools, for the guest tests: $LEGO_BUILD/tools/.
+# The userspace tools, for the guest tests: $LEGO_BUILD/tools/, warnings
+# as errors (WERROR=1).
 mkdir -p "$out/tools"
 if ! make -s -C "$top/tools" O="$out/tools" CC="$cc" WERROR=1 >"$out/tools.log" 2>&1 || grep -E '(warning|error):' "$out/tools.log" >&2; then
 	cat "$out/tools.log" >&2

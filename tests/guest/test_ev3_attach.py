@@ -303,6 +303,10 @@ def test_not_a_tty_writable(ev3_module, tmp_path, what):
     [],
     ['ttyNM0', 'ttyNM1'],
     ['--bogus', 'ttyNM0'],
+    ['--label=in 1', 'ttyNM0'],
+    ['--ldisc=-1', 'ttyNM0'],
+    ['--detach', '--daemon', 'ttyNM0'],
+    ['--label'],
 ])
 def test_usage_errors(ev3_module, args):
     r = run(*args)
@@ -315,6 +319,52 @@ def test_help():
     r = run('--help')
     assert r.returncode == 0
     assert 'Exit codes' in r.stdout and '--detach' in r.stdout
+    for opt in ('--label=NAME', '--pidfile=FILE', '--ldisc=NUM', '--version'):
+        assert opt in r.stdout
+    assert r.stderr == ''
+
+
+def test_version():
+    with open(os.path.join(TOP, 'dkms.conf')) as f:
+        ver = re.search(r'^PACKAGE_VERSION="([^"]+)"', f.read(), re.M).group(1)
+    for opt in ('--version', '-V'):
+        r = run(opt)
+        assert r.returncode == 0, r.stderr
+        assert r.stdout == 'lego-ev3-attach %s\n' % ver
+
+
+def test_usage_error_points_to_help(ev3_module):
+    """A usage error says what is wrong and where to look, not the whole
+    help."""
+    r = run('ttyNM0', 'ttyNM1')
+    assert r.returncode == EXIT_USAGE
+    assert 'one TTY only' in r.stderr and "--help' for more" in r.stderr
+    assert 'Exit codes' not in r.stderr
+    r = run()
+    assert r.returncode == EXIT_USAGE and 'no TTY given' in r.stderr
+
+
+def test_option_forms(nm, tmp_path):
+    """--opt=value, -ovalue and -o value all work: a daemon started with
+    --pidfile=FILE and -lNAME, detached with -D."""
+    ln = nm(1)
+    pidfile = tmp_path / 'attach.pid'
+    r = run('-d', '--pidfile=%s' % pidfile, '-lin5', '--ldisc=%d' % N_LEGOEV3, ln.host)
+    assert r.returncode == 0, r.stderr
+    pid = int(pidfile.read_text())
+    try:
+        assert ldisc(ln.host) == N_LEGOEV3
+        assert wait_label(ln.host, 'in5') == 'in5'
+        r = run('-D', ln.host)
+        assert r.returncode == 0, r.stderr
+        assert ldisc(ln.host) == 0
+        assert wait_pid_gone(pid), 'the daemon did not exit after -D'
+    finally:
+        if pid_alive(pid):
+            os.kill(pid, signal.SIGKILL)
+    # --ldisc=NUM is checked like --ldisc NUM.
+    r = run('--ldisc=x', ln.host)
+    assert r.returncode == EXIT_USAGE and 'bad line discipline number' in r.stderr
 
 
 def test_module_not_loaded(nm):

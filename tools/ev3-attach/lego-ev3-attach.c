@@ -3,8 +3,9 @@
  * lego-ev3-attach: attach the lego_ev3_uart line discipline to a tty and
  * keep the tty open until SIGTERM or SIGINT, then put N_TTY back.
  *
- *   lego-ev3-attach [--label NAME] [--foreground|--daemon] TTY
+ *   lego-ev3-attach [--label=NAME] [--foreground|--daemon [--pidfile=FILE]] TTY
  *   lego-ev3-attach --detach TTY
+ *   lego-ev3-attach --help | --version
  *
  * Exit codes are listed in print_help() and in Documentation/lego/ev3-attach.rst.
  */
@@ -31,6 +32,11 @@
 
 #ifndef N_TTY
 #define N_TTY 0
+#endif
+
+/* The package's version, from dkms.conf (see the Makefile). */
+#ifndef LEGO_VERSION
+#define LEGO_VERSION "unknown"
 #endif
 
 /* Exit codes, documented in print_help() and ev3-attach.rst. */
@@ -80,25 +86,34 @@ static void print_help(FILE *f)
 {
 	fprintf(f,
 		"Usage: %s [OPTIONS] TTY\n"
+		"       %s --detach TTY\n"
 		"Attach the LEGO EV3 UART sensor line discipline to TTY (ttyS1 or\n"
 		"/dev/ttyS1) and keep it attached until SIGTERM or SIGINT.\n"
 		"\n"
-		"  -l, --label NAME    port label: the sensor's address becomes\n"
+		"  -l, --label=NAME    port label: the sensor's address becomes\n"
 		"                      TTY:NAME (up to 15 of [A-Za-z0-9_.-]);\n"
 		"                      default: the module's port_labels, else none\n"
 		"  -f, --foreground    stay in the foreground (default; systemd)\n"
 		"  -d, --daemon        run in the background\n"
-		"  -p, --pidfile FILE  with --daemon (default /run/lego-ev3-attach-TTY.pid)\n"
-		"  -n, --ldisc NUM     line discipline number (default %d)\n"
+		"  -p, --pidfile=FILE  with --daemon (default /run/lego-ev3-attach-TTY.pid)\n"
+		"  -n, --ldisc=NUM     line discipline number (default %d)\n"
 		"  -D, --detach        put N_TTY back on TTY and exit; a lego-ev3-attach\n"
 		"                      holding TTY notices it and exits\n"
 		"  -h, --help          this help\n"
+		"  -V, --version       the version\n"
 		"\n"
 		"Exit codes: 0 stopped by a signal (or detached), 1 other error,\n"
 		"2 usage or bad label, 3 no such tty or not a tty, 4 line discipline\n"
 		"not available (module not loaded), 5 permission denied, 6 tty busy\n"
 		"or already attached, 7 tty hung up (device unplugged).\n",
-		prog, N_LEGOEV3);
+		prog, prog, N_LEGOEV3);
+}
+
+/* A usage error: what is wrong, then where to look. */
+static int usage_error(void)
+{
+	fprintf(stderr, "Try '%s --help' for more information.\n", prog);
+	return EXIT_USAGE;
 }
 
 static bool label_ok(const char *label)
@@ -378,6 +393,7 @@ int main(int argc, char **argv)
 		{ "ldisc", required_argument, NULL, 'n' },
 		{ "detach", no_argument, NULL, 'D' },
 		{ "help", no_argument, NULL, 'h' },
+		{ "version", no_argument, NULL, 'V' },
 		{ NULL, 0, NULL, 0 }
 	};
 	const char *label = NULL, *pidfile = NULL, *name;
@@ -391,7 +407,7 @@ int main(int argc, char **argv)
 	long v;
 
 	err_out = stderr;
-	while ((c = getopt_long(argc, argv, "l:fdp:n:Dh", opts, NULL)) != -1) {
+	while ((c = getopt_long(argc, argv, "l:fdp:n:DhV", opts, NULL)) != -1) {
 		switch (c) {
 		case 'l':
 			label = optarg;
@@ -420,14 +436,21 @@ int main(int argc, char **argv)
 		case 'h':
 			print_help(stdout);
 			return EXIT_OK;
+		case 'V':
+			printf("%s %s\n", prog, LEGO_VERSION);
+			return EXIT_OK;
 		default:
-			print_help(stderr);
-			return EXIT_USAGE;
+			/* getopt_long() said what was wrong. */
+			return usage_error();
 		}
 	}
-	if (optind != argc - 1) {
-		print_help(stderr);
-		return EXIT_USAGE;
+	if (optind >= argc) {
+		msg("no TTY given");
+		return usage_error();
+	}
+	if (optind < argc - 1) {
+		msg("one TTY only (\"%s\" is extra)", argv[optind + 1]);
+		return usage_error();
 	}
 	if (label && !label_ok(label)) {
 		msg("bad label \"%s\": up to %d characters from [A-Za-z0-9_.-]",
@@ -441,8 +464,8 @@ int main(int argc, char **argv)
 
 	name = argv[optind];
 	if (!*name) {
-		print_help(stderr);
-		return EXIT_USAGE;
+		msg("empty TTY name");
+		return usage_error();
 	}
 	if (strchr(name, '/'))
 		ret = snprintf(path, sizeof(path), "%s", name);
