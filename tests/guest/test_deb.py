@@ -146,7 +146,9 @@ def state():
         os.makedirs(ROOT)
         run(['mount', '-t', 'tmpfs', '-o', 'mode=0755', 'tmpfs', ROOT])
         mounted.append(ROOT)
+        t0 = time.monotonic()
         debroot.restore(tar, ROOT)
+        print('test_deb: %s unpacked in %.0f s' % (tar, time.monotonic() - t0))
         with open(os.path.join(ROOT, 'kernel-release')) as f:
             assert f.read().strip() == KVER, 'the saved root is for another kernel'
         st['before'] = listing(ROOT)
