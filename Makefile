@@ -13,8 +13,9 @@
 #   make fuzz          libFuzzer on the EV3 and NXT protocol cores (long run;
 #                      FUZZ_ARGS= passes options to tests/fuzz/run.sh)
 #   make soak          the robustness soak in the test VM (hours; SOAK_ARGS=--short)
-#   make install       modules (updates/), uapi headers, tools, udev rules and
-#                      systemd units; DESTDIR=, PREFIX=/usr/local, KDIR=
+#   make install       modules (updates/), uapi headers (INCLUDEDIR/lego-mindstorms,
+#                      with lego-mindstorms.pc), tools, udev rules, systemd
+#                      units, sysusers.d file; DESTDIR=, PREFIX=/usr/local, KDIR=
 #   make install-userspace  the same without the modules (with DKMS)
 #   make uninstall     remove what make install installed (same variables)
 #   make dkms-install  copy the sources to /usr/src/lego-mindstorms-VERSION,
@@ -22,6 +23,7 @@
 #                      or DKMS_KERNEL=KVER)
 #   make dkms-remove   dkms remove --all, and remove those sources
 #   make dkms-source   only copy the sources DKMS builds (DESTDIR= honoured)
+#   make deb           Debian packages into .build/deb/ (tests/packaging/make-deb.sh)
 #
 # Documentation/lego/install.rst describes installing in detail.
 
@@ -32,7 +34,7 @@ export LEGO_SRC
 KBUILD_ARGS := -C $(KDIR) M=$(CURDIR) W=1
 
 .PHONY: all modules sparse clean checkpatch check deps vm-run demo bench fuzz soak help
-.PHONY: install install-userspace uninstall modules_install dkms-source dkms-install dkms-remove
+.PHONY: install install-userspace uninstall modules_install dkms-source dkms-install dkms-remove deb
 
 all: modules
 
@@ -84,16 +86,23 @@ help:
 # (systemd-udevd 252 also /usr/local/lib/udev/rules.d, older udev and eudev
 # do not): a local install (PREFIX other than /usr) puts them in /etc, a
 # package (PREFIX=/usr) in /usr/lib. systemd reads units from both
-# /usr/local/lib/systemd/system and /usr/lib/systemd/system.
+# /usr/local/lib/systemd/system and /usr/lib/systemd/system, sysusers.d
+# files only from /etc/sysusers.d and /usr/lib/sysusers.d: the same rule.
+# The uapi headers go to INCLUDEDIR/lego-mindstorms/linux, not to
+# INCLUDEDIR/linux, which belongs to the distribution's kernel headers:
+# `pkg-config --cflags lego-mindstorms` gives -IINCLUDEDIR/lego-mindstorms.
 PREFIX ?= /usr/local
 DESTDIR ?=
 INSTALL_MOD_DIR ?= updates
 INCLUDEDIR ?= $(PREFIX)/include
 ifeq ($(PREFIX),/usr)
 UDEVRULESDIR ?= /usr/lib/udev/rules.d
+SYSUSERSDIR ?= /usr/lib/sysusers.d
 else
 UDEVRULESDIR ?= /etc/udev/rules.d
+SYSUSERSDIR ?= /etc/sysusers.d
 endif
+PKGCONFIGDIR ?= $(PREFIX)/share/pkgconfig
 SYSTEMDUNITDIR ?= $(PREFIX)/lib/systemd/system
 INSTALL ?= install
 DEPMOD ?= depmod
@@ -110,6 +119,8 @@ SIG_KEY = $(shell sed -n 's/^CONFIG_MODULE_SIG_KEY="*\([^"]*\)"*/\1/p' \
 NO_SIGN = $(if $(filter-out pkcs11:%,$(SIG_KEY)),$(if $(wildcard $(SIG_KEY) \
 	$(KDIR)/$(SIG_KEY)),,CONFIG_MODULE_SIG_ALL=))
 UAPI_HEADERS := lego_ev3_uart.h lego_nxt.h
+UAPI_DIR = $(INCLUDEDIR)/lego-mindstorms/linux
+SYSUSERS_CONF := lego-mindstorms.conf
 UDEV_RULES = $(notdir $(wildcard tools/udev/*.rules))
 SYSTEMD_UNITS = $(notdir $(wildcard tools/systemd/*.service tools/systemd/*.socket \
 	tools/systemd/*.path tools/systemd/*.timer))
@@ -137,11 +148,19 @@ install: modules_install install-userspace
 
 # Everything but the modules: with DKMS, `make dkms-install install-userspace`.
 install-userspace:
-	$(INSTALL) -d $(DESTDIR)$(INCLUDEDIR)/linux
-	$(INSTALL) -m 0644 $(addprefix include/uapi/linux/,$(UAPI_HEADERS)) $(DESTDIR)$(INCLUDEDIR)/linux/
+	$(INSTALL) -d $(DESTDIR)$(UAPI_DIR) $(DESTDIR)$(PKGCONFIGDIR)
+	$(INSTALL) -m 0644 $(addprefix include/uapi/linux/,$(UAPI_HEADERS)) $(DESTDIR)$(UAPI_DIR)/
+	printf '%s\n' 'prefix=$(PREFIX)' 'includedir=$(INCLUDEDIR)' '' \
+		'Name: lego-mindstorms' \
+		'Description: uapi headers of the LEGO MINDSTORMS drivers (lego_nxt_usb, lego_ev3_uart)' \
+		'Version: $(VERSION)' 'Cflags: -I$${includedir}/lego-mindstorms' \
+		> $(DESTDIR)$(PKGCONFIGDIR)/lego-mindstorms.pc
+	chmod 0644 $(DESTDIR)$(PKGCONFIGDIR)/lego-mindstorms.pc
 ifneq ($(wildcard tools/Makefile),)
 	$(MAKE) -C tools install DESTDIR=$(DESTDIR) PREFIX=$(PREFIX)
 endif
+	$(INSTALL) -d $(DESTDIR)$(SYSUSERSDIR)
+	$(INSTALL) -m 0644 tools/sysusers/$(SYSUSERS_CONF) $(DESTDIR)$(SYSUSERSDIR)/
 ifneq ($(UDEV_RULES),)
 	$(INSTALL) -d $(DESTDIR)$(UDEVRULESDIR)
 	$(INSTALL) -m 0644 $(addprefix tools/udev/,$(UDEV_RULES)) $(DESTDIR)$(UDEVRULESDIR)/
@@ -151,11 +170,13 @@ ifneq ($(SYSTEMD_UNITS),)
 	$(INSTALL) -m 0644 $(addprefix tools/systemd/,$(SYSTEMD_UNITS)) $(DESTDIR)$(SYSTEMDUNITDIR)/
 endif
 ifeq ($(DESTDIR),)
+	@# The group first: udev ignores a rule whose GROUP= names no group.
+	systemd-sysusers $(SYSUSERSDIR)/$(SYSUSERS_CONF) 2>/dev/null || \
+		getent group lego >/dev/null || groupadd --system lego
 	@udevadm control --reload 2>/dev/null || true
 	@systemctl daemon-reload 2>/dev/null || true
-	@getent group lego >/dev/null || { \
-		echo "The udev rules give /dev/nxtN and the EV3 sensor devices to the group lego:"; \
-		echo "  groupadd --system lego && usermod -a -G lego YOUR-USER  (then log in again)"; }
+	@echo "The group lego may use /dev/nxtN and the EV3 sensors:"
+	@echo "  usermod -a -G lego YOUR-USER  (then log in again)"
 endif
 
 uninstall:
@@ -165,7 +186,10 @@ uninstall:
 ifeq ($(DESTDIR),)
 	$(DEPMOD) -a $(KRELEASE)
 endif
-	rm -f $(addprefix $(DESTDIR)$(INCLUDEDIR)/linux/,$(UAPI_HEADERS))
+	rm -f $(addprefix $(DESTDIR)$(UAPI_DIR)/,$(UAPI_HEADERS))
+	-rmdir $(DESTDIR)$(UAPI_DIR) $(DESTDIR)$(INCLUDEDIR)/lego-mindstorms 2>/dev/null
+	rm -f $(DESTDIR)$(PKGCONFIGDIR)/lego-mindstorms.pc
+	rm -f $(DESTDIR)$(SYSUSERSDIR)/$(SYSUSERS_CONF)
 ifneq ($(wildcard tools/Makefile),)
 	$(MAKE) -C tools uninstall DESTDIR=$(DESTDIR) PREFIX=$(PREFIX)
 endif
@@ -208,3 +232,13 @@ dkms-install:
 dkms-remove:
 	$(DKMS) remove -m $(DKMS_NAME) -v $(VERSION) --all
 	rm -rf $(DKMS_SRC)
+
+# --- Debian packages ------------------------------------------------------
+#
+# debian/: lego-mindstorms-dkms, lego-mindstorms-tools, lego-mindstorms-dev
+# and python3-lego-nxt-linux, built with dpkg-buildpackage from a copy of
+# this tree, into .build/deb/ (DEB_OUT=), lintian run on them.
+DEB_OUT ?= $(CURDIR)/.build/deb
+
+deb:
+	tests/packaging/make-deb.sh $(DEB_OUT)

@@ -8,7 +8,9 @@
 #     (tests/cross-build.sh),
 #  4. runs checkpatch --strict, a short fuzzing run of the protocol cores
 #     (tests/fuzz/run.sh --short), the packaging tests of tests/packaging and
-#     dkms (on the host) for the guest's packaging test,
+#     dkms (on the host) for the guest's packaging test, `make deb` (with
+#     lintian) and the dkms package's installation (on the host) for the
+#     guest's tests/guest/test_deb.py,
 #  5. boots the test VM: every KUnit suite, then the guest tests,
 #  6. scans the guest console for splats,
 #  7. prints the time of each phase and one line "N passed, N failed".
@@ -43,6 +45,11 @@ phase "make install, dkms-source (host)" env LEGO_KERNEL_TREE="$tree" \
 	python3 -m pytest -q -p no:cacheprovider tests/packaging
 # For tests/guest/test_packaging.py: a dkms build in the emulated guest is slow.
 phase "dkms build for $kver (host)" tests/packaging/dkms-prepare.sh "$tree" "$build/dkms-$kver"
+# For tests/guest/test_deb.py: the packages, and lego-mindstorms-dkms
+# installed in a private root (its DKMS build, too slow in the guest).
+phase "make deb, lintian" make -s deb DEB_OUT="$build/deb"
+phase "deb: dkms package for $kver (host)" tests/packaging/deb-prepare.sh "$tree" \
+	"$build/deb" "$build/deb-root-$kver.tar"
 
 rm -rf "$results"
 mkdir -p "$results"

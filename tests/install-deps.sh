@@ -25,6 +25,9 @@ debs+=(libusb-1.0-0-dev pkg-config)
 debs+=(libiio-dev)
 # tests/fuzz (libFuzzer, ASan, UBSan) and tests/bench/proto (callgrind)
 debs+=(clang-14 libclang-rt-14-dev valgrind)
+# make deb (tests/packaging/make-deb.sh) and its lintian run
+debs+=(dpkg-dev debhelper dh-dkms dh-python pybuild-plugin-pyproject python3-all
+	python3-setuptools fakeroot lintian)
 
 missing=()
 for p in "${debs[@]}"; do

@@ -14,9 +14,10 @@
 #  5. scans the guest console for splats,
 #  6. prints the time of each phase and one line "N passed, N failed".
 #
-# Left out on arm64: tests/guest/test_packaging.py, whose modules are built
-# by dkms on the host for the x86 test kernel (tests/packaging/dkms-prepare.sh;
-# a dkms build inside the emulated guest is far too slow).
+# Left out on arm64: tests/guest/test_packaging.py and test_deb.py, whose
+# modules are built by dkms on the host for the x86 test kernel
+# (tests/packaging/dkms-prepare.sh, deb-prepare.sh; a dkms build inside the
+# emulated guest is far too slow).
 #
 # Slow (every instruction is emulated), so not part of .ci/run. KVER=6.12
 # is the kernel series; VM runs take the lock /work/exp/vm-arm64.lock when
@@ -34,7 +35,7 @@ lock=${LEGO_ARM64_LOCK:-}
 # shellcheck source=tests/lib/phases.sh
 . "$top/tests/lib/phases.sh"
 PHASE_TITLE="Phase times (arm64)"
-PHASE_FOOTER="Skipped on arm64: tests/guest/test_packaging.py (its dkms build is done on the host for x86)"
+PHASE_FOOTER="Skipped on arm64: tests/guest/test_packaging.py, test_deb.py (their dkms build is done on the host for x86)"
 
 # A phase whose stdout (a path) is not wanted; "==> name" still shows.
 quiet() { "$@" >/dev/null; }
@@ -50,7 +51,7 @@ rm -rf "$results"
 mkdir -p "$results"
 vm=(tests/vm-run --arch arm64 --kver "$kver" --timeout "${LEGO_ARM64_TIMEOUT:-7200}" --log "$console"
 	--share "$results" -- tests/guest/run-suite.sh "$results"
-	--ignore=tests/guest/test_packaging.py tests/guest)
+	--ignore=tests/guest/test_packaging.py --ignore=tests/guest/test_deb.py tests/guest)
 [ -z "$lock" ] || vm=(flock "$lock" "${vm[@]}")
 PHASE_NOCOUNT=1 LEGO_VM_NO_BUILD=1 phase "arm64 VM: KUnit and guest tests" "${vm[@]}"
 vm_rc=$?

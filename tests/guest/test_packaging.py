@@ -15,7 +15,7 @@ the host's files: tmpfs over /lib/modules, /var/lib/dkms and /usr/src, with
  2. with lego_ev3_uart unloaded, TIOCSETD 29 on a pty makes the kernel load
     it (request_module("tty-ldisc-29") through /proc/sys/kernel/modprobe);
  3. with lego_nxt_usb unloaded, plugging the emulated brick makes udevd
-    load it by its modalias, and tools/udev/90-lego-nxt.rules gives
+    load it by its modalias, and tools/udev/70-lego-nxt.rules gives
     /dev/nxtN to the group lego, with the by-serial link;
  4. dkms remove --all removes the modules.
 
@@ -209,7 +209,7 @@ def test_ldisc_29_loads_lego_ev3_uart(kernel_modprobe):
 
 @pytest.fixture
 def udevd(installed):
-    """systemd-udevd with tools/udev/90-lego-nxt.rules, the group lego in a
+    """systemd-udevd with tools/udev/70-lego-nxt.rules, the group lego in a
     private copy of /etc/group, its state in /run (a tmpfs in the guest)."""
     group = os.path.join(WORK, 'group')
     with open('/etc/group') as f:
@@ -225,7 +225,7 @@ def udevd(installed):
         run(['mount', '--bind', group, '/etc/group'])
     rules = '/run/udev/rules.d'
     os.makedirs(rules, exist_ok=True)
-    shutil.copy(os.path.join(TOP, 'tools/udev/90-lego-nxt.rules'), rules)
+    shutil.copy(os.path.join(TOP, 'tools/udev/70-lego-nxt.rules'), rules)
     run(['/lib/systemd/systemd-udevd', '--daemon'])
     try:
         yield gid
@@ -238,7 +238,7 @@ def udevd(installed):
         if not wait_for(lambda: not any(pid_alive(p) for p in pids), 20):
             for pid in pids:
                 os.kill(pid, signal.SIGKILL)
-        os.unlink(os.path.join(rules, '90-lego-nxt.rules'))
+        os.unlink(os.path.join(rules, '70-lego-nxt.rules'))
         if os.path.exists(group):
             subprocess.run(['umount', '/etc/group'])
 

@@ -64,13 +64,15 @@ def krelease(tree):
         return re.search(r'UTS_RELEASE "([^"]+)"', f.read()).group(1)
 
 
-def expected(tree, prefix, udevdir, unitdir, src):
+def expected(tree, prefix, udevdir, unitdir, sysusersdir, src):
     kver = krelease(tree)
     exp = {
         'lib/modules/%s/updates/drivers/lego/ev3/lego_ev3_uart.ko' % kver,
         'lib/modules/%s/updates/drivers/lego/nxt/lego_nxt_usb.ko' % kver,
-        prefix + '/include/linux/lego_ev3_uart.h',
-        prefix + '/include/linux/lego_nxt.h',
+        prefix + '/include/lego-mindstorms/linux/lego_ev3_uart.h',
+        prefix + '/include/lego-mindstorms/linux/lego_nxt.h',
+        prefix + '/share/pkgconfig/lego-mindstorms.pc',
+        sysusersdir + '/lego-mindstorms.conf',
     }
     for r in os.listdir(os.path.join(src, 'tools/udev')):
         if r.endswith('.rules'):
@@ -83,17 +85,20 @@ def expected(tree, prefix, udevdir, unitdir, src):
     return exp
 
 
-@pytest.mark.parametrize('prefix,udevdir,unitdir', [
-    ('/usr/local', 'etc/udev/rules.d', 'usr/local/lib/systemd/system'),
-    ('/usr', 'usr/lib/udev/rules.d', 'usr/lib/systemd/system'),
+@pytest.mark.parametrize('prefix,udevdir,unitdir,sysusersdir', [
+    ('/usr/local', 'etc/udev/rules.d', 'usr/local/lib/systemd/system', 'etc/sysusers.d'),
+    ('/usr', 'usr/lib/udev/rules.d', 'usr/lib/systemd/system', 'usr/lib/sysusers.d'),
 ])
-def test_install_and_uninstall_destdir(src, tree, tmp_path, prefix, udevdir, unitdir):
+def test_install_and_uninstall_destdir(src, tree, tmp_path, prefix, udevdir, unitdir,
+                                       sysusersdir):
     dest = str(tmp_path / 'stage')
     make(src, 'install', 'KDIR=' + tree, 'DESTDIR=' + dest, 'PREFIX=' + prefix)
     files = listing(dest)
-    exp = expected(tree, prefix.lstrip('/'), udevdir, unitdir, src)
+    exp = expected(tree, prefix.lstrip('/'), udevdir, unitdir, sysusersdir, src)
     missing = exp - files
     assert not missing, 'not installed: %s' % sorted(missing)
+    # Nothing in the directory of the distribution's kernel headers.
+    assert not os.path.exists(os.path.join(dest, prefix.lstrip('/'), 'include/linux'))
     # Nothing else but the tools (under PREFIX) and their documentation.
     extra = {f for f in files - exp if not f.startswith(prefix.lstrip('/') + '/')}
     assert not extra, 'installed outside PREFIX: %s' % sorted(extra)
@@ -105,6 +110,36 @@ def test_install_and_uninstall_destdir(src, tree, tmp_path, prefix, udevdir, uni
     make(src, 'uninstall', 'KDIR=' + tree, 'DESTDIR=' + dest, 'PREFIX=' + prefix)
     left = listing(dest)
     assert not left & exp, 'left by make uninstall: %s' % sorted(left & exp)
+    assert not os.path.exists(os.path.join(dest, prefix.lstrip('/'), 'include/lego-mindstorms'))
+
+
+def test_pkg_config_file_compiles_a_program(src, tmp_path):
+    """The installed headers with `pkg-config --cflags lego-mindstorms`:
+    <linux/lego_nxt.h> from INCLUDEDIR/lego-mindstorms, the rest of
+    <linux/...> from the system."""
+    if not shutil.which('pkg-config') or not shutil.which('cc'):
+        pytest.skip('needs pkg-config and cc')
+    dest = str(tmp_path / 'stage')
+    make(src, 'install-userspace', 'DESTDIR=' + dest, 'PREFIX=/usr')
+    pc = os.path.join(dest, 'usr/share/pkgconfig/lego-mindstorms.pc')
+    with open(pc) as f:
+        text = f.read()
+    with open(os.path.join(src, 'dkms.conf')) as f:
+        ver = re.search(r'^PACKAGE_VERSION="([^"]+)"', f.read(), re.M).group(1)
+    assert re.search(r'^Version: %s$' % re.escape(ver), text, re.M), text
+    env = dict(os.environ, PKG_CONFIG_PATH=os.path.dirname(pc),
+               PKG_CONFIG_SYSROOT_DIR=dest)
+    r = subprocess.run(['pkg-config', '--cflags', 'lego-mindstorms'], capture_output=True,
+                       text=True, env=env)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.split() == ['-I%s/usr/include/lego-mindstorms' % dest], r.stdout
+    prog = tmp_path / 'p.c'
+    prog.write_text('#include <linux/types.h>\n#include <linux/lego_nxt.h>\n'
+                    '#include <linux/lego_ev3_uart.h>\n'
+                    'int main(void) { return 0; }\n')
+    r = subprocess.run(['cc', '-Wall', '-Werror'] + r.stdout.split() +
+                       ['-o', str(tmp_path / 'p'), str(prog)], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
 
 
 def test_dkms_source_has_only_the_build_files(src, tmp_path):
