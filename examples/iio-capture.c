@@ -18,7 +18,10 @@
  *         DEVICE is the IIO device's name (lego-ev3-gyro), its label (the
  *         sensor's address, e.g. ttyAMA0) or its id (iio:device0); CHANNEL
  *         is a channel id as iio_info lists them. Enabling the buffer
- *         switches the sensor to the channel's mode.
+ *         switches the sensor to the channel's mode. libiio 0.24 says
+ *         "WARNING: High-speed mode not enabled" on stderr: the driver's
+ *         buffer is a kfifo read with read(), without mmap, which is all
+ *         this rate needs.
  */
 #include <errno.h>
 #include <getopt.h>

@@ -276,7 +276,9 @@ def test_tone_play_and_stop_sound(brick, ctl):
 
 
 def test_motor_run_and_state(brick, ctl):
+    # Both counts from zero, whatever earlier tests turned.
     ok(ctl('reset-motor', 'A'))
+    ok(ctl('reset-motor', 'A', '--relative'))
     ok(ctl('motor', 'A', 50, '--tacho-limit', 360))
     m = brick.fw.motors[0]
     assert (m.power, m.mode, m.regmode, m.limit) == (50, 0x01, 0, 360)
