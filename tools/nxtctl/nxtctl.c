@@ -269,7 +269,8 @@ int parse_opts(const char *cmd, int argc, char **argv, struct opt *opts,
 				/* Everything after "--" is an argument. */
 				while (optind < argc) {
 					if (n >= max) {
-						ret = usage_error(cmd, "%s: too many arguments", cmd);
+						ret = usage_error(cmd, "%s: too many arguments",
+								  cmd);
 						goto out;
 					}
 					pos[n++] = av[optind++];
@@ -667,9 +668,11 @@ static int wait_motors(__u8 port, long wait_ms)
 		if (!busy)
 			return EXIT_OK;
 		if (now_ms() > deadline) {
-			fprintf(stderr, "nxtctl: motor %c: %s: still %s after %ld ms (tacho_count %d of %u)\n",
-				'A' + last.port, strerror(ETIMEDOUT), run_state_name(last.run_state),
-				wait_ms, last.tacho_count, last.tacho_limit);
+			fprintf(stderr, "nxtctl: motor %c: %s: ",
+				'A' + last.port, strerror(ETIMEDOUT));
+			fprintf(stderr, "still %s after %ld ms (tacho_count %d of %u)\n",
+				run_state_name(last.run_state), wait_ms,
+				last.tacho_count, last.tacho_limit);
 			return EXIT_DEVICE;
 		}
 		sleep_ms(WAIT_POLL_MS);
@@ -707,7 +710,8 @@ static int cmd_motor(int argc, char **argv)
 	if (!strcmp(pos[1], "stop") || !strcmp(pos[1], "coast") ||
 	    !strcmp(pos[1], "brake")) {
 		if (opts[5].set)
-			return usage_error("motor", "motor: --wait is for a move with --tacho-limit");
+			return usage_error("motor",
+					   "motor: --wait is for a move with --tacho-limit");
 	}
 	if (!strcmp(pos[1], "stop") || !strcmp(pos[1], "coast")) {
 		/* Power off, the motor coasts to a stop. */
@@ -738,7 +742,8 @@ static int cmd_motor(int argc, char **argv)
 	if (opts[2].set && opts[3].set)
 		return usage_error("motor", "motor: --regulated and --sync exclude each other");
 	if (opts[5].set && (!limit || !power))
-		return usage_error("motor", "motor: --wait needs a POWER other than 0 and a --tacho-limit");
+		return usage_error("motor",
+				   "motor: --wait needs a non-zero POWER and a --tacho-limit");
 	o.power = power;
 	o.mode = NXT_MODE_MOTORON;
 	if (opts[1].set)

@@ -108,8 +108,8 @@ static int brick_of_node(const char *cmd, const char *path, struct usb_brick *b)
 			return EXIT_OK;
 	}
 not_nxt:
-	fprintf(stderr, "nxtctl: %s: %s is not an NXT brick (neither /dev/nxtN nor its /dev/bus/usb node)\n",
-		cmd, path);
+	fprintf(stderr, "nxtctl: %s: %s is not an NXT brick ", cmd, path);
+	fprintf(stderr, "(neither /dev/nxtN nor its /dev/bus/usb node)\n");
 	return EXIT_DEVICE;
 }
 
@@ -137,9 +137,12 @@ static int open_usb(const char *cmd, const struct usb_brick *b)
 	int fd = open(b->node, O_RDWR | O_CLOEXEC);
 
 	if (fd < 0) {
-		fprintf(stderr, "nxtctl: %s: cannot open %s: %s\n", cmd, b->node, strerror(errno));
-		if (errno == EACCES || errno == EPERM)
-			fprintf(stderr, "nxtctl: the udev rules give it to the group lego and the user at the seat; see nxtctl(1)\n");
+		int err = errno;
+
+		fprintf(stderr, "nxtctl: %s: cannot open %s: %s\n", cmd, b->node, strerror(err));
+		if (err == EACCES || err == EPERM)
+			fputs("nxtctl: the udev rules give it to the group lego and\n"
+			      "nxtctl: the user at the seat; see nxtctl(1)\n", stderr);
 	}
 	return fd;
 }
@@ -219,8 +222,8 @@ static int pick_brick(const char *cmd, const char *serial, int released,
 		dev = getenv("NXT_DEVICE");
 		if (!dev || !*dev) {
 			if (glob("/dev/nxt[0-9]*", 0, NULL, &g)) {
-				fprintf(stderr, "nxtctl: %s: no NXT brick found (no /dev/nxt* device)\n",
-					cmd);
+				fprintf(stderr, "nxtctl: %s: no NXT brick found ", cmd);
+				fputs("(no /dev/nxt* device)\n", stderr);
 				return EXIT_DEVICE;
 			}
 			ret = brick_of_node(cmd, g.gl_pathv[0], b);
@@ -286,8 +289,9 @@ static int cmd_release_claim(const char *cmd, int claim, int argc, char **argv)
 	if (!strcmp(drv, NXT_DRIVER))
 		goto claimed;
 	if (drv[0]) {
-		fprintf(stderr, "nxtctl: claim: %s: %s: the brick is in use by %s (a libusb program?); close it first\n",
+		fprintf(stderr, "nxtctl: claim: %s: %s: the brick is in use by %s ",
 			b.node, strerror(EBUSY), drv);
+		fputs("(a libusb program?); close it first\n", stderr);
 		ret = EXIT_DEVICE;
 		goto out;
 	}
@@ -296,8 +300,9 @@ static int cmd_release_claim(const char *cmd, int claim, int argc, char **argv)
 		goto out;
 	}
 	if (get_driver(fd, drv, sizeof(drv)) || strcmp(drv, NXT_DRIVER)) {
-		fprintf(stderr, "nxtctl: claim: %s: %s did not take the brick: is the module loaded (modprobe %s)?\n",
-			b.node, NXT_DRIVER, NXT_DRIVER);
+		fprintf(stderr, "nxtctl: claim: %s: %s did not take the brick: ",
+			b.node, NXT_DRIVER);
+		fprintf(stderr, "is the module loaded (modprobe %s)?\n", NXT_DRIVER);
 		ret = EXIT_DEVICE;
 		goto out;
 	}
