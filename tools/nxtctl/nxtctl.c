@@ -31,8 +31,8 @@ static unsigned int timeout_ms = DEFAULT_TIMEOUT_MS;
 const char *dev_path;		/* -d */
 static long dev_timeout;	/* -t, 0 for the driver's */
 
-#ifndef NXTCTL_VERSION
-#define NXTCTL_VERSION "unknown"
+#ifndef LEGO_VERSION
+#define LEGO_VERSION "unknown"
 #endif
 
 static int open_device(const char *dev, long timeout);
@@ -1408,7 +1408,7 @@ int main(int argc, char **argv)
 			print_main_help(stdout);
 			return EXIT_OK;
 		case 'V':
-			printf("nxtctl %s\n", NXTCTL_VERSION);
+			printf("nxtctl %s\n", LEGO_VERSION);
 			return EXIT_OK;
 		case ':':
 			return usage_error(NULL, "option '%s' needs a value", argv[optind - 1]);
