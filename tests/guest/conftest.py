@@ -1,6 +1,7 @@
 """Shared fixtures for the guest tests (run inside the test VM)."""
 import os
 import subprocess
+import time
 
 import pytest
 
@@ -26,6 +27,32 @@ def pid_alive(pid):
             return f.read().rsplit(')', 1)[1].split()[0] != 'Z'
     except OSError:
         return False
+
+
+def run(cmd, **kw):
+    """Run a command and return its stdout; on failure, the assertion shows
+    the command, its exit code and the tail of its output."""
+    r = subprocess.run(cmd, capture_output=True, text=True, **kw)
+    assert r.returncode == 0, '%s: exit %d\n%s%s' % (' '.join(cmd), r.returncode,
+                                                     r.stdout[-3000:], r.stderr[-3000:])
+    return r.stdout
+
+
+def wait_for(cond, timeout=3.0, interval=0.05):
+    """Poll cond() until it is true or timeout seconds passed; its last value."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if cond():
+            return True
+        time.sleep(interval)
+    return cond()
+
+
+def unload(*names):
+    """rmmod each of the modules that is loaded."""
+    for name in names:
+        if loaded(name):
+            run(['rmmod', name])
 
 
 @pytest.fixture(autouse=True)

@@ -65,13 +65,23 @@ class SensorDir:
         with open(fd, 'w') as f:
             f.write(value)
 
+    def has(self, name):
+        """True while the attribute `name` exists in this sensor's directory."""
+        try:
+            os.stat(name, dir_fd=self.fd)
+            return True
+        except FileNotFoundError:
+            return False
+
+    def gone(self):
+        """True once the directory is removed (its attributes with it)."""
+        return not self.has('address')
+
     def wait_gone(self, timeout):
-        """Wait until the directory is removed (its attributes with it)."""
+        """Wait until the directory is removed."""
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
-            try:
-                os.stat('address', dir_fd=self.fd)
-            except FileNotFoundError:
+            if self.gone():
                 return True
             time.sleep(0.02)
         return False
@@ -94,15 +104,11 @@ def _attrs_complete(sd, deadline):
     file at a time, binary files last: a reader that finds the directory
     early can see "address" and not yet "fw_version" (seen on the KCSAN
     kernel). "direct" is the group's last file."""
-    while True:
-        try:
-            os.stat('direct', dir_fd=sd.fd)
-            return True
-        except FileNotFoundError:
-            if time.monotonic() >= deadline or not os.path.exists(
-                    '/proc/self/fd/%d/address' % sd.fd):
-                return False            # or gone already
-            time.sleep(0.01)
+    while not sd.has('direct'):
+        if time.monotonic() >= deadline or sd.gone():
+            return False                # or gone already
+        time.sleep(0.01)
+    return True
 
 
 def open_sensor(address, timeout=10.0, gone_from=None):

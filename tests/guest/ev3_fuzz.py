@@ -23,7 +23,6 @@ import multiprocessing
 import os
 import random
 import re
-import select
 import signal
 import struct
 import sys
@@ -748,12 +747,10 @@ def run_many(plan, known, verbose=False, timeout_per_case=CASE_TIMEOUT, max_fail
             total['info'][k] = total['info'].get(k, 0) + v
 
     got = 0
-    last_progress = time.monotonic()
     while got < len(procs):
         try:
             merge(q.get(timeout=1))
             got += 1
-            last_progress = time.monotonic()
             continue
         except Exception:
             pass

@@ -36,7 +36,7 @@ import time
 
 import pytest
 
-from conftest import loaded, module_path, pid_alive
+from conftest import loaded, module_path, pid_alive, run, unload, wait_for
 
 TOP = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
 sys.path.insert(0, os.path.join(TOP, 'tests', 'emulator'))
@@ -58,33 +58,11 @@ LEFT_BY_DPKG = ('var/lib/dpkg/', 'var/log/', 'var/cache/', 'tmp/', 'run/', 'etc/
                 'etc/ld.so.cache', 'var/lib/systemd/')
 
 
-def run(cmd, **kw):
-    r = subprocess.run(cmd, capture_output=True, text=True, **kw)
-    assert r.returncode == 0, '%s: exit %d\n%s%s' % (' '.join(cmd), r.returncode,
-                                                     r.stdout[-3000:], r.stderr[-3000:])
-    return r.stdout
-
-
 def chroot(cmd, **kw):
     try:
         return debroot.chroot(ROOT, cmd, **kw)
     except RuntimeError as e:
         pytest.fail(str(e))
-
-
-def wait_for(cond, timeout):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if cond():
-            return True
-        time.sleep(0.05)
-    return cond()
-
-
-def unload(*names):
-    for name in names:
-        if loaded(name):
-            run(['rmmod', name])
 
 
 def build_dir():

@@ -13,8 +13,6 @@ import os
 import random
 import sys
 
-import pytest
-
 sys.path.insert(0, os.path.dirname(__file__))
 import ev3_fuzz  # noqa: E402
 

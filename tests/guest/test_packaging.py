@@ -31,11 +31,10 @@ import shutil
 import signal
 import subprocess
 import sys
-import time
 
 import pytest
 
-from conftest import loaded, module_path, pid_alive
+from conftest import loaded, module_path, pid_alive, run, unload, wait_for
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), '..', 'emulator'))
 
@@ -47,14 +46,6 @@ WORK = '/tmp/lego-packaging'
 TIOCSETD = 0x5423
 N_LEGOEV3 = 29
 SERIAL = '0016530A0B0C'
-
-
-def run(cmd, **kw):
-    """Run a command; on failure, the assertion shows its output."""
-    r = subprocess.run(cmd, capture_output=True, text=True, **kw)
-    assert r.returncode == 0, '%s: exit %d\n%s%s' % (' '.join(cmd), r.returncode,
-                                                     r.stdout, r.stderr)
-    return r.stdout
 
 
 def version():
@@ -79,25 +70,10 @@ def prepared():
     return out
 
 
-def unload(*names):
-    for name in names:
-        if loaded(name):
-            run(['rmmod', name])
-
-
 def mount_tmpfs(path, mounted):
     os.makedirs(path, exist_ok=True)
     run(['mount', '-t', 'tmpfs', '-o', 'mode=0755', 'tmpfs', path])
     mounted.append(path)
-
-
-def wait_for(cond, timeout):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if cond():
-            return True
-        time.sleep(0.05)
-    return cond()
 
 
 @pytest.fixture(scope='module')
