@@ -7,13 +7,19 @@ scripts or DKMS write to is a real directory, and everything else a
 symlink into the real root, which is bind-mounted at /.lower inside it
 (a symlink tree, as lndir makes, only along the written paths):
 
- - /etc and /var/lib/dpkg are copies (the group file, dpkg's database);
+ - /etc and /var/lib/dpkg are copies (the group file, dpkg's database),
+   but for the files of the installed packages in /var/lib/dpkg/info,
+   which dpkg only reads (and replaces, never rewrites, for the packages it
+   installs): those are symlinks, as they are most of the database (30 MB
+   on a developer's host), which the guest would unpack and dpkg copy;
  - /usr/lib/modules holds only the test kernel's directory, its build link
    pointing at the kernel tree, so DKMS builds for that kernel only;
  - /tmp, /run, /var/log, /var/tmp and /var/lib/man-db are empty
    (no man-db auto-update: its trigger does nothing);
  - each directory that a package contains is real, its other entries
-   symlinks to the real root's.
+   symlinks to the real root's; but the documentation directories (DOCS)
+   start empty, as nothing in the root reads the other packages' manual
+   pages (18,000 symlinks in man1 alone on a developer's host).
 
 tests/packaging/deb-prepare.sh makes one on the host, installs
 lego-mindstorms-dkms in it (DKMS compiles there, in seconds; in the
@@ -36,6 +42,10 @@ PATH = '/usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin'
 # Directories made empty (fresh) or copied (from the real root).
 FRESH = ('tmp', 'run', 'var/tmp', 'var/log', 'var/lib/man-db')
 COPIED = ('etc', 'var/lib/dpkg')
+# Real and empty, with the packages' directories below: no symlinks.
+DOCS = ('usr/share/man', 'usr/share/doc', 'usr/share/bash-completion')
+# Under a copied directory, mirrored (symlinks) instead of copied.
+LINKED = ('var/lib/dpkg/info',)
 # Written by maintainer scripts or DKMS besides the packages' directories.
 WRITTEN = ('usr/src', 'var/lib/dkms', 'var/lib/systemd', 'var/cache', 'root')
 MOUNTS = ('proc', 'sys', 'dev')
@@ -114,7 +124,8 @@ def writable(root, path, fresh=False):
                 os.unlink(d)
             os.makedirs(d, exist_ok=True)
         elif os.path.islink(d) or not os.path.exists(d):
-            if os.path.isdir('/' + cur) and not os.path.islink('/' + cur):
+            in_docs = any(cur.startswith(x + '/') for x in DOCS)
+            if os.path.isdir('/' + cur) and not os.path.islink('/' + cur) and not in_docs:
                 _mirror(root, cur)
             else:
                 if os.path.islink(d):
@@ -135,8 +146,13 @@ def build(root, deb_dir, kdir, kver):
         if os.path.lexists(dst):
             os.unlink(dst)
         run(['cp', '-a', '/' + d, dst])
+    for d in LINKED:
+        shutil.rmtree(os.path.join(root, d))
+        _mirror(root, d)
     for d in WRITTEN:
         writable(root, d)
+    for d in DOCS:
+        writable(root, d, fresh=True)
     for deb in debs(deb_dir).values():
         for d in deb_dirs(deb):
             writable(root, d)
