@@ -187,6 +187,15 @@ def test_install_the_other_packages(state):
             state['files']['python3-lego-nxt-linux'], path
         assert os.path.isfile(ROOT + path), path
     assert not os.path.exists(ROOT + '/usr/include/linux/lego_nxt.h')
+    # The wheel's RECORD names only what the package installed (debian/rules
+    # drops nxt/backend, and its lines).
+    records = glob.glob(ROOT + '/usr/lib/python3/dist-packages/lego_nxt_linux-*.dist-info/RECORD')
+    assert len(records) == 1, records
+    site = os.path.dirname(os.path.dirname(records[0]))
+    with open(records[0]) as f:
+        missing = [ln.split(',')[0] for ln in f if ln.strip()
+                   and not os.path.isfile(os.path.join(site, ln.split(',')[0]))]
+    assert not missing, 'in RECORD, not installed: %s' % missing
 
 
 def test_headers_compile_with_pkg_config(state):
