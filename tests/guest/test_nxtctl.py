@@ -718,8 +718,16 @@ def libusb_battery(serial=SERIAL):
     """GetBatteryLevel through pyusb, as a libusb program would: the
     endpoints 0x01 OUT and 0x82 IN of interface 0. Returns (mV, device)."""
     import usb.core
-    dev = usb.core.find(idVendor=0x0694, idProduct=0x0002,
-                        custom_match=lambda d: d.serial_number == serial)
+
+    def is_it(d):
+        # A brick of an earlier test may still be in libusb's list while
+        # it goes: its string descriptors fail ("no langid"). Not ours.
+        try:
+            return d.serial_number == serial
+        except (ValueError, usb.core.USBError):
+            return False
+
+    dev = usb.core.find(idVendor=0x0694, idProduct=0x0002, custom_match=is_it)
     assert dev is not None
     dev.set_configuration()
     dev.write(0x01, b'\x00\x0b', timeout=2000)
