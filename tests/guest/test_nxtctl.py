@@ -12,6 +12,7 @@ import re
 import shutil
 import stat
 import subprocess
+import sys
 import tempfile
 import time
 
@@ -714,30 +715,57 @@ def driver_of(usbdir):
     return os.path.basename(os.readlink(link)) if os.path.lexists(link) else None
 
 
-def libusb_battery(serial=SERIAL):
-    """GetBatteryLevel through pyusb, as a libusb program would: the
-    endpoints 0x01 OUT and 0x82 IN of interface 0. Returns (mV, device)."""
-    import usb.core
+LIBUSB_PROGRAM = r"""
+import sys
+import usb.core
+serial = sys.argv[1]
 
-    def is_it(d):
-        # A brick of an earlier test may still be in libusb's list while
-        # it goes: its string descriptors fail ("no langid"). Not ours.
-        try:
-            return d.serial_number == serial
-        except (ValueError, usb.core.USBError):
-            return False
 
-    dev = usb.core.find(idVendor=0x0694, idProduct=0x0002, custom_match=is_it)
-    assert dev is not None
-    dev.set_configuration()
-    dev.write(0x01, b'\x00\x0b', timeout=2000)
-    reply = bytes(dev.read(0x82, 64, timeout=2000))
-    assert reply[:3] == b'\x02\x0b\x00', reply
-    return reply[3] | reply[4] << 8, dev
+def is_it(d):
+    try:
+        return d.serial_number == serial
+    except (ValueError, usb.core.USBError):
+        return False        # a device going away: not ours
+
+
+dev = usb.core.find(idVendor=0x0694, idProduct=0x0002, custom_match=is_it)
+if dev is None:
+    sys.exit('no brick %s through libusb' % serial)
+dev.set_configuration()
+dev.write(0x01, b'\x00\x0b', timeout=2000)
+reply = bytes(dev.read(0x82, 64, timeout=2000))
+if reply[:3] != b'\x02\x0b\x00':
+    sys.exit('GetBatteryLevel reply %s' % reply.hex())
+print(reply[3] | reply[4] << 8, flush=True)
+sys.stdin.read()            # holds the interface until told to go
+"""
+
+
+class LibusbProgram:
+    """GetBatteryLevel through pyusb in a process of its own, as a libusb
+    program would: the endpoints 0x01 OUT and 0x82 IN of interface 0, which
+    it holds until close(). Its own process, so its own libusb context: a
+    context that lives on in the test process keeps the device list of the
+    moment it started (libusb learns of hot-plugs from udevd, which the
+    test VM does not run) and would find a brick of an earlier test."""
+
+    def __init__(self, serial=SERIAL):
+        self.proc = subprocess.Popen([sys.executable, '-c', LIBUSB_PROGRAM, serial],
+                                     stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                     stderr=subprocess.PIPE, text=True)
+        line = self.proc.stdout.readline()
+        if not line:
+            self.proc.wait(30)
+            raise AssertionError('libusb program: exit %d: %s' % (self.proc.returncode,
+                                                                  self.proc.stderr.read()))
+        self.mv = int(line)
+
+    def close(self):
+        self.proc.stdin.close()
+        assert self.proc.wait(30) == 0, self.proc.stderr.read()
 
 
 def test_release_and_claim(brick, ctl):
-    import usb.util
     node, usbdir = usb_node(SERIAL)
     assert node and os.path.exists(node), 'no raw USB node for the brick'
     old = brick.node
@@ -752,8 +780,8 @@ def test_release_and_claim(brick, ctl):
               3, 'cannot open ' + old)
         # A libusb program talks to the brick.
         brick.fw.battery_mv = 7111
-        mv, dev = libusb_battery()
-        assert mv == 7111
+        prog = LibusbProgram()
+        assert prog.mv == 7111
         try:
             # Releasing again is no error; claiming while the program
             # holds the interface is.
@@ -762,7 +790,7 @@ def test_release_and_claim(brick, ctl):
             p = subprocess.run([NXTCTL, 'claim'], capture_output=True, text=True)
             fails(p, 3, 'claim', node, 'Device or resource busy', 'usbfs')
         finally:
-            usb.util.dispose_resources(dev)
+            prog.close()
         assert wait_for(lambda: driver_of(usbdir) is None)
         # claim with no device: the only released NXT.
         p = subprocess.run([NXTCTL, 'claim'], capture_output=True, text=True)
@@ -844,7 +872,6 @@ UDEV_RULE = ('ACTION=="bind", SUBSYSTEM=="usb", ENV{DEVTYPE}=="usb_interface", '
 
 def test_udev_rule_keeps_the_driver_off_a_brick(brick):
     import signal
-    import usb.util
     udevd = '/lib/systemd/systemd-udevd'
     if not os.access(udevd, os.X_OK):
         pytest.skip('no systemd-udevd')
@@ -880,9 +907,9 @@ def test_udev_rule_keeps_the_driver_off_a_brick(brick):
         assert wait_for(lambda: not nxt.interface_of(SERIAL2) and
                         len(glob.glob('/dev/nxt[0-9]*')) == 1, 10), glob.glob('/dev/nxt*')
         # The libusb program has it; the other brick stays with the driver.
-        mv, dev = libusb_battery(SERIAL2)
-        usb.util.dispose_resources(dev)
-        assert mv == 6543
+        prog = LibusbProgram(SERIAL2)
+        prog.close()
+        assert prog.mv == 6543
         assert nxt.node_of(SERIAL, 1) == brick.node
         # claim cannot beat the rule: the driver is unbound again at once.
         subprocess.run([NXTCTL, 'claim', '--serial=' + SERIAL2], capture_output=True, text=True)
