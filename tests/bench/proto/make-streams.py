@@ -11,6 +11,16 @@ Usage: tests/bench/proto/make-streams.py OUTDIR [--quick]
   --quick). OUTDIR/ev3.unplug: the offsets in the stream where the sensor
   was unplugged (one a line): the line is silent then until the host's
   keep-alive gives the sensor up.
+- The three stream shapes of issue 19, each OUTDIR/NAME.stream with an empty
+  OUTDIR/NAME.unplug (the sensor stays plugged in):
+  gyro-ang: the gyro's handshake, then 100000 GYRO-ANG DATA messages
+  (mode 0, 4 bytes each; 10000 with --quick);
+  color-rgb-raw: the colour sensor's handshake, then 50000 RGB-RAW DATA
+  messages (mode 4, header 0xdc, 10 bytes each; 5000 with --quick), nine
+  in ten with the wrong checksum the real firmware sends; the host SELECTs
+  mode 4 after the handshake;
+  gyro-old-handshake: the handshake of the old (5-mode) gyro firmware, 244
+  bytes, and nothing else.
 - OUTDIR/nxt.records: a program's polling loop against
   tests/emulator/nxt_brick.py's firmware model, with its replies: 4 x
   GetInputValues, 3 x GetOutputState, SetOutputState, LSWrite,
@@ -22,6 +32,7 @@ Deterministic: the same files every time.
 """
 import importlib.util
 import os
+import random
 import sys
 
 TOP = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..', '..'))
@@ -29,6 +40,7 @@ spec = importlib.util.spec_from_file_location('make_seeds',
                                               os.path.join(TOP, 'tests', 'fuzz', 'make-seeds.py'))
 seeds = importlib.util.module_from_spec(spec)
 spec.loader.exec_module(seeds)
+sensors = seeds.ev3
 
 # Typed ioctls by their number in tests/fuzz/nxt_ioctls.h (1 + index).
 SET_OUTPUT_STATE, SET_INPUT_MODE, GET_OUTPUT_STATE, GET_INPUT_VALUES = 5, 6, 7, 8
@@ -84,7 +96,20 @@ def main():
         f.write(''.join('%d\n' % o for o in unplugged))
     with open(os.path.join(out, 'nxt.records'), 'wb') as f:
         f.write(nxt)
-    print('ev3.stream: %d bytes; nxt.records: %d bytes' % (len(ev3), len(nxt)))
+    n = 10 if quick else 1
+    rng = random.Random(19)
+    shapes = {
+        'gyro-ang': sensors.handshake(sensors.GYRO) + seeds.frames(sensors.GYRO, 0, 100000 // n, rng),
+        'color-rgb-raw': sensors.handshake(sensors.COLOR) + seeds.frames(sensors.COLOR, 4, 50000 // n, rng),
+        'gyro-old-handshake': sensors.handshake(sensors.GYRO_OLD),
+    }
+    for name, data in shapes.items():
+        with open(os.path.join(out, name + '.stream'), 'wb') as f:
+            f.write(data)
+        open(os.path.join(out, name + '.unplug'), 'w').close()
+    print('ev3.stream: %d bytes; nxt.records: %d bytes; %s' %
+          (len(ev3), len(nxt), ', '.join('%s.stream: %d bytes' % (k, len(v))
+                                          for k, v in shapes.items())))
 
 
 if __name__ == '__main__':
