@@ -47,11 +47,19 @@ enum { EV3_UART_STASH_RAW, EV3_UART_STASH_PCT, EV3_UART_STASH_SI };
  */
 u8 ev3_uart_checksum(const u8 *msg, size_t len)
 {
-	u8 csum = 0xff;
+	u32 x = 0xff;
 
+	/*
+	 * Four bytes at a time, then folded: XOR does not care which byte
+	 * of the word a byte lands in.
+	 */
+	for (; len >= 4; len -= 4, msg += 4)
+		x ^= get_unaligned_le32(msg);
+	x ^= x >> 16;
+	x ^= x >> 8;
 	while (len--)
-		csum ^= *msg++;
-	return csum;
+		x ^= *msg++;
+	return x;
 }
 EXPORT_SYMBOL_IF_KUNIT(ev3_uart_checksum);
 
@@ -98,16 +106,15 @@ EXPORT_SYMBOL_IF_KUNIT(ev3_uart_msg_len);
  */
 unsigned int ev3_uart_data_size(enum ev3_uart_data_type type)
 {
-	switch (type) {
-	case EV3_UART_DATA_S8:
-		return 1;
-	case EV3_UART_DATA_S16:
-		return 2;
-	case EV3_UART_DATA_S32:
-	case EV3_UART_DATA_FLOAT:
-		return 4;
-	}
-	return 0;
+	static const u8 sizes[] = {
+		[EV3_UART_DATA_S8] = 1,
+		[EV3_UART_DATA_S16] = 2,
+		[EV3_UART_DATA_S32] = 4,
+		[EV3_UART_DATA_FLOAT] = 4,
+	};
+
+	/* A table: the data phase asks for every message. */
+	return (unsigned int)type < ARRAY_SIZE(sizes) ? sizes[type] : 0;
 }
 EXPORT_SYMBOL_IF_KUNIT(ev3_uart_data_size);
 
@@ -457,8 +464,20 @@ static void ev3_uart_set_mode_defaults(struct ev3_uart_parser *p)
 	p->stash[EV3_UART_STASH_SI][1] = EV3_UART_F32_1;
 }
 
+/*
+ * Forget the header the fast path trusts (see ev3_uart_data_fast()). The
+ * length stays at least 1: ev3_uart_parser_feed() reads @buf[0] only when
+ * @len reaches it.
+ */
+static void ev3_uart_fast_clear(struct ev3_uart_parser *p)
+{
+	p->fast_hdr = EV3_UART_NO_HDR;
+	p->fast_len = EV3_UART_MAX_MSG_LEN;
+}
+
 static void ev3_uart_reset(struct ev3_uart_parser *p)
 {
+	ev3_uart_fast_clear(p);
 	p->state = EV3_UART_STATE_SYNC;
 	p->msg_len = 0;
 	p->replay_len = 0;
@@ -756,10 +775,15 @@ static void ev3_uart_info_msg(struct ev3_uart_parser *p,
 	}
 }
 
+/* The size code (L) of %EV3_UART_MAX_PAYLOAD. */
+#define EV3_UART_MAX_SIZE_CODE	5
+
 static bool ev3_uart_data_hdr_ok(u8 b)
 {
+	BUILD_BUG_ON(1 << EV3_UART_MAX_SIZE_CODE != EV3_UART_MAX_PAYLOAD);
 	return (b & EV3_UART_MSG_TYPE_MASK) == EV3_UART_MSG_DATA &&
-	       ev3_uart_payload_len(b) <= EV3_UART_MAX_PAYLOAD;
+	       (b & EV3_UART_MSG_SIZE_MASK) >> EV3_UART_MSG_SIZE_SHIFT <=
+	       EV3_UART_MAX_SIZE_CODE;
 }
 
 /*
@@ -776,6 +800,8 @@ static void ev3_uart_data_resync(struct ev3_uart_parser *p)
 	p->replay_len = p->msg_len - 1 + rest;
 	p->replay_pos = 0;
 	p->msg_len = 0;
+	/* The fast path must not pass the bytes to parse again. */
+	ev3_uart_fast_clear(p);
 }
 
 /*
@@ -801,6 +827,16 @@ static void ev3_uart_bad_frame(struct ev3_uart_parser *p,
 	ev3_uart_data_resync(p);
 }
 
+/*
+ * Quirk: the colour sensor's RGB-RAW messages (header 0xdc: DATA, 8 bytes,
+ * mode 4) mostly carry a wrong checksum; LEGO's firmware does not check
+ * them either.
+ */
+static bool ev3_uart_rgb_raw_quirk(const struct ev3_uart_sensor *s, u8 hdr)
+{
+	return s->type == EV3_UART_TYPE_COLOR && hdr == 0xdc;
+}
+
 static void ev3_uart_data_msg(struct ev3_uart_parser *p,
 			      struct ev3_uart_event *ev)
 {
@@ -811,12 +847,8 @@ static void ev3_uart_data_msg(struct ev3_uart_parser *p,
 	bool changed = false;
 	struct ev3_uart_mode *m;
 
-	/*
-	 * Quirk: the colour sensor's RGB-RAW messages (header 0xdc) mostly
-	 * carry a wrong checksum; LEGO's firmware does not check them either.
-	 */
 	if (p->msg[len - 1] != ev3_uart_checksum(p->msg, len - 1) &&
-	    !(s->type == EV3_UART_TYPE_COLOR && hdr == 0xdc))
+	    !ev3_uart_rgb_raw_quirk(s, hdr))
 		return ev3_uart_bad_frame(p, ev);
 
 	/*
@@ -860,44 +892,403 @@ static void ev3_uart_data_msg(struct ev3_uart_parser *p,
 	ev->len = plen;
 }
 
-static void ev3_uart_msg_byte(struct ev3_uart_parser *p, u8 b,
+/* ---- the data phase's fast path ---- */
+
+/*
+ * ev3_uart_data_msg()'s checks of a DATA message of @plen payload bytes with
+ * header @hdr, for the common case only: a message of the current mode with
+ * no SELECT pending, and room for the mode's values. Then the US-DC-IN
+ * quirk cannot apply (it needs mode 5 while the current mode is 6), and the
+ * mode is below @p->sensor.num_modes (@p->mode only ever holds a checked
+ * mode).
+ */
+static __always_inline bool ev3_uart_data_common(const struct ev3_uart_parser *p,
+						 u8 hdr, unsigned int plen)
+{
+	u8 mode = hdr & EV3_UART_MSG_CMD_MASK;
+	const struct ev3_uart_mode *m = &p->sensor.modes[mode];
+
+	return mode == p->mode && p->pending_mode == EV3_UART_NO_MODE &&
+	       plen >= m->num_values * ev3_uart_data_size(m->data_type);
+}
+
+/* The XOR of the four bytes of @w. */
+static __always_inline u8 ev3_uart_xor32(u32 w)
+{
+	w ^= w >> 16;
+	return w ^ w >> 8;
+}
+
+/*
+ * The checksum test of ev3_uart_data_msg(): @x is the XOR of the payload
+ * bytes, @csum the message's last byte. (The RGB-RAW quirk is for 8-byte
+ * messages: see ev3_uart_data_take().)
+ */
+static __always_inline bool ev3_uart_data_csum_ok(u8 hdr, u8 x, u8 csum)
+{
+	return (u8)(0xff ^ hdr ^ x) == csum;
+}
+
+/*
+ * Check the checksum of the whole DATA message @msg of @plen payload bytes
+ * (a power of two, at most %EV3_UART_MAX_PAYLOAD), and copy its payload to
+ * @p->data if it is right. The payload is read once, in words, and written
+ * from the same registers: no loop over bytes and no call to memcpy() for
+ * the usual sizes.
+ *
+ * Return: true if the payload was taken.
+ */
+static __always_inline bool ev3_uart_data_take(struct ev3_uart_parser *p,
+					       const u8 *msg, unsigned int plen)
+{
+	const u8 *src = msg + 1;
+	u8 hdr = msg[0], csum = msg[plen + 1];
+	u32 w0, w1;
+
+	/* The sizes by how often sensors use them. */
+	if (plen == 2) {
+		if (!ev3_uart_data_csum_ok(hdr, src[0] ^ src[1], csum))
+			return false;
+		put_unaligned_le16(get_unaligned_le16(src), p->data);
+	} else if (plen == 8) {
+		w0 = get_unaligned_le32(src);
+		w1 = get_unaligned_le32(src + 4);
+		/* The quirk first: it spares RGB-RAW's useless checksums. */
+		if (!ev3_uart_rgb_raw_quirk(&p->sensor, hdr) &&
+		    !ev3_uart_data_csum_ok(hdr, ev3_uart_xor32(w0 ^ w1), csum))
+			return false;
+		put_unaligned_le32(w0, p->data);
+		put_unaligned_le32(w1, p->data + 4);
+	} else if (plen == 1) {
+		if (!ev3_uart_data_csum_ok(hdr, src[0], csum))
+			return false;
+		p->data[0] = src[0];
+	} else if (plen == 4) {
+		w0 = get_unaligned_le32(src);
+		if (!ev3_uart_data_csum_ok(hdr, ev3_uart_xor32(w0), csum))
+			return false;
+		put_unaligned_le32(w0, p->data);
+	} else {
+		/* 16 and 32: ev3_uart_data_msg() takes them. */
+		return false;
+	}
+	return true;
+}
+
+/*
+ * Deliver the whole DATA message @msg of @plen payload bytes (at most
+ * %EV3_UART_MAX_PAYLOAD) whose header passed ev3_uart_data_common(), if its
+ * checksum is right or the RGB-RAW quirk applies: what ev3_uart_data_msg()
+ * does with such a message.
+ *
+ * Return: true if the message was delivered (@ev is %EV3_UART_EV_DATA).
+ */
+static __always_inline bool ev3_uart_data_deliver(struct ev3_uart_parser *p,
+						  const u8 *msg, unsigned int plen,
+						  struct ev3_uart_event *ev)
+{
+	if (!ev3_uart_data_take(p, msg, plen))
+		return false;
+	p->frames++;
+	if (p->data_err)
+		p->data_err--;
+	p->data_since_tick = true;
+	ev->type = EV3_UART_EV_DATA;
+	ev->mode = msg[0] & EV3_UART_MSG_CMD_MASK;
+	ev->len = plen;
+	return true;
+}
+
+/*
+ * The fast path of the data phase: deliver the whole DATA message @msg of
+ * @plen payload bytes (at most %EV3_UART_MAX_PAYLOAD), in the caller's
+ * buffer or in @p->msg, if it is the common case (ev3_uart_data_common())
+ * with a good checksum or the RGB-RAW quirk. Anything else returns false,
+ * and ev3_uart_data_msg() deals with it: that is the one place where bad
+ * frames, SELECTs and stale modes are handled.
+ *
+ * A header that passed ev3_uart_data_common() passes it again until a
+ * SELECT, an error or a new data phase, which clear @p->fast_hdr:
+ * @p->mode changes only on a SELECT, the modes only in a handshake. So
+ * ev3_uart_parser_feed() delivers a message with the header in
+ * @p->fast_hdr (and of @p->fast_len bytes) without those checks.
+ *
+ * Return: true if the message was delivered (@ev is %EV3_UART_EV_DATA).
+ */
+static __always_inline bool ev3_uart_data_fast(struct ev3_uart_parser *p,
+					       const u8 *msg, unsigned int plen,
+					       struct ev3_uart_event *ev)
+{
+	u8 hdr = msg[0];
+
+	if (hdr != p->fast_hdr && !ev3_uart_data_common(p, hdr, plen))
+		return false;
+	if (!ev3_uart_data_deliver(p, msg, plen, ev))
+		return false;
+	/* Trusted only with nothing left to parse again: see above. */
+	if (p->replay_pos == p->replay_len) {
+		p->fast_hdr = hdr;
+		p->fast_len = plen + 2;
+	}
+	return true;
+}
+
+/* A whole message is in @p->msg: act on it. */
+static void ev3_uart_msg_done(struct ev3_uart_parser *p,
 			      struct ev3_uart_event *ev)
 {
-	bool data = p->state == EV3_UART_STATE_DATA;
+	if (p->state != EV3_UART_STATE_DATA)
+		ev3_uart_info_msg(p, ev);
+	else if (!ev3_uart_data_fast(p, p->msg, p->msg_len - 2, ev))
+		ev3_uart_data_msg(p, ev);
+	p->msg_len = 0;
+}
 
-	if (!p->msg_len) {
-		/*
-		 * Quirk: a lone 0xff shows up at message boundaries: the
-		 * infrared sensor sends "00 ff" in its handshake, and a line
-		 * glitch reads as 0xff when the speed changes. 0xff would
-		 * start a 128-byte DATA message: skip it.
-		 */
-		if (b == 0xff) {
+/* The first byte of a message in the INFO and DATA states: its header. */
+static void ev3_uart_msg_start(struct ev3_uart_parser *p, u8 b,
+			       struct ev3_uart_event *ev)
+{
+	/*
+	 * Quirk: a lone 0xff shows up at message boundaries: the infrared
+	 * sensor sends "00 ff" in its handshake, and a line glitch reads as
+	 * 0xff when the speed changes. 0xff would start a 128-byte DATA
+	 * message: skip it.
+	 */
+	if (b == 0xff) {
+		p->garbage++;
+		return;
+	}
+	if (p->state == EV3_UART_STATE_DATA) {
+		/* Re-align on the next plausible DATA header. */
+		if (!ev3_uart_data_hdr_ok(b)) {
 			p->garbage++;
 			return;
 		}
-		if (data) {
-			/* Re-align on the next plausible DATA header. */
-			if (!ev3_uart_data_hdr_ok(b)) {
-				p->garbage++;
-				return;
-			}
-		} else if ((b & EV3_UART_MSG_TYPE_MASK) == EV3_UART_MSG_SYS) {
-			return ev3_uart_sys_info(p, b, ev);
-		} else if (ev3_uart_payload_len(b) > EV3_UART_MAX_PAYLOAD) {
-			return ev3_uart_error(p, ev, "message too long");
-		}
+	} else if ((b & EV3_UART_MSG_TYPE_MASK) == EV3_UART_MSG_SYS) {
+		return ev3_uart_sys_info(p, b, ev);
+	} else if (ev3_uart_payload_len(b) > EV3_UART_MAX_PAYLOAD) {
+		return ev3_uart_error(p, ev, "message too long");
 	}
+	p->msg[0] = b;
+	p->msg_len = 1;
+}
 
-	p->msg[p->msg_len++] = b;
-	if (p->msg_len < ev3_uart_msg_len(p->msg[0]))
-		return;
+/*
+ * The rest of a message whose header is in @p->msg: nothing looks at these
+ * bytes before the message is whole, so they are taken as many at a time
+ * as @buf holds. The header bounds the length to %EV3_UART_MAX_MSG_LEN.
+ *
+ * Return: the number of bytes of @buf taken.
+ */
+static size_t ev3_uart_msg_body(struct ev3_uart_parser *p, const u8 *buf,
+				size_t len, struct ev3_uart_event *ev)
+{
+	unsigned int need = ev3_uart_msg_len(p->msg[0]) - p->msg_len;
 
-	if (data)
-		ev3_uart_data_msg(p, ev);
-	else
-		ev3_uart_info_msg(p, ev);
+	if (len < need) {
+		memcpy(p->msg + p->msg_len, buf, len);
+		p->msg_len += len;
+		return len;
+	}
+	memcpy(p->msg + p->msg_len, buf, need);
+	p->msg_len += need;
+	ev3_uart_msg_done(p, ev);
+	return need;
+}
+
+/* One byte, from @p->replay or from the caller's buffer. */
+static void ev3_uart_byte(struct ev3_uart_parser *p, u8 b,
+			  struct ev3_uart_event *ev)
+{
+	switch (p->state) {
+	case EV3_UART_STATE_SYNC:
+		ev3_uart_sync_byte(p, b, ev);
+		break;
+	case EV3_UART_STATE_ACKED:
+		p->garbage++;
+		break;
+	default:
+		if (!p->msg_len)
+			ev3_uart_msg_start(p, b, ev);
+		else
+			ev3_uart_msg_body(p, &b, 1, ev);
+		break;
+	}
+}
+
+/*
+ * The general case of ev3_uart_parser_feed(): byte by byte, except that the
+ * rest of a message whose header was accepted is taken in one go.
+ */
+static size_t ev3_uart_feed_bytes(struct ev3_uart_parser *p, const u8 *buf,
+				  size_t len, struct ev3_uart_event *ev)
+{
+	size_t used = 0;
+
+	do {
+		if (p->replay_pos < p->replay_len)
+			ev3_uart_byte(p, p->replay[p->replay_pos++], ev);
+		else if (used == len)
+			break;
+		else if (p->msg_len && (p->state == EV3_UART_STATE_INFO ||
+					p->state == EV3_UART_STATE_DATA))
+			used += ev3_uart_msg_body(p, buf + used, len - used, ev);
+		else
+			ev3_uart_byte(p, buf[used++], ev);
+	} while (ev->type == EV3_UART_EV_NONE);
+	return used;
+}
+
+/* The payload length of a DATA header: 2^L. */
+static __always_inline unsigned int ev3_uart_data_plen(u8 hdr)
+{
+	return 1U << ((hdr & EV3_UART_MSG_SIZE_MASK) >> EV3_UART_MSG_SIZE_SHIFT);
+}
+
+/*
+ * memcpy() of the few bytes (@n up to %EV3_UART_MAX_MSG_LEN) of a message
+ * split between two batches, inline and without a loop for the usual ones:
+ * two moves of k bytes, overlapping if need be, copy k to 2k bytes.
+ */
+static __always_inline void ev3_uart_copy_short(u8 *dst, const u8 *src,
+						unsigned int n)
+{
+	unsigned int i;
+
+	if (n >= 8) {
+		for (i = 0; i + 8 < n; i += 8)
+			memcpy(dst + i, src + i, 8);
+		memcpy(dst + n - 8, src + n - 8, 8);
+	} else if (n >= 4) {
+		memcpy(dst, src, 4);
+		memcpy(dst + n - 4, src + n - 4, 4);
+	} else if (n >= 2) {
+		memcpy(dst, src, 2);
+		memcpy(dst + n - 2, src + n - 2, 2);
+	} else if (n) {
+		dst[0] = src[0];
+	}
+}
+
+/*
+ * The data phase: the start of a DATA message at the end of @buf, @len
+ * bytes (fewer than the message's, so at most %EV3_UART_MAX_PAYLOAD + 1),
+ * kept in @p->msg as ev3_uart_feed_bytes() would keep them.
+ */
+static noinline size_t ev3_uart_data_head(struct ev3_uart_parser *p,
+					  const u8 *buf, size_t len)
+{
+	ev3_uart_copy_short(p->msg, buf, len);
+	p->msg_len = len;
+	return len;
+}
+
+/*
+ * The end of ev3_uart_data_rest() for a message ev3_uart_data_fast() did
+ * not deliver: ev3_uart_data_msg() decides, then parsing goes on as in
+ * ev3_uart_feed_bytes().
+ */
+static noinline size_t ev3_uart_data_slow(struct ev3_uart_parser *p,
+					  const u8 *buf, size_t len,
+					  unsigned int need,
+					  struct ev3_uart_event *ev)
+{
+	p->msg_len += need;
+	ev3_uart_data_msg(p, ev);
 	p->msg_len = 0;
+	if (ev->type != EV3_UART_EV_NONE)
+		return need;
+	return need + ev3_uart_feed_bytes(p, buf + need, len - need, ev);
+}
+
+/*
+ * The data phase with the start of a DATA message in @p->msg (its header
+ * was checked, so the whole message fits): the rest of it, as much of it
+ * as @buf holds, then the message as ev3_uart_feed_bytes() would take it.
+ *
+ * Return: the bytes of @buf taken.
+ */
+static noinline size_t ev3_uart_data_rest(struct ev3_uart_parser *p,
+					  const u8 *buf, size_t len,
+					  struct ev3_uart_event *ev)
+{
+	unsigned int plen = ev3_uart_data_plen(p->msg[0]);
+	unsigned int need = plen + 2 - p->msg_len;
+
+	if (len < need) {
+		ev3_uart_copy_short(p->msg + p->msg_len, buf, len);
+		p->msg_len += len;
+		return len;
+	}
+	ev3_uart_copy_short(p->msg + p->msg_len, buf, need);
+	if (!ev3_uart_data_fast(p, p->msg, plen, ev))
+		return ev3_uart_data_slow(p, buf, len, need, ev);
+	p->msg_len = 0;
+	return need;
+}
+
+/*
+ * ev3_uart_parser_feed() but for a whole message with the header in
+ * @p->fast_hdr: in the data phase, a whole DATA message at the start of
+ * @buf for ev3_uart_data_fast(), taken where it is; the parts of a message
+ * split between two calls, taken a part at a time; everything else through
+ * ev3_uart_feed_bytes(). The slower cases are calls in tail position.
+ */
+static noinline size_t ev3_uart_feed(struct ev3_uart_parser *p, const u8 *buf,
+				     size_t len, struct ev3_uart_event *ev)
+{
+	unsigned int plen;
+	u8 hdr;
+
+	if (p->state != EV3_UART_STATE_DATA || !len ||
+	    p->replay_pos != p->replay_len)
+		return ev3_uart_feed_bytes(p, buf, len, ev);
+	if (p->msg_len)
+		return ev3_uart_data_rest(p, buf, len, ev);
+	hdr = buf[0];
+	if (!ev3_uart_data_hdr_ok(hdr))
+		return ev3_uart_feed_bytes(p, buf, len, ev);
+	plen = ev3_uart_data_plen(hdr);
+	if (len < plen + 2)
+		return ev3_uart_data_head(p, buf, len);
+	if (ev3_uart_data_fast(p, buf, plen, ev))
+		return plen + 2;
+	return ev3_uart_feed_bytes(p, buf, len, ev);
+}
+
+/*
+ * ev3_uart_parser_feed() with the start of a message in @p->msg: if it has
+ * the header in @p->fast_hdr, the rest of it, as much of it as @buf holds,
+ * and then the message delivered; else ev3_uart_feed().
+ */
+static noinline size_t ev3_uart_feed_rest(struct ev3_uart_parser *p,
+					  const u8 *buf, size_t len,
+					  struct ev3_uart_event *ev)
+{
+	unsigned int have = p->msg_len, n = p->fast_len, need = n - have;
+
+	if (p->msg[0] != p->fast_hdr)
+		return ev3_uart_feed(p, buf, len, ev);
+	if (len < need) {
+		ev3_uart_copy_short(p->msg + have, buf, len);
+		p->msg_len = have + len;
+		return len;
+	}
+	ev3_uart_copy_short(p->msg + have, buf, need);
+	if (!ev3_uart_data_deliver(p, p->msg, n - 2, ev))
+		return ev3_uart_data_slow(p, buf, len, need, ev);
+	p->msg_len = 0;
+	return need;
+}
+
+/* ev3_uart_parser_feed() with the start of a fast-path message at the end of @buf. */
+static noinline size_t ev3_uart_feed_head(struct ev3_uart_parser *p,
+					  const u8 *buf, size_t len)
+{
+	/* Fewer than @p->fast_len bytes: @p->msg has room for them. */
+	ev3_uart_copy_short(p->msg, buf, len);
+	p->msg_len = len;
+	return len;
 }
 
 /**
@@ -915,31 +1306,24 @@ static void ev3_uart_msg_byte(struct ev3_uart_parser *p, u8 b,
 size_t ev3_uart_parser_feed(struct ev3_uart_parser *p, const u8 *buf,
 			    size_t len, struct ev3_uart_event *ev)
 {
-	size_t used = 0;
-	u8 b;
-
 	memset(ev, 0, sizeof(*ev));
-	while (ev->type == EV3_UART_EV_NONE) {
-		if (p->replay_pos < p->replay_len)
-			b = p->replay[p->replay_pos++];
-		else if (used < len)
-			b = buf[used++];
-		else
-			break;
-
-		switch (p->state) {
-		case EV3_UART_STATE_SYNC:
-			ev3_uart_sync_byte(p, b, ev);
-			break;
-		case EV3_UART_STATE_ACKED:
-			p->garbage++;
-			break;
-		default:
-			ev3_uart_msg_byte(p, b, ev);
-			break;
-		}
+	/*
+	 * The data phase's common case first: a message with the header of
+	 * the last one ev3_uart_data_fast() delivered, whole at the start of
+	 * @buf, or split between two calls. A valid @p->fast_hdr means the
+	 * data phase with nothing to parse again (see ev3_uart_data_fast()),
+	 * and @p->fast_len is then the message's length (else at least 1).
+	 */
+	if (p->msg_len)
+		return ev3_uart_feed_rest(p, buf, len, ev);
+	if (len >= p->fast_len) {
+		if (buf[0] == p->fast_hdr &&
+		    ev3_uart_data_deliver(p, buf, p->fast_len - 2, ev))
+			return p->fast_len;
+	} else if (len && buf[0] == p->fast_hdr) {
+		return ev3_uart_feed_head(p, buf, len);
 	}
-	return used;
+	return ev3_uart_feed(p, buf, len, ev);
 }
 EXPORT_SYMBOL_IF_KUNIT(ev3_uart_parser_feed);
 
@@ -992,6 +1376,7 @@ void ev3_uart_parser_start_data(struct ev3_uart_parser *p)
 	p->data_err = 0;
 	p->silent_ticks = 0;
 	p->data_since_tick = false;
+	ev3_uart_fast_clear(p);
 	p->frames = 0;
 }
 EXPORT_SYMBOL_IF_KUNIT(ev3_uart_parser_start_data);
@@ -1014,6 +1399,7 @@ int ev3_uart_parser_select(struct ev3_uart_parser *p, u8 mode)
 	if (mode >= p->sensor.num_modes)
 		return -EINVAL;
 	p->pending_mode = mode;
+	ev3_uart_fast_clear(p);
 	return 0;
 }
 EXPORT_SYMBOL_IF_KUNIT(ev3_uart_parser_select);
