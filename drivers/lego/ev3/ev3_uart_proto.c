@@ -45,7 +45,7 @@ enum { EV3_UART_STASH_RAW, EV3_UART_STASH_PCT, EV3_UART_STASH_SI };
  *
  * Return: 0xff XOR every byte of @msg[0..@len-1].
  */
-u8 ev3_uart_checksum(const u8 *msg, size_t len)
+static __always_inline u8 __ev3_uart_checksum(const u8 *msg, size_t len)
 {
 	u32 x = 0xff;
 
@@ -55,11 +55,19 @@ u8 ev3_uart_checksum(const u8 *msg, size_t len)
 	 */
 	for (; len >= 4; len -= 4, msg += 4)
 		x ^= get_unaligned_le32(msg);
+	if (len & 2) {
+		x ^= get_unaligned_le16(msg);
+		msg += 2;
+	}
+	if (len & 1)
+		x ^= *msg;
 	x ^= x >> 16;
-	x ^= x >> 8;
-	while (len--)
-		x ^= *msg++;
-	return x;
+	return x ^ x >> 8;
+}
+
+u8 ev3_uart_checksum(const u8 *msg, size_t len)
+{
+	return __ev3_uart_checksum(msg, len);
 }
 EXPORT_SYMBOL_IF_KUNIT(ev3_uart_checksum);
 
@@ -227,7 +235,9 @@ static const u32 ev3_pow10[EV3_UART_MAX_DECIMALS + 1] = {
  * Return: 0, -%ERANGE for NaN, infinities and values that do not fit an s32,
  * -%EINVAL for too many decimals.
  */
-int ev3_uart_f32_to_fixed(u32 bits, unsigned int decimals, s32 *out)
+static __always_inline int __ev3_uart_f32_to_fixed(u32 bits,
+						   unsigned int decimals,
+						   s32 *out)
 {
 	bool neg = bits >> 31;
 	int exp = (bits >> 23) & 0xff;
@@ -262,6 +272,11 @@ int ev3_uart_f32_to_fixed(u32 bits, unsigned int decimals, s32 *out)
 		return -ERANGE;
 	*out = neg ? (s32)-(s64)v : (s32)v;
 	return 0;
+}
+
+int ev3_uart_f32_to_fixed(u32 bits, unsigned int decimals, s32 *out)
+{
+	return __ev3_uart_f32_to_fixed(bits, decimals, out);
 }
 EXPORT_SYMBOL_IF_KUNIT(ev3_uart_f32_to_fixed);
 
@@ -548,15 +563,17 @@ static void ev3_uart_sync_byte(struct ev3_uart_parser *p, u8 b,
 		ev3_uart_start_handshake(p, p->msg[1], ev);
 }
 
+/* Check a string of up to @size bytes; @n gets its length. */
 static const char *ev3_uart_check_string(const u8 *s, size_t size,
-					 size_t max)
+					 size_t max, size_t *n)
 {
-	size_t n = strnlen((const char *)s, size), i;
+	size_t i;
 
-	if (n > max)
+	*n = strnlen((const char *)s, size);
+	if (*n > max)
 		return "string too long";
-	for (i = 0; i < n; i++)
-		if (s[i] < 0x20 || s[i] > 0x7e)
+	for (i = 0; i < *n; i++)
+		if ((u8)(s[i] - 0x20) > 0x7e - 0x20)	/* 0x20 to 0x7e */
 			return "string not printable";
 	return NULL;
 }
@@ -616,12 +633,20 @@ static const char *ev3_uart_convert_ranges(struct ev3_uart_parser *p,
 {
 	u32 (*st)[2] = p->stash;
 
-	if (ev3_uart_f32_to_fixed(st[EV3_UART_STASH_RAW][0], 0, &m->raw_min) ||
-	    ev3_uart_f32_to_fixed(st[EV3_UART_STASH_RAW][1], 0, &m->raw_max) ||
-	    ev3_uart_f32_to_fixed(st[EV3_UART_STASH_PCT][0], 0, &m->pct_min) ||
-	    ev3_uart_f32_to_fixed(st[EV3_UART_STASH_PCT][1], 0, &m->pct_max) ||
-	    ev3_uart_f32_to_fixed(st[EV3_UART_STASH_SI][0], m->decimals, &m->si_min) ||
-	    ev3_uart_f32_to_fixed(st[EV3_UART_STASH_SI][1], m->decimals, &m->si_max))
+	if (__ev3_uart_f32_to_fixed(st[EV3_UART_STASH_RAW][0], 0, &m->raw_min) ||
+	    __ev3_uart_f32_to_fixed(st[EV3_UART_STASH_RAW][1], 0, &m->raw_max) ||
+	    __ev3_uart_f32_to_fixed(st[EV3_UART_STASH_PCT][0], 0, &m->pct_min) ||
+	    __ev3_uart_f32_to_fixed(st[EV3_UART_STASH_PCT][1], 0, &m->pct_max))
+		return "range not representable";
+	/* Most modes send the RAW range again as SI: no need to convert it twice. */
+	if (!m->decimals && st[EV3_UART_STASH_SI][0] == st[EV3_UART_STASH_RAW][0] &&
+	    st[EV3_UART_STASH_SI][1] == st[EV3_UART_STASH_RAW][1]) {
+		m->si_min = m->raw_min;
+		m->si_max = m->raw_max;
+		return NULL;
+	}
+	if (__ev3_uart_f32_to_fixed(st[EV3_UART_STASH_SI][0], m->decimals, &m->si_min) ||
+	    __ev3_uart_f32_to_fixed(st[EV3_UART_STASH_SI][1], m->decimals, &m->si_max))
 		return "range not representable";
 	return NULL;
 }
@@ -674,6 +699,7 @@ static void ev3_uart_info(struct ev3_uart_parser *p, const u8 *payload,
 	struct ev3_uart_mode *m = &s->modes[mode];
 	const char *err;
 	unsigned int bit;
+	size_t n;
 
 	/*
 	 * Quirk: Powered Up devices describe modes 8 and up with the
@@ -693,14 +719,14 @@ static void ev3_uart_info(struct ev3_uart_parser *p, const u8 *payload,
 			return ev3_uart_error(p, ev, "NAME before the previous mode's FORMAT");
 		if (p->modes_done & BIT(mode))
 			return ev3_uart_error(p, ev, "duplicate mode");
-		err = ev3_uart_check_string(payload, plen, EV3_UART_NAME_LEN);
+		err = ev3_uart_check_string(payload, plen, EV3_UART_NAME_LEN, &n);
 		if (err)
 			return ev3_uart_error(p, ev, err);
 		if (payload[0] < 'A' || payload[0] > 'z')
 			return ev3_uart_error(p, ev, "bad mode name");
 		memset(m, 0, sizeof(*m));
 		/* 8-character names fill their payload with no NUL after them. */
-		memcpy(m->name, payload, strnlen((const char *)payload, plen));
+		memcpy(m->name, payload, n);
 		ev3_uart_set_mode_defaults(p);
 		p->info_mode = mode;
 		p->info_seen = BIT(EV3_UART_INFO_NAME);
@@ -728,10 +754,10 @@ static void ev3_uart_info(struct ev3_uart_parser *p, const u8 *payload,
 	case EV3_UART_INFO_UNITS:
 		if (p->info_seen & BIT(itype))
 			return ev3_uart_error(p, ev, "duplicate UNITS");
-		err = ev3_uart_check_string(payload, plen, EV3_UART_UNITS_LEN);
+		err = ev3_uart_check_string(payload, plen, EV3_UART_UNITS_LEN, &n);
 		if (err)
 			return ev3_uart_error(p, ev, err);
-		memcpy(m->units, payload, strnlen((const char *)payload, plen));
+		memcpy(m->units, payload, n);
 		p->info_seen |= BIT(itype);
 		return;
 	case EV3_UART_INFO_FORMAT:
@@ -759,7 +785,7 @@ static void ev3_uart_info_msg(struct ev3_uart_parser *p,
 {
 	unsigned int len = p->msg_len;
 
-	if (p->msg[len - 1] != ev3_uart_checksum(p->msg, len - 1))
+	if (p->msg[len - 1] != __ev3_uart_checksum(p->msg, len - 1))
 		return ev3_uart_error(p, ev, "bad checksum in handshake");
 
 	switch (p->msg[0] & EV3_UART_MSG_TYPE_MASK) {
@@ -892,6 +918,31 @@ static void ev3_uart_data_msg(struct ev3_uart_parser *p,
 	ev->len = plen;
 }
 
+/*
+ * memcpy() of the few bytes (@n up to %EV3_UART_MAX_MSG_LEN) of a message
+ * split between two batches, inline and without a loop for the usual ones:
+ * two moves of k bytes, overlapping if need be, copy k to 2k bytes.
+ */
+static __always_inline void ev3_uart_copy_short(u8 *dst, const u8 *src,
+						unsigned int n)
+{
+	unsigned int i;
+
+	if (n >= 8) {
+		for (i = 0; i + 8 < n; i += 8)
+			memcpy(dst + i, src + i, 8);
+		memcpy(dst + n - 8, src + n - 8, 8);
+	} else if (n >= 4) {
+		memcpy(dst, src, 4);
+		memcpy(dst + n - 4, src + n - 4, 4);
+	} else if (n >= 2) {
+		memcpy(dst, src, 2);
+		memcpy(dst + n - 2, src + n - 2, 2);
+	} else if (n) {
+		dst[0] = src[0];
+	}
+}
+
 /* ---- the data phase's fast path ---- */
 
 /*
@@ -979,18 +1030,20 @@ static __always_inline bool ev3_uart_data_take(struct ev3_uart_parser *p,
  * Deliver the whole DATA message @msg of @plen payload bytes (at most
  * %EV3_UART_MAX_PAYLOAD) whose header passed ev3_uart_data_common(), if its
  * checksum is right or the RGB-RAW quirk applies: what ev3_uart_data_msg()
- * does with such a message.
+ * does with such a message. @fast: the header is @p->fast_hdr, so
+ * @p->data_err is 0 (see ev3_uart_data_fast()).
  *
  * Return: true if the message was delivered (@ev is %EV3_UART_EV_DATA).
  */
 static __always_inline bool ev3_uart_data_deliver(struct ev3_uart_parser *p,
 						  const u8 *msg, unsigned int plen,
-						  struct ev3_uart_event *ev)
+						  struct ev3_uart_event *ev,
+						  bool fast)
 {
 	if (!ev3_uart_data_take(p, msg, plen))
 		return false;
 	p->frames++;
-	if (p->data_err)
+	if (!fast && p->data_err)
 		p->data_err--;
 	p->data_since_tick = true;
 	ev->type = EV3_UART_EV_DATA;
@@ -1007,11 +1060,15 @@ static __always_inline bool ev3_uart_data_deliver(struct ev3_uart_parser *p,
  * and ev3_uart_data_msg() deals with it: that is the one place where bad
  * frames, SELECTs and stale modes are handled.
  *
- * A header that passed ev3_uart_data_common() passes it again until a
- * SELECT, an error or a new data phase, which clear @p->fast_hdr:
- * @p->mode changes only on a SELECT, the modes only in a handshake. So
- * ev3_uart_parser_feed() delivers a message with the header in
- * @p->fast_hdr (and of @p->fast_len bytes) without those checks.
+ * @p->fast_hdr caches the checks: a header that passed
+ * ev3_uart_data_common() passes it again until a SELECT or a new data phase
+ * (@p->mode changes only on a SELECT, the modes only in a handshake). It is
+ * set only with nothing to parse again in @p->replay and no bad frame on
+ * the count (@p->data_err 0), and cleared by whatever changes that: a
+ * SELECT, a resync, a line error, an error (ev3_uart_reset()), a new data
+ * phase. So ev3_uart_parser_feed() delivers a message with that header (and
+ * of @p->fast_len bytes), whole or split between two calls, with only its
+ * checksum to check and @p->data_err to leave at 0.
  *
  * Return: true if the message was delivered (@ev is %EV3_UART_EV_DATA).
  */
@@ -1023,10 +1080,13 @@ static __always_inline bool ev3_uart_data_fast(struct ev3_uart_parser *p,
 
 	if (hdr != p->fast_hdr && !ev3_uart_data_common(p, hdr, plen))
 		return false;
-	if (!ev3_uart_data_deliver(p, msg, plen, ev))
+	if (!ev3_uart_data_deliver(p, msg, plen, ev, false))
 		return false;
-	/* Trusted only with nothing left to parse again: see above. */
-	if (p->replay_pos == p->replay_len) {
+	/*
+	 * Trusted only with nothing left to parse again and no bad frame on
+	 * the count: see above.
+	 */
+	if (p->replay_pos == p->replay_len && !p->data_err) {
 		p->fast_hdr = hdr;
 		p->fast_len = plen + 2;
 	}
@@ -1034,7 +1094,7 @@ static __always_inline bool ev3_uart_data_fast(struct ev3_uart_parser *p,
 }
 
 /* A whole message is in @p->msg: act on it. */
-static void ev3_uart_msg_done(struct ev3_uart_parser *p,
+static noinline void ev3_uart_msg_done(struct ev3_uart_parser *p,
 			      struct ev3_uart_event *ev)
 {
 	if (p->state != EV3_UART_STATE_DATA)
@@ -1045,7 +1105,7 @@ static void ev3_uart_msg_done(struct ev3_uart_parser *p,
 }
 
 /* The first byte of a message in the INFO and DATA states: its header. */
-static void ev3_uart_msg_start(struct ev3_uart_parser *p, u8 b,
+static __always_inline void ev3_uart_msg_start(struct ev3_uart_parser *p, u8 b,
 			       struct ev3_uart_event *ev)
 {
 	/*
@@ -1080,17 +1140,20 @@ static void ev3_uart_msg_start(struct ev3_uart_parser *p, u8 b,
  *
  * Return: the number of bytes of @buf taken.
  */
-static size_t ev3_uart_msg_body(struct ev3_uart_parser *p, const u8 *buf,
+static __always_inline size_t ev3_uart_msg_body(struct ev3_uart_parser *p,
+						const u8 *buf,
 				size_t len, struct ev3_uart_event *ev)
 {
-	unsigned int need = ev3_uart_msg_len(p->msg[0]) - p->msg_len;
+	/* A SYS message is never held: header, (INFO type,) payload, checksum. */
+	unsigned int need = ev3_uart_payload_len(p->msg[0]) + 2 - p->msg_len +
+			    ((p->msg[0] & EV3_UART_MSG_TYPE_MASK) == EV3_UART_MSG_INFO);
 
 	if (len < need) {
-		memcpy(p->msg + p->msg_len, buf, len);
+		ev3_uart_copy_short(p->msg + p->msg_len, buf, len);
 		p->msg_len += len;
 		return len;
 	}
-	memcpy(p->msg + p->msg_len, buf, need);
+	ev3_uart_copy_short(p->msg + p->msg_len, buf, need);
 	p->msg_len += need;
 	ev3_uart_msg_done(p, ev);
 	return need;
@@ -1130,12 +1193,37 @@ static size_t ev3_uart_feed_bytes(struct ev3_uart_parser *p, const u8 *buf,
 			ev3_uart_byte(p, p->replay[p->replay_pos++], ev);
 		else if (used == len)
 			break;
-		else if (p->msg_len && (p->state == EV3_UART_STATE_INFO ||
-					p->state == EV3_UART_STATE_DATA))
+		else if (p->state != EV3_UART_STATE_INFO &&
+			 p->state != EV3_UART_STATE_DATA)
+			ev3_uart_byte(p, buf[used++], ev);
+		else if (p->msg_len)
 			used += ev3_uart_msg_body(p, buf + used, len - used, ev);
 		else
-			ev3_uart_byte(p, buf[used++], ev);
+			ev3_uart_msg_start(p, buf[used++], ev);
 	} while (ev->type == EV3_UART_EV_NONE);
+	return used;
+}
+
+/*
+ * ev3_uart_feed_bytes() in the INFO state with nothing to parse again, the
+ * handshake: a header, then the rest of the message in one go, until an
+ * event. Without one the state stays, and nothing is left to parse again
+ * (only a bad DATA message does that).
+ */
+static noinline size_t ev3_uart_feed_info(struct ev3_uart_parser *p,
+					  const u8 *buf, size_t len,
+					  struct ev3_uart_event *ev)
+{
+	size_t used = 0;
+
+	while (used < len) {
+		if (p->msg_len)
+			used += ev3_uart_msg_body(p, buf + used, len - used, ev);
+		else
+			ev3_uart_msg_start(p, buf[used++], ev);
+		if (ev->type != EV3_UART_EV_NONE)
+			break;
+	}
 	return used;
 }
 
@@ -1145,30 +1233,6 @@ static __always_inline unsigned int ev3_uart_data_plen(u8 hdr)
 	return 1U << ((hdr & EV3_UART_MSG_SIZE_MASK) >> EV3_UART_MSG_SIZE_SHIFT);
 }
 
-/*
- * memcpy() of the few bytes (@n up to %EV3_UART_MAX_MSG_LEN) of a message
- * split between two batches, inline and without a loop for the usual ones:
- * two moves of k bytes, overlapping if need be, copy k to 2k bytes.
- */
-static __always_inline void ev3_uart_copy_short(u8 *dst, const u8 *src,
-						unsigned int n)
-{
-	unsigned int i;
-
-	if (n >= 8) {
-		for (i = 0; i + 8 < n; i += 8)
-			memcpy(dst + i, src + i, 8);
-		memcpy(dst + n - 8, src + n - 8, 8);
-	} else if (n >= 4) {
-		memcpy(dst, src, 4);
-		memcpy(dst + n - 4, src + n - 4, 4);
-	} else if (n >= 2) {
-		memcpy(dst, src, 2);
-		memcpy(dst + n - 2, src + n - 2, 2);
-	} else if (n) {
-		dst[0] = src[0];
-	}
-}
 
 /*
  * The data phase: the start of a DATA message at the end of @buf, @len
@@ -1240,8 +1304,11 @@ static noinline size_t ev3_uart_feed(struct ev3_uart_parser *p, const u8 *buf,
 	unsigned int plen;
 	u8 hdr;
 
-	if (p->state != EV3_UART_STATE_DATA || !len ||
-	    p->replay_pos != p->replay_len)
+	if (p->replay_pos != p->replay_len)
+		return ev3_uart_feed_bytes(p, buf, len, ev);
+	if (p->state == EV3_UART_STATE_INFO)
+		return ev3_uart_feed_info(p, buf, len, ev);
+	if (p->state != EV3_UART_STATE_DATA || !len)
 		return ev3_uart_feed_bytes(p, buf, len, ev);
 	if (p->msg_len)
 		return ev3_uart_data_rest(p, buf, len, ev);
@@ -1275,7 +1342,7 @@ static noinline size_t ev3_uart_feed_rest(struct ev3_uart_parser *p,
 		return len;
 	}
 	ev3_uart_copy_short(p->msg + have, buf, need);
-	if (!ev3_uart_data_deliver(p, p->msg, n - 2, ev))
+	if (!ev3_uart_data_deliver(p, p->msg, n - 2, ev, true))
 		return ev3_uart_data_slow(p, buf, len, need, ev);
 	p->msg_len = 0;
 	return need;
@@ -1318,7 +1385,7 @@ size_t ev3_uart_parser_feed(struct ev3_uart_parser *p, const u8 *buf,
 		return ev3_uart_feed_rest(p, buf, len, ev);
 	if (len >= p->fast_len) {
 		if (buf[0] == p->fast_hdr &&
-		    ev3_uart_data_deliver(p, buf, p->fast_len - 2, ev))
+		    ev3_uart_data_deliver(p, buf, p->fast_len - 2, ev, true))
 			return p->fast_len;
 	} else if (len && buf[0] == p->fast_hdr) {
 		return ev3_uart_feed_head(p, buf, len);
@@ -1352,6 +1419,7 @@ void ev3_uart_parser_line_error(struct ev3_uart_parser *p,
 	case EV3_UART_STATE_DATA:
 		p->msg_len = 0;
 		p->bad_frames++;
+		ev3_uart_fast_clear(p);	/* data_err may no longer be 0 */
 		if (!ev3_uart_settling(p) && ++p->data_err > EV3_UART_MAX_DATA_ERR)
 			ev3_uart_error(p, ev, "too many line errors");
 		break;
