@@ -38,6 +38,17 @@
 
 enum { EV3_UART_STASH_RAW, EV3_UART_STASH_PCT, EV3_UART_STASH_SI };
 
+/*
+ * tests/fuzz/ev3_ref.c builds this file without the data phase's fast path
+ * (the byte loop and ev3_uart_data_msg() alone), for the fuzzer to check
+ * the fast path against.
+ */
+#ifdef EV3_UART_PROTO_REFERENCE
+#define EV3_UART_FAST_PATH	0
+#else
+#define EV3_UART_FAST_PATH	1
+#endif
+
 /**
  * ev3_uart_checksum() - compute the checksum of a message
  * @msg: the message, starting with its header
@@ -578,11 +589,12 @@ static const char *ev3_uart_check_string(const u8 *s, size_t size,
 	return NULL;
 }
 
-static void ev3_uart_cmd(struct ev3_uart_parser *p, const u8 *payload,
+static void ev3_uart_cmd(struct ev3_uart_parser *p, const u8 *msg,
 			 unsigned int plen, struct ev3_uart_event *ev)
 {
 	struct ev3_uart_sensor *s = &p->sensor;
-	u8 cmd = p->msg[0] & EV3_UART_MSG_CMD_MASK;
+	const u8 *payload = msg + 1;
+	u8 cmd = msg[0] & EV3_UART_MSG_CMD_MASK;
 	u32 speed;
 
 	switch (cmd) {
@@ -690,12 +702,13 @@ static void ev3_uart_format(struct ev3_uart_parser *p, u8 mode,
 	p->modes_done |= BIT(mode);
 }
 
-static void ev3_uart_info(struct ev3_uart_parser *p, const u8 *payload,
+static void ev3_uart_info(struct ev3_uart_parser *p, const u8 *msg,
 			  unsigned int plen, struct ev3_uart_event *ev)
 {
 	struct ev3_uart_sensor *s = &p->sensor;
-	u8 mode = p->msg[0] & EV3_UART_MSG_CMD_MASK;
-	u8 itype = p->msg[1];
+	const u8 *payload = msg + 2;
+	u8 mode = msg[0] & EV3_UART_MSG_CMD_MASK;
+	u8 itype = msg[1];
 	struct ev3_uart_mode *m = &s->modes[mode];
 	const char *err;
 	unsigned int bit;
@@ -780,20 +793,22 @@ static void ev3_uart_sys_info(struct ev3_uart_parser *p, u8 b,
 	ev->type = EV3_UART_EV_HANDSHAKE;
 }
 
-static void ev3_uart_info_msg(struct ev3_uart_parser *p,
-			      struct ev3_uart_event *ev)
+/*
+ * A whole handshake message of @len bytes (as its header says), in @p->msg
+ * or in the caller's buffer.
+ */
+static void ev3_uart_info_msg(struct ev3_uart_parser *p, const u8 *msg,
+			      unsigned int len, struct ev3_uart_event *ev)
 {
-	unsigned int len = p->msg_len;
-
-	if (p->msg[len - 1] != __ev3_uart_checksum(p->msg, len - 1))
+	if (msg[len - 1] != __ev3_uart_checksum(msg, len - 1))
 		return ev3_uart_error(p, ev, "bad checksum in handshake");
 
-	switch (p->msg[0] & EV3_UART_MSG_TYPE_MASK) {
+	switch (msg[0] & EV3_UART_MSG_TYPE_MASK) {
 	case EV3_UART_MSG_CMD:
-		ev3_uart_cmd(p, p->msg + 1, len - 2, ev);
+		ev3_uart_cmd(p, msg, len - 2, ev);
 		break;
 	case EV3_UART_MSG_INFO:
-		ev3_uart_info(p, p->msg + 2, len - 3, ev);
+		ev3_uart_info(p, msg, len - 3, ev);
 		break;
 	default:
 		ev3_uart_error(p, ev, "DATA before ACK");
@@ -1098,8 +1113,9 @@ static noinline void ev3_uart_msg_done(struct ev3_uart_parser *p,
 			      struct ev3_uart_event *ev)
 {
 	if (p->state != EV3_UART_STATE_DATA)
-		ev3_uart_info_msg(p, ev);
-	else if (!ev3_uart_data_fast(p, p->msg, p->msg_len - 2, ev))
+		ev3_uart_info_msg(p, p->msg, p->msg_len, ev);
+	else if (!EV3_UART_FAST_PATH ||
+		 !ev3_uart_data_fast(p, p->msg, p->msg_len - 2, ev))
 		ev3_uart_data_msg(p, ev);
 	p->msg_len = 0;
 }
@@ -1131,6 +1147,7 @@ static __always_inline void ev3_uart_msg_start(struct ev3_uart_parser *p, u8 b,
 	}
 	p->msg[0] = b;
 	p->msg_len = 1;
+	p->msg_size = ev3_uart_msg_len(b);
 }
 
 /*
@@ -1144,9 +1161,7 @@ static __always_inline size_t ev3_uart_msg_body(struct ev3_uart_parser *p,
 						const u8 *buf,
 				size_t len, struct ev3_uart_event *ev)
 {
-	/* A SYS message is never held: header, (INFO type,) payload, checksum. */
-	unsigned int need = ev3_uart_payload_len(p->msg[0]) + 2 - p->msg_len +
-			    ((p->msg[0] & EV3_UART_MSG_TYPE_MASK) == EV3_UART_MSG_INFO);
+	unsigned int need = p->msg_size - p->msg_len;
 
 	if (len < need) {
 		ev3_uart_copy_short(p->msg + p->msg_len, buf, len);
@@ -1216,11 +1231,28 @@ static noinline size_t ev3_uart_feed_info(struct ev3_uart_parser *p,
 {
 	size_t used = 0;
 
+	unsigned int n;
+	u8 b;
+
 	while (used < len) {
-		if (p->msg_len)
+		if (p->msg_len) {
 			used += ev3_uart_msg_body(p, buf + used, len - used, ev);
-		else
-			ev3_uart_msg_start(p, buf[used++], ev);
+		} else {
+			b = buf[used];
+			n = ev3_uart_msg_len(b);
+			/*
+			 * A whole message that ev3_uart_msg_start() would
+			 * accept (not 0xff, SYS or too long), where it is.
+			 */
+			if (n > 1 && ev3_uart_payload_len(b) <= EV3_UART_MAX_PAYLOAD &&
+			    len - used >= n) {
+				ev3_uart_info_msg(p, buf + used, n, ev);
+				used += n;
+			} else {
+				ev3_uart_msg_start(p, b, ev);
+				used++;
+			}
+		}
 		if (ev->type != EV3_UART_EV_NONE)
 			break;
 	}
@@ -1244,6 +1276,7 @@ static noinline size_t ev3_uart_data_head(struct ev3_uart_parser *p,
 {
 	ev3_uart_copy_short(p->msg, buf, len);
 	p->msg_len = len;
+	p->msg_size = ev3_uart_data_plen(buf[0]) + 2;
 	return len;
 }
 
@@ -1355,6 +1388,7 @@ static noinline size_t ev3_uart_feed_head(struct ev3_uart_parser *p,
 	/* Fewer than @p->fast_len bytes: @p->msg has room for them. */
 	ev3_uart_copy_short(p->msg, buf, len);
 	p->msg_len = len;
+	p->msg_size = p->fast_len;
 	return len;
 }
 
@@ -1374,6 +1408,8 @@ size_t ev3_uart_parser_feed(struct ev3_uart_parser *p, const u8 *buf,
 			    size_t len, struct ev3_uart_event *ev)
 {
 	memset(ev, 0, sizeof(*ev));
+	if (!EV3_UART_FAST_PATH)
+		return ev3_uart_feed_bytes(p, buf, len, ev);
 	/*
 	 * The data phase's common case first: a message with the header of
 	 * the last one ev3_uart_data_fast() delivered, whole at the start of

@@ -204,6 +204,8 @@ struct ev3_uart_event {
  * @sensor: the sensor description, complete from %EV3_UART_EV_HANDSHAKE on
  * @msg: the message being received (in SYNC state: the sliding window)
  * @msg_len: bytes held in @msg
+ * @msg_size: in the INFO and DATA states, the length of the message in @msg
+ *	(from its header), once it has one
  * @replay: bytes to parse again before new input (after a data-phase resync)
  * @replay_len: bytes held in @replay
  * @replay_pos: next byte of @replay to parse
@@ -231,6 +233,7 @@ struct ev3_uart_parser {
 	struct ev3_uart_sensor sensor;
 	u8 msg[EV3_UART_MAX_MSG_LEN];
 	u8 msg_len;
+	u8 msg_size;
 	u8 replay[EV3_UART_MAX_MSG_LEN];
 	u8 replay_len;
 	u8 replay_pos;
