@@ -574,18 +574,21 @@ static void ev3_uart_sync_byte(struct ev3_uart_parser *p, u8 b,
 		ev3_uart_start_handshake(p, p->msg[1], ev);
 }
 
-/* Check a string of up to @size bytes; @n gets its length. */
+/* Check a string of up to @size bytes; @len gets its length. */
 static const char *ev3_uart_check_string(const u8 *s, size_t size,
-					 size_t max, size_t *n)
+					 size_t max, size_t *len)
 {
-	size_t i;
+	bool printable = true;
+	size_t n;
 
-	*n = strnlen((const char *)s, size);
-	if (*n > max)
+	/* strnlen() and the check in one pass: 0x20 to 0x7e. */
+	for (n = 0; n < size && s[n]; n++)
+		printable &= (u8)(s[n] - 0x20) <= 0x7e - 0x20;
+	*len = n;
+	if (n > max)
 		return "string too long";
-	for (i = 0; i < *n; i++)
-		if ((u8)(s[i] - 0x20) > 0x7e - 0x20)	/* 0x20 to 0x7e */
-			return "string not printable";
+	if (!printable)
+		return "string not printable";
 	return NULL;
 }
 
@@ -1236,21 +1239,35 @@ static noinline size_t ev3_uart_feed_info(struct ev3_uart_parser *p,
 
 	while (used < len) {
 		if (p->msg_len) {
-			used += ev3_uart_msg_body(p, buf + used, len - used, ev);
+			/* The rest of a message (ev3_uart_msg_body()). */
+			n = p->msg_size - p->msg_len;
+			if (len - used < n) {
+				ev3_uart_copy_short(p->msg + p->msg_len, buf + used,
+						    len - used);
+				p->msg_len += len - used;
+				return len;
+			}
+			ev3_uart_copy_short(p->msg + p->msg_len, buf + used, n);
+			used += n;
+			ev3_uart_info_msg(p, p->msg, p->msg_size, ev);
+			p->msg_len = 0;
 		} else {
 			b = buf[used];
 			n = ev3_uart_msg_len(b);
-			/*
-			 * A whole message that ev3_uart_msg_start() would
-			 * accept (not 0xff, SYS or too long), where it is.
-			 */
-			if (n > 1 && ev3_uart_payload_len(b) <= EV3_UART_MAX_PAYLOAD &&
-			    len - used >= n) {
+			if (n == 1 || ev3_uart_payload_len(b) > EV3_UART_MAX_PAYLOAD) {
+				/* 0xff, SYS or too long. */
+				ev3_uart_msg_start(p, b, ev);
+				used++;
+			} else if (len - used >= n) {
+				/* A whole message: where it is. */
 				ev3_uart_info_msg(p, buf + used, n, ev);
 				used += n;
 			} else {
-				ev3_uart_msg_start(p, b, ev);
-				used++;
+				/* The start of one: n is at most the room in @p->msg. */
+				ev3_uart_copy_short(p->msg, buf + used, len - used);
+				p->msg_len = len - used;
+				p->msg_size = n;
+				used = len;
 			}
 		}
 		if (ev->type != EV3_UART_EV_NONE)
@@ -1367,8 +1384,11 @@ static noinline size_t ev3_uart_feed_rest(struct ev3_uart_parser *p,
 {
 	unsigned int have = p->msg_len, n = p->fast_len, need = n - have;
 
-	if (p->msg[0] != p->fast_hdr)
+	if (p->msg[0] != p->fast_hdr) {
+		if (p->state == EV3_UART_STATE_INFO && p->replay_pos == p->replay_len)
+			return ev3_uart_feed_info(p, buf, len, ev);
 		return ev3_uart_feed(p, buf, len, ev);
+	}
 	if (len < need) {
 		ev3_uart_copy_short(p->msg + have, buf, len);
 		p->msg_len = have + len;
