@@ -12,7 +12,8 @@ Usage: tests/bench/proto/make-streams.py OUTDIR [--quick]
   was unplugged (one a line): the line is silent then until the host's
   keep-alive gives the sensor up.
 - The three stream shapes of issue 19, each OUTDIR/NAME.stream with an empty
-  OUTDIR/NAME.unplug (the sensor stays plugged in):
+  OUTDIR/NAME.unplug (the sensor stays plugged in) and OUTDIR/NAME.json
+  (what it holds: sensor, handshake length, mode, messages, bad checksums):
   gyro-ang: the gyro's handshake, then 100000 GYRO-ANG DATA messages
   (mode 0, 4 bytes each; 10000 with --quick);
   color-rgb-raw: the colour sensor's handshake, then 50000 RGB-RAW DATA
@@ -31,6 +32,7 @@ Usage: tests/bench/proto/make-streams.py OUTDIR [--quick]
 Deterministic: the same files every time.
 """
 import importlib.util
+import json
 import os
 import random
 import sys
@@ -98,15 +100,27 @@ def main():
         f.write(nxt)
     n = 10 if quick else 1
     rng = random.Random(19)
-    shapes = {
-        'gyro-ang': sensors.handshake(sensors.GYRO) + seeds.frames(sensors.GYRO, 0, 100000 // n, rng),
-        'color-rgb-raw': sensors.handshake(sensors.COLOR) + seeds.frames(sensors.COLOR, 4, 50000 // n, rng),
-        'gyro-old-handshake': sensors.handshake(sensors.GYRO_OLD),
-    }
-    for name, data in shapes.items():
+    shapes = {}
+    for name, sdef, firmware, mode, count in (
+            ('gyro-ang', sensors.GYRO, 'new', 0, 100000 // n),
+            ('color-rgb-raw', sensors.COLOR, None, 4, 50000 // n),
+            ('gyro-old-handshake', sensors.GYRO_OLD, 'old', None, 0)):
+        hs = sensors.handshake(sdef)
+        data = seeds.frames(sdef, mode, count, rng) if count else b''
+        size = len(data) // count if count else 0
+        # What the stream holds, for the figures' notes (proto/run.sh).
+        info = {'sensor': sdef.driver, 'firmware': firmware, 'handshake_bytes': len(hs),
+                'mode': mode, 'mode_name': sdef.modes[mode].name if count else None,
+                'messages': count, 'message_bytes': size,
+                'bad_checksums': sum(1 for i in range(0, len(data), size or 1)
+                                     if sensors.checksum(data[i:i + size - 1]) != data[i + size - 1])}
+        shapes[name] = hs + data
         with open(os.path.join(out, name + '.stream'), 'wb') as f:
-            f.write(data)
+            f.write(hs + data)
         open(os.path.join(out, name + '.unplug'), 'w').close()
+        with open(os.path.join(out, name + '.json'), 'w') as f:
+            json.dump(info, f, indent=1)
+            f.write('\n')
     print('ev3.stream: %d bytes; nxt.records: %d bytes; %s' %
           (len(ev3), len(nxt), ', '.join('%s.stream: %d bytes' % (k, len(v))
                                           for k, v in shapes.items())))
