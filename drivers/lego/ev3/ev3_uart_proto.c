@@ -1113,7 +1113,7 @@ static __always_inline bool ev3_uart_data_fast(struct ev3_uart_parser *p,
 
 /* A whole message is in @p->msg: act on it. */
 static noinline void ev3_uart_msg_done(struct ev3_uart_parser *p,
-			      struct ev3_uart_event *ev)
+				       struct ev3_uart_event *ev)
 {
 	if (p->state != EV3_UART_STATE_DATA)
 		ev3_uart_info_msg(p, p->msg, p->msg_len, ev);
@@ -1124,8 +1124,8 @@ static noinline void ev3_uart_msg_done(struct ev3_uart_parser *p,
 }
 
 /* The first byte of a message in the INFO and DATA states: its header. */
-static __always_inline void ev3_uart_msg_start(struct ev3_uart_parser *p, u8 b,
-			       struct ev3_uart_event *ev)
+static __always_inline void ev3_uart_msg_start(struct ev3_uart_parser *p,
+					       u8 b, struct ev3_uart_event *ev)
 {
 	/*
 	 * Quirk: a lone 0xff shows up at message boundaries: the infrared
@@ -1281,7 +1281,6 @@ static __always_inline unsigned int ev3_uart_data_plen(u8 hdr)
 {
 	return 1U << ((hdr & EV3_UART_MSG_SIZE_MASK) >> EV3_UART_MSG_SIZE_SHIFT);
 }
-
 
 /*
  * The data phase: the start of a DATA message at the end of @buf, @len

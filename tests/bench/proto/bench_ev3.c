@@ -23,6 +23,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <unistd.h>
+#include <linux/kernel.h>	/* tests/fuzz/shim: noinline */
 
 #include "ev3_uart_proto.h"
 
@@ -52,8 +53,8 @@ static u8 *read_file(const char *path, size_t *len)
 }
 
 /* A mark for callgrind (--zero-before): not inlined, not optimised away. */
-__attribute__((noinline)) void bench_data_phase(void);
-__attribute__((noinline)) void bench_data_phase(void)
+noinline void bench_data_phase(void);
+noinline void bench_data_phase(void)
 {
 	__asm__ __volatile__("" ::: "memory");
 }
