@@ -49,13 +49,7 @@ enum { EV3_UART_STASH_RAW, EV3_UART_STASH_PCT, EV3_UART_STASH_SI };
 #define EV3_UART_FAST_PATH	1
 #endif
 
-/**
- * ev3_uart_checksum() - compute the checksum of a message
- * @msg: the message, starting with its header
- * @len: number of bytes to cover: the whole message less its checksum byte
- *
- * Return: 0xff XOR every byte of @msg[0..@len-1].
- */
+/* ev3_uart_checksum(), inline for the parser. */
 static __always_inline u8 __ev3_uart_checksum(const u8 *msg, size_t len)
 {
 	u32 x = 0xff;
@@ -76,6 +70,13 @@ static __always_inline u8 __ev3_uart_checksum(const u8 *msg, size_t len)
 	return x ^ x >> 8;
 }
 
+/**
+ * ev3_uart_checksum() - compute the checksum of a message
+ * @msg: the message, starting with its header
+ * @len: number of bytes to cover: the whole message less its checksum byte
+ *
+ * Return: 0xff XOR every byte of @msg[0..@len-1].
+ */
 u8 ev3_uart_checksum(const u8 *msg, size_t len)
 {
 	return __ev3_uart_checksum(msg, len);
@@ -235,17 +236,7 @@ static const u32 ev3_pow10[EV3_UART_MAX_DECIMALS + 1] = {
 	1000000000,
 };
 
-/**
- * ev3_uart_f32_to_fixed() - convert an IEEE 754 single to fixed point
- * @bits: the float's bit pattern, as it came off the wire
- * @decimals: decimal places to keep, 0 to %EV3_UART_MAX_DECIMALS
- * @out: the value times 10^@decimals, rounded half away from zero
- *
- * The kernel does no floating point, so this works on the bits alone.
- *
- * Return: 0, -%ERANGE for NaN, infinities and values that do not fit an s32,
- * -%EINVAL for too many decimals.
- */
+/* ev3_uart_f32_to_fixed(), inline for the handshake's ranges. */
 static __always_inline int __ev3_uart_f32_to_fixed(u32 bits,
 						   unsigned int decimals,
 						   s32 *out)
@@ -285,6 +276,17 @@ static __always_inline int __ev3_uart_f32_to_fixed(u32 bits,
 	return 0;
 }
 
+/**
+ * ev3_uart_f32_to_fixed() - convert an IEEE 754 single to fixed point
+ * @bits: the float's bit pattern, as it came off the wire
+ * @decimals: decimal places to keep, 0 to %EV3_UART_MAX_DECIMALS
+ * @out: the value times 10^@decimals, rounded half away from zero
+ *
+ * The kernel does no floating point, so this works on the bits alone.
+ *
+ * Return: 0, -%ERANGE for NaN, infinities and values that do not fit an s32,
+ * -%EINVAL for too many decimals.
+ */
 int ev3_uart_f32_to_fixed(u32 bits, unsigned int decimals, s32 *out)
 {
 	return __ev3_uart_f32_to_fixed(bits, decimals, out);
