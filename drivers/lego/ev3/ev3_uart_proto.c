@@ -1163,8 +1163,8 @@ static __always_inline void ev3_uart_msg_start(struct ev3_uart_parser *p,
  * Return: the number of bytes of @buf taken.
  */
 static __always_inline size_t ev3_uart_msg_body(struct ev3_uart_parser *p,
-						const u8 *buf,
-				size_t len, struct ev3_uart_event *ev)
+						const u8 *buf, size_t len,
+						struct ev3_uart_event *ev)
 {
 	unsigned int need = p->msg_size - p->msg_len;
 
@@ -1235,7 +1235,6 @@ static noinline size_t ev3_uart_feed_info(struct ev3_uart_parser *p,
 					  struct ev3_uart_event *ev)
 {
 	size_t used = 0;
-
 	unsigned int n;
 	u8 b;
 
@@ -1383,6 +1382,7 @@ static noinline size_t ev3_uart_feed_rest(struct ev3_uart_parser *p,
 					  const u8 *buf, size_t len,
 					  struct ev3_uart_event *ev)
 {
+	/* A message is whole as soon as it is: have < n. */
 	unsigned int have = p->msg_len, n = p->fast_len, need = n - have;
 
 	if (p->msg[0] != p->fast_hdr) {
@@ -1402,7 +1402,10 @@ static noinline size_t ev3_uart_feed_rest(struct ev3_uart_parser *p,
 	return need;
 }
 
-/* ev3_uart_parser_feed() with the start of a fast-path message at the end of @buf. */
+/*
+ * ev3_uart_parser_feed() with the start of a message with the header in
+ * @p->fast_hdr at the end of @buf.
+ */
 static noinline size_t ev3_uart_feed_head(struct ev3_uart_parser *p,
 					  const u8 *buf, size_t len)
 {
