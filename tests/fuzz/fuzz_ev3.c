@@ -77,9 +77,32 @@ static void check_parser(const struct ev3_uart_parser *p)
 	CHECK(p->replay_pos <= p->replay_len);
 	CHECK(p->replay_len <= EV3_UART_MAX_MSG_LEN);
 	CHECK(p->info_mode == EV3_UART_NO_MODE || p->info_mode < EV3_UART_MAX_MODES);
+	/*
+	 * The fast path's trusted header (ev3_uart_data_fast()): only in the
+	 * data phase, with nothing to parse again, no bad frame on the count
+	 * and no SELECT pending, for the current mode and a payload it takes.
+	 */
+	CHECK(p->fast_len >= 1);
+	if (p->fast_hdr != EV3_UART_NO_HDR) {
+		CHECK(p->state == EV3_UART_STATE_DATA);
+		CHECK(p->replay_pos == p->replay_len);
+		CHECK(!p->data_err);
+		CHECK(p->pending_mode == EV3_UART_NO_MODE);
+		CHECK((p->fast_hdr & EV3_UART_MSG_TYPE_MASK) == EV3_UART_MSG_DATA);
+		CHECK((p->fast_hdr & EV3_UART_MSG_CMD_MASK) == p->mode);
+		CHECK(p->fast_len == ev3_uart_msg_len(p->fast_hdr));
+		CHECK(p->fast_len <= 8 + 2);
+	}
 	if (p->state == EV3_UART_STATE_SYNC) {
 		CHECK(p->msg_len <= 3);
 		return;
+	}
+	/* A message being received: its header and length agree. */
+	if ((p->state == EV3_UART_STATE_INFO || p->state == EV3_UART_STATE_DATA) &&
+	    p->msg_len) {
+		CHECK(p->msg_size == ev3_uart_msg_len(p->msg[0]));
+		CHECK(p->msg_len < p->msg_size);
+		CHECK(p->msg_size <= EV3_UART_MAX_MSG_LEN);
 	}
 	CHECK(s->type >= EV3_UART_TYPE_MIN && s->type <= EV3_UART_TYPE_MAX);
 	CHECK(s->num_modes >= 1 && s->num_modes <= EV3_UART_MAX_MODES);
