@@ -151,8 +151,9 @@ def i19_figure(name, ir, run, stream, ref, goal, what):
             'reference': I19_REF, 'reference_value': ref,
             'target': '<= %g instructions/byte' % goal if goal else None,
             'met': value <= goal if goal else None,
-            'detail': '%d instructions in ev3_uart_parser_feed() over %d bytes: %s; '
-                      '%d batches' % (ir, c['counted'], what(info), c['batches'])}
+            'detail': '%d instructions in ev3_uart_parser_feed(), inclusive (with what it '
+                      'calls), over %d bytes: %s; %d batches'
+                      % (ir, c['counted'], what(info), c['batches'])}
 
 
 def i19_figures():
