@@ -10,13 +10,16 @@
  * (framing, parity, break), keep-alive ticks, SELECTs and WRITEs, bytes
  * arriving between the sensor's ACK and the host's speed change, failed
  * registrations. After every call the parser's state is checked against
- * what its header promises, and every event against the state.
+ * what its header promises, and every event against the state. One input
+ * in four also goes through differential(): the fast path against the
+ * byte loop.
  *
  * A custom mutator keeps most checksums right (see the end of this file).
  */
 #include <errno.h>
 #include <string.h>
 
+#include "ev3_ref.h"
 #include "ev3_uart_chan.h"
 #include "ev3_uart_proto.h"
 #include "fuzz_check.h"
@@ -74,9 +77,32 @@ static void check_parser(const struct ev3_uart_parser *p)
 	CHECK(p->replay_pos <= p->replay_len);
 	CHECK(p->replay_len <= EV3_UART_MAX_MSG_LEN);
 	CHECK(p->info_mode == EV3_UART_NO_MODE || p->info_mode < EV3_UART_MAX_MODES);
+	/*
+	 * The fast path's trusted header (ev3_uart_data_fast()): only in the
+	 * data phase, with nothing to parse again, no bad frame on the count
+	 * and no SELECT pending, for the current mode and a payload it takes.
+	 */
+	CHECK(p->fast_len >= 1);
+	if (p->fast_hdr != EV3_UART_NO_HDR) {
+		CHECK(p->state == EV3_UART_STATE_DATA);
+		CHECK(p->replay_pos == p->replay_len);
+		CHECK(!p->data_err);
+		CHECK(p->pending_mode == EV3_UART_NO_MODE);
+		CHECK((p->fast_hdr & EV3_UART_MSG_TYPE_MASK) == EV3_UART_MSG_DATA);
+		CHECK((p->fast_hdr & EV3_UART_MSG_CMD_MASK) == p->mode);
+		CHECK(p->fast_len == ev3_uart_msg_len(p->fast_hdr));
+		CHECK(p->fast_len <= 8 + 2);
+	}
 	if (p->state == EV3_UART_STATE_SYNC) {
 		CHECK(p->msg_len <= 3);
 		return;
+	}
+	/* A message being received: its header and length agree. */
+	if ((p->state == EV3_UART_STATE_INFO || p->state == EV3_UART_STATE_DATA) &&
+	    p->msg_len) {
+		CHECK(p->msg_size == ev3_uart_msg_len(p->msg[0]));
+		CHECK(p->msg_len < p->msg_size);
+		CHECK(p->msg_size <= EV3_UART_MAX_MSG_LEN);
 	}
 	CHECK(s->type >= EV3_UART_TYPE_MIN && s->type <= EV3_UART_TYPE_MAX);
 	CHECK(s->num_modes >= 1 && s->num_modes <= EV3_UART_MAX_MODES);
@@ -345,6 +371,184 @@ static void host_actions(struct host *h)
 	}
 }
 
+/*
+ * The differential check of the parser's fast path: the same bytes go to
+ * the reference parser (ev3_ref.c: the byte loop alone) one at a time, and
+ * to the parser in batches of 1 to 64 bytes (so messages whole in a batch,
+ * and messages split anywhere between two). Both must give the same
+ * events, at the same offsets in the stream, with the same payloads, and
+ * be in the same state after every batch. The hosts answer a handshake at
+ * once and, between batches, do the same SELECTs, keep-alive ticks and
+ * line errors.
+ */
+/* Events of one batch: at most one a byte, the replayed bytes and two more. */
+#define DIFF_MAX_EVENTS	(64 + EV3_UART_MAX_MSG_LEN + 2)
+
+struct diff_ops {
+	void (*init)(struct ev3_uart_parser *p);
+	size_t (*feed)(struct ev3_uart_parser *p, const u8 *buf, size_t len,
+		       struct ev3_uart_event *ev);
+	void (*line_error)(struct ev3_uart_parser *p, struct ev3_uart_event *ev);
+	void (*start_data)(struct ev3_uart_parser *p);
+	int (*select)(struct ev3_uart_parser *p, u8 mode);
+	bool (*tick)(struct ev3_uart_parser *p, struct ev3_uart_event *ev);
+};
+
+static const struct diff_ops diff_ref = {
+	ref_ev3_uart_parser_init, ref_ev3_uart_parser_feed,
+	ref_ev3_uart_parser_line_error, ref_ev3_uart_parser_start_data,
+	ref_ev3_uart_parser_select, ref_ev3_uart_parser_tick,
+};
+
+static const struct diff_ops diff_fast = {
+	ev3_uart_parser_init, ev3_uart_parser_feed,
+	ev3_uart_parser_line_error, ev3_uart_parser_start_data,
+	ev3_uart_parser_select, ev3_uart_parser_tick,
+};
+
+struct diff_run {
+	const struct diff_ops *ops;
+	size_t step;		/* bytes per call: 1, or 0 for the whole batch */
+	struct ev3_uart_parser p;
+	struct ev3_uart_event ev[DIFF_MAX_EVENTS];
+	size_t at[DIFF_MAX_EVENTS];	/* stream offset after the event */
+	u8 data[DIFF_MAX_EVENTS][EV3_UART_MAX_PAYLOAD];
+	unsigned int n;
+};
+
+static void diff_event(struct diff_run *r, const struct ev3_uart_event *ev,
+		       size_t at)
+{
+	if (ev->type == EV3_UART_EV_NONE)
+		return;
+	CHECK(r->n < DIFF_MAX_EVENTS);
+	r->ev[r->n] = *ev;
+	r->at[r->n] = at;
+	if (ev->type == EV3_UART_EV_DATA)
+		memcpy(r->data[r->n], r->p.data, ev->len);
+	r->n++;
+	if (ev->type == EV3_UART_EV_HANDSHAKE)
+		r->ops->start_data(&r->p);
+}
+
+/* Feed @len bytes at stream offset @at, as @r does. */
+static void diff_feed(struct diff_run *r, const u8 *buf, size_t len, size_t at)
+{
+	struct ev3_uart_event ev;
+	size_t n, used;
+
+	do {
+		n = r->step && len > r->step ? r->step : len;
+		used = r->ops->feed(&r->p, buf, n, &ev);
+		CHECK(used <= n);
+		CHECK(ev.type != EV3_UART_EV_NONE || used == n);
+		buf += used;
+		len -= used;
+		at += used;
+		diff_event(r, &ev, at);
+	} while (len || ev.type != EV3_UART_EV_NONE);
+}
+
+/* What must agree (the fast path's cache, fast_hdr and fast_len, need not). */
+static void diff_state(const struct ev3_uart_parser *a,
+		       const struct ev3_uart_parser *b)
+{
+	CHECK(a->state == b->state);
+	CHECK(!memcmp(&a->sensor, &b->sensor, sizeof(a->sensor)));
+	CHECK(a->msg_len == b->msg_len);
+	CHECK(!memcmp(a->msg, b->msg, a->msg_len));
+	CHECK(a->replay_len - a->replay_pos == b->replay_len - b->replay_pos);
+	CHECK(!memcmp(a->replay + a->replay_pos, b->replay + b->replay_pos,
+		      a->replay_len - a->replay_pos));
+	CHECK(a->cmd_seen == b->cmd_seen);
+	CHECK(a->info_mode == b->info_mode);
+	CHECK(a->info_seen == b->info_seen);
+	CHECK(a->modes_done == b->modes_done);
+	CHECK(!memcmp(a->stash, b->stash, sizeof(a->stash)));
+	CHECK(a->mode == b->mode);
+	CHECK(a->pending_mode == b->pending_mode);
+	CHECK(a->data_err == b->data_err);
+	CHECK(a->silent_ticks == b->silent_ticks);
+	CHECK(a->data_since_tick == b->data_since_tick);
+	CHECK(a->frames == b->frames);
+	CHECK(a->bad_frames == b->bad_frames);
+	CHECK(a->garbage == b->garbage);
+}
+
+static void diff_logs(const struct diff_run *a, const struct diff_run *b)
+{
+	unsigned int i;
+
+	CHECK(a->n == b->n);
+	for (i = 0; i < a->n; i++) {
+		CHECK(a->ev[i].type == b->ev[i].type);
+		CHECK(a->at[i] == b->at[i]);
+		switch (a->ev[i].type) {
+		case EV3_UART_EV_DATA:
+			CHECK(a->ev[i].mode == b->ev[i].mode);
+			CHECK(a->ev[i].mode_changed == b->ev[i].mode_changed);
+			CHECK(a->ev[i].len == b->ev[i].len);
+			CHECK(!memcmp(a->data[i], b->data[i], a->ev[i].len));
+			break;
+		case EV3_UART_EV_ERROR:
+			CHECK(!strcmp(a->ev[i].reason, b->ev[i].reason));
+			break;
+		default:
+			break;
+		}
+	}
+}
+
+static void differential(const u8 *data, size_t size, u32 seed)
+{
+	/* Static: a few hundred kilobytes to clear for every input is slow. */
+	static struct diff_run r[2];
+	struct host h = { .rng = seed ? seed : 0x2545f491 };
+	struct ev3_uart_event ev[2];
+	size_t at = 0, n;
+	unsigned int i;
+	bool lost[2];
+	int ret[2];
+	u8 mode;
+
+	r[0].ops = &diff_ref;
+	r[0].step = 1;
+	r[1].ops = &diff_fast;
+	r[1].step = 0;
+	for (i = 0; i < 2; i++)
+		r[i].ops->init(&r[i].p);
+	while (at < size) {
+		n = 1 + rnd(&h) % 64;
+		n = n < size - at ? n : size - at;
+		for (i = 0; i < 2; i++) {
+			r[i].n = 0;
+			diff_feed(&r[i], data + at, n, at);
+		}
+		at += n;
+		if (rnd(&h) % 8 == 0) {
+			mode = rnd(&h) % (EV3_UART_MAX_MODES + 1);
+			for (i = 0; i < 2; i++)
+				ret[i] = r[i].ops->select(&r[i].p, mode);
+			CHECK(ret[0] == ret[1]);
+		}
+		if (rnd(&h) % 4 == 0) {
+			for (i = 0; i < 2; i++) {
+				lost[i] = r[i].ops->tick(&r[i].p, &ev[i]);
+				diff_event(&r[i], &ev[i], at);
+			}
+			CHECK(lost[0] == lost[1]);
+		}
+		if (rnd(&h) % 32 == 0) {
+			for (i = 0; i < 2; i++) {
+				r[i].ops->line_error(&r[i].p, &ev[i]);
+				diff_event(&r[i], &ev[i], at);
+			}
+		}
+		diff_logs(&r[0], &r[1]);
+		diff_state(&r[0].p, &r[1].p);
+	}
+}
+
 static int verbose = -1;	/* FUZZ_VERBOSE set: a line per input */
 
 int LLVMFuzzerTestOneInput(const unsigned char *data, size_t size)
@@ -361,6 +565,12 @@ int LLVMFuzzerTestOneInput(const unsigned char *data, size_t size)
 		data += 4;
 		size -= 4;
 	}
+	/*
+	 * One input in four (by its host seed): the check makes an input
+	 * about twice as slow, and make fuzz has an execution target.
+	 */
+	if (!(h.rng & 3))
+		differential(data, size, h.rng);
 	ev3_uart_parser_init(h.p);
 	check_parser(h.p);
 

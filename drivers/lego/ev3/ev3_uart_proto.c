@@ -38,6 +38,38 @@
 
 enum { EV3_UART_STASH_RAW, EV3_UART_STASH_PCT, EV3_UART_STASH_SI };
 
+/*
+ * tests/fuzz/ev3_ref.c builds this file without the data phase's fast path
+ * (the byte loop and ev3_uart_data_msg() alone), for the fuzzer to check
+ * the fast path against.
+ */
+#ifdef EV3_UART_PROTO_REFERENCE
+#define EV3_UART_FAST_PATH	0
+#else
+#define EV3_UART_FAST_PATH	1
+#endif
+
+/* ev3_uart_checksum(), inline for the parser. */
+static __always_inline u8 __ev3_uart_checksum(const u8 *msg, size_t len)
+{
+	u32 x = 0xff;
+
+	/*
+	 * Four bytes at a time, then folded: XOR does not care which byte
+	 * of the word a byte lands in.
+	 */
+	for (; len >= 4; len -= 4, msg += 4)
+		x ^= get_unaligned_le32(msg);
+	if (len & 2) {
+		x ^= get_unaligned_le16(msg);
+		msg += 2;
+	}
+	if (len & 1)
+		x ^= *msg;
+	x ^= x >> 16;
+	return x ^ x >> 8;
+}
+
 /**
  * ev3_uart_checksum() - compute the checksum of a message
  * @msg: the message, starting with its header
@@ -47,11 +79,7 @@ enum { EV3_UART_STASH_RAW, EV3_UART_STASH_PCT, EV3_UART_STASH_SI };
  */
 u8 ev3_uart_checksum(const u8 *msg, size_t len)
 {
-	u8 csum = 0xff;
-
-	while (len--)
-		csum ^= *msg++;
-	return csum;
+	return __ev3_uart_checksum(msg, len);
 }
 EXPORT_SYMBOL_IF_KUNIT(ev3_uart_checksum);
 
@@ -98,16 +126,15 @@ EXPORT_SYMBOL_IF_KUNIT(ev3_uart_msg_len);
  */
 unsigned int ev3_uart_data_size(enum ev3_uart_data_type type)
 {
-	switch (type) {
-	case EV3_UART_DATA_S8:
-		return 1;
-	case EV3_UART_DATA_S16:
-		return 2;
-	case EV3_UART_DATA_S32:
-	case EV3_UART_DATA_FLOAT:
-		return 4;
-	}
-	return 0;
+	static const u8 sizes[] = {
+		[EV3_UART_DATA_S8] = 1,
+		[EV3_UART_DATA_S16] = 2,
+		[EV3_UART_DATA_S32] = 4,
+		[EV3_UART_DATA_FLOAT] = 4,
+	};
+
+	/* A table: the data phase asks for every message. */
+	return (unsigned int)type < ARRAY_SIZE(sizes) ? sizes[type] : 0;
 }
 EXPORT_SYMBOL_IF_KUNIT(ev3_uart_data_size);
 
@@ -209,18 +236,10 @@ static const u32 ev3_pow10[EV3_UART_MAX_DECIMALS + 1] = {
 	1000000000,
 };
 
-/**
- * ev3_uart_f32_to_fixed() - convert an IEEE 754 single to fixed point
- * @bits: the float's bit pattern, as it came off the wire
- * @decimals: decimal places to keep, 0 to %EV3_UART_MAX_DECIMALS
- * @out: the value times 10^@decimals, rounded half away from zero
- *
- * The kernel does no floating point, so this works on the bits alone.
- *
- * Return: 0, -%ERANGE for NaN, infinities and values that do not fit an s32,
- * -%EINVAL for too many decimals.
- */
-int ev3_uart_f32_to_fixed(u32 bits, unsigned int decimals, s32 *out)
+/* ev3_uart_f32_to_fixed(), inline for the handshake's ranges. */
+static __always_inline int __ev3_uart_f32_to_fixed(u32 bits,
+						   unsigned int decimals,
+						   s32 *out)
 {
 	bool neg = bits >> 31;
 	int exp = (bits >> 23) & 0xff;
@@ -255,6 +274,22 @@ int ev3_uart_f32_to_fixed(u32 bits, unsigned int decimals, s32 *out)
 		return -ERANGE;
 	*out = neg ? (s32)-(s64)v : (s32)v;
 	return 0;
+}
+
+/**
+ * ev3_uart_f32_to_fixed() - convert an IEEE 754 single to fixed point
+ * @bits: the float's bit pattern, as it came off the wire
+ * @decimals: decimal places to keep, 0 to %EV3_UART_MAX_DECIMALS
+ * @out: the value times 10^@decimals, rounded half away from zero
+ *
+ * The kernel does no floating point, so this works on the bits alone.
+ *
+ * Return: 0, -%ERANGE for NaN, infinities and values that do not fit an s32,
+ * -%EINVAL for too many decimals.
+ */
+int ev3_uart_f32_to_fixed(u32 bits, unsigned int decimals, s32 *out)
+{
+	return __ev3_uart_f32_to_fixed(bits, decimals, out);
 }
 EXPORT_SYMBOL_IF_KUNIT(ev3_uart_f32_to_fixed);
 
@@ -457,8 +492,20 @@ static void ev3_uart_set_mode_defaults(struct ev3_uart_parser *p)
 	p->stash[EV3_UART_STASH_SI][1] = EV3_UART_F32_1;
 }
 
+/*
+ * Forget the header the fast path trusts (see ev3_uart_data_fast()). The
+ * length stays at least 1: ev3_uart_parser_feed() reads @buf[0] only when
+ * @len reaches it.
+ */
+static void ev3_uart_fast_clear(struct ev3_uart_parser *p)
+{
+	p->fast_hdr = EV3_UART_NO_HDR;
+	p->fast_len = EV3_UART_MAX_MSG_LEN;
+}
+
 static void ev3_uart_reset(struct ev3_uart_parser *p)
 {
+	ev3_uart_fast_clear(p);
 	p->state = EV3_UART_STATE_SYNC;
 	p->msg_len = 0;
 	p->replay_len = 0;
@@ -529,24 +576,30 @@ static void ev3_uart_sync_byte(struct ev3_uart_parser *p, u8 b,
 		ev3_uart_start_handshake(p, p->msg[1], ev);
 }
 
+/* Check a string of up to @size bytes; @len gets its length. */
 static const char *ev3_uart_check_string(const u8 *s, size_t size,
-					 size_t max)
+					 size_t max, size_t *len)
 {
-	size_t n = strnlen((const char *)s, size), i;
+	bool printable = true;
+	size_t n;
 
+	/* strnlen() and the check in one pass: 0x20 to 0x7e. */
+	for (n = 0; n < size && s[n]; n++)
+		printable &= (u8)(s[n] - 0x20) <= 0x7e - 0x20;
+	*len = n;
 	if (n > max)
 		return "string too long";
-	for (i = 0; i < n; i++)
-		if (s[i] < 0x20 || s[i] > 0x7e)
-			return "string not printable";
+	if (!printable)
+		return "string not printable";
 	return NULL;
 }
 
-static void ev3_uart_cmd(struct ev3_uart_parser *p, const u8 *payload,
+static void ev3_uart_cmd(struct ev3_uart_parser *p, const u8 *msg,
 			 unsigned int plen, struct ev3_uart_event *ev)
 {
 	struct ev3_uart_sensor *s = &p->sensor;
-	u8 cmd = p->msg[0] & EV3_UART_MSG_CMD_MASK;
+	const u8 *payload = msg + 1;
+	u8 cmd = msg[0] & EV3_UART_MSG_CMD_MASK;
 	u32 speed;
 
 	switch (cmd) {
@@ -597,12 +650,20 @@ static const char *ev3_uart_convert_ranges(struct ev3_uart_parser *p,
 {
 	u32 (*st)[2] = p->stash;
 
-	if (ev3_uart_f32_to_fixed(st[EV3_UART_STASH_RAW][0], 0, &m->raw_min) ||
-	    ev3_uart_f32_to_fixed(st[EV3_UART_STASH_RAW][1], 0, &m->raw_max) ||
-	    ev3_uart_f32_to_fixed(st[EV3_UART_STASH_PCT][0], 0, &m->pct_min) ||
-	    ev3_uart_f32_to_fixed(st[EV3_UART_STASH_PCT][1], 0, &m->pct_max) ||
-	    ev3_uart_f32_to_fixed(st[EV3_UART_STASH_SI][0], m->decimals, &m->si_min) ||
-	    ev3_uart_f32_to_fixed(st[EV3_UART_STASH_SI][1], m->decimals, &m->si_max))
+	if (__ev3_uart_f32_to_fixed(st[EV3_UART_STASH_RAW][0], 0, &m->raw_min) ||
+	    __ev3_uart_f32_to_fixed(st[EV3_UART_STASH_RAW][1], 0, &m->raw_max) ||
+	    __ev3_uart_f32_to_fixed(st[EV3_UART_STASH_PCT][0], 0, &m->pct_min) ||
+	    __ev3_uart_f32_to_fixed(st[EV3_UART_STASH_PCT][1], 0, &m->pct_max))
+		return "range not representable";
+	/* Most modes send the RAW range again as SI: no need to convert it twice. */
+	if (!m->decimals && st[EV3_UART_STASH_SI][0] == st[EV3_UART_STASH_RAW][0] &&
+	    st[EV3_UART_STASH_SI][1] == st[EV3_UART_STASH_RAW][1]) {
+		m->si_min = m->raw_min;
+		m->si_max = m->raw_max;
+		return NULL;
+	}
+	if (__ev3_uart_f32_to_fixed(st[EV3_UART_STASH_SI][0], m->decimals, &m->si_min) ||
+	    __ev3_uart_f32_to_fixed(st[EV3_UART_STASH_SI][1], m->decimals, &m->si_max))
 		return "range not representable";
 	return NULL;
 }
@@ -646,15 +707,17 @@ static void ev3_uart_format(struct ev3_uart_parser *p, u8 mode,
 	p->modes_done |= BIT(mode);
 }
 
-static void ev3_uart_info(struct ev3_uart_parser *p, const u8 *payload,
+static void ev3_uart_info(struct ev3_uart_parser *p, const u8 *msg,
 			  unsigned int plen, struct ev3_uart_event *ev)
 {
 	struct ev3_uart_sensor *s = &p->sensor;
-	u8 mode = p->msg[0] & EV3_UART_MSG_CMD_MASK;
-	u8 itype = p->msg[1];
+	const u8 *payload = msg + 2;
+	u8 mode = msg[0] & EV3_UART_MSG_CMD_MASK;
+	u8 itype = msg[1];
 	struct ev3_uart_mode *m = &s->modes[mode];
 	const char *err;
 	unsigned int bit;
+	size_t n;
 
 	/*
 	 * Quirk: Powered Up devices describe modes 8 and up with the
@@ -674,14 +737,14 @@ static void ev3_uart_info(struct ev3_uart_parser *p, const u8 *payload,
 			return ev3_uart_error(p, ev, "NAME before the previous mode's FORMAT");
 		if (p->modes_done & BIT(mode))
 			return ev3_uart_error(p, ev, "duplicate mode");
-		err = ev3_uart_check_string(payload, plen, EV3_UART_NAME_LEN);
+		err = ev3_uart_check_string(payload, plen, EV3_UART_NAME_LEN, &n);
 		if (err)
 			return ev3_uart_error(p, ev, err);
 		if (payload[0] < 'A' || payload[0] > 'z')
 			return ev3_uart_error(p, ev, "bad mode name");
 		memset(m, 0, sizeof(*m));
 		/* 8-character names fill their payload with no NUL after them. */
-		memcpy(m->name, payload, strnlen((const char *)payload, plen));
+		memcpy(m->name, payload, n);
 		ev3_uart_set_mode_defaults(p);
 		p->info_mode = mode;
 		p->info_seen = BIT(EV3_UART_INFO_NAME);
@@ -709,10 +772,10 @@ static void ev3_uart_info(struct ev3_uart_parser *p, const u8 *payload,
 	case EV3_UART_INFO_UNITS:
 		if (p->info_seen & BIT(itype))
 			return ev3_uart_error(p, ev, "duplicate UNITS");
-		err = ev3_uart_check_string(payload, plen, EV3_UART_UNITS_LEN);
+		err = ev3_uart_check_string(payload, plen, EV3_UART_UNITS_LEN, &n);
 		if (err)
 			return ev3_uart_error(p, ev, err);
-		memcpy(m->units, payload, strnlen((const char *)payload, plen));
+		memcpy(m->units, payload, n);
 		p->info_seen |= BIT(itype);
 		return;
 	case EV3_UART_INFO_FORMAT:
@@ -735,20 +798,22 @@ static void ev3_uart_sys_info(struct ev3_uart_parser *p, u8 b,
 	ev->type = EV3_UART_EV_HANDSHAKE;
 }
 
-static void ev3_uart_info_msg(struct ev3_uart_parser *p,
-			      struct ev3_uart_event *ev)
+/*
+ * A whole handshake message of @len bytes (as its header says), in @p->msg
+ * or in the caller's buffer.
+ */
+static void ev3_uart_info_msg(struct ev3_uart_parser *p, const u8 *msg,
+			      unsigned int len, struct ev3_uart_event *ev)
 {
-	unsigned int len = p->msg_len;
-
-	if (p->msg[len - 1] != ev3_uart_checksum(p->msg, len - 1))
+	if (msg[len - 1] != __ev3_uart_checksum(msg, len - 1))
 		return ev3_uart_error(p, ev, "bad checksum in handshake");
 
-	switch (p->msg[0] & EV3_UART_MSG_TYPE_MASK) {
+	switch (msg[0] & EV3_UART_MSG_TYPE_MASK) {
 	case EV3_UART_MSG_CMD:
-		ev3_uart_cmd(p, p->msg + 1, len - 2, ev);
+		ev3_uart_cmd(p, msg, len - 2, ev);
 		break;
 	case EV3_UART_MSG_INFO:
-		ev3_uart_info(p, p->msg + 2, len - 3, ev);
+		ev3_uart_info(p, msg, len - 3, ev);
 		break;
 	default:
 		ev3_uart_error(p, ev, "DATA before ACK");
@@ -756,10 +821,15 @@ static void ev3_uart_info_msg(struct ev3_uart_parser *p,
 	}
 }
 
+/* The size code (L) of %EV3_UART_MAX_PAYLOAD. */
+#define EV3_UART_MAX_SIZE_CODE	5
+
 static bool ev3_uart_data_hdr_ok(u8 b)
 {
+	BUILD_BUG_ON(1 << EV3_UART_MAX_SIZE_CODE != EV3_UART_MAX_PAYLOAD);
 	return (b & EV3_UART_MSG_TYPE_MASK) == EV3_UART_MSG_DATA &&
-	       ev3_uart_payload_len(b) <= EV3_UART_MAX_PAYLOAD;
+	       (b & EV3_UART_MSG_SIZE_MASK) >> EV3_UART_MSG_SIZE_SHIFT <=
+	       EV3_UART_MAX_SIZE_CODE;
 }
 
 /*
@@ -776,6 +846,8 @@ static void ev3_uart_data_resync(struct ev3_uart_parser *p)
 	p->replay_len = p->msg_len - 1 + rest;
 	p->replay_pos = 0;
 	p->msg_len = 0;
+	/* The fast path must not pass the bytes to parse again. */
+	ev3_uart_fast_clear(p);
 }
 
 /*
@@ -801,6 +873,16 @@ static void ev3_uart_bad_frame(struct ev3_uart_parser *p,
 	ev3_uart_data_resync(p);
 }
 
+/*
+ * Quirk: the colour sensor's RGB-RAW messages (header 0xdc: DATA, 8 bytes,
+ * mode 4) mostly carry a wrong checksum; LEGO's firmware does not check
+ * them either.
+ */
+static bool ev3_uart_rgb_raw_quirk(const struct ev3_uart_sensor *s, u8 hdr)
+{
+	return s->type == EV3_UART_TYPE_COLOR && hdr == 0xdc;
+}
+
 static void ev3_uart_data_msg(struct ev3_uart_parser *p,
 			      struct ev3_uart_event *ev)
 {
@@ -811,12 +893,8 @@ static void ev3_uart_data_msg(struct ev3_uart_parser *p,
 	bool changed = false;
 	struct ev3_uart_mode *m;
 
-	/*
-	 * Quirk: the colour sensor's RGB-RAW messages (header 0xdc) mostly
-	 * carry a wrong checksum; LEGO's firmware does not check them either.
-	 */
 	if (p->msg[len - 1] != ev3_uart_checksum(p->msg, len - 1) &&
-	    !(s->type == EV3_UART_TYPE_COLOR && hdr == 0xdc))
+	    !ev3_uart_rgb_raw_quirk(s, hdr))
 		return ev3_uart_bad_frame(p, ev);
 
 	/*
@@ -860,44 +938,482 @@ static void ev3_uart_data_msg(struct ev3_uart_parser *p,
 	ev->len = plen;
 }
 
-static void ev3_uart_msg_byte(struct ev3_uart_parser *p, u8 b,
-			      struct ev3_uart_event *ev)
+/*
+ * memcpy() of the few bytes (@n up to %EV3_UART_MAX_MSG_LEN) of a message
+ * split between two batches, inline and without a loop for the usual ones:
+ * two moves of k bytes, overlapping if need be, copy k to 2k bytes.
+ */
+static __always_inline void ev3_uart_copy_short(u8 *dst, const u8 *src,
+						unsigned int n)
 {
-	bool data = p->state == EV3_UART_STATE_DATA;
+	unsigned int i;
 
-	if (!p->msg_len) {
-		/*
-		 * Quirk: a lone 0xff shows up at message boundaries: the
-		 * infrared sensor sends "00 ff" in its handshake, and a line
-		 * glitch reads as 0xff when the speed changes. 0xff would
-		 * start a 128-byte DATA message: skip it.
-		 */
-		if (b == 0xff) {
+	if (n >= 8) {
+		for (i = 0; i + 8 < n; i += 8)
+			memcpy(dst + i, src + i, 8);
+		memcpy(dst + n - 8, src + n - 8, 8);
+	} else if (n >= 4) {
+		memcpy(dst, src, 4);
+		memcpy(dst + n - 4, src + n - 4, 4);
+	} else if (n >= 2) {
+		memcpy(dst, src, 2);
+		memcpy(dst + n - 2, src + n - 2, 2);
+	} else if (n) {
+		dst[0] = src[0];
+	}
+}
+
+/* ---- the data phase's fast path ---- */
+
+/*
+ * ev3_uart_data_msg()'s checks of a DATA message of @plen payload bytes with
+ * header @hdr, for the common case only: a message of the current mode with
+ * no SELECT pending, and room for the mode's values. Then the US-DC-IN
+ * quirk cannot apply (it needs mode 5 while the current mode is 6), and the
+ * mode is below @p->sensor.num_modes (@p->mode only ever holds a checked
+ * mode).
+ */
+static __always_inline bool ev3_uart_data_common(const struct ev3_uart_parser *p,
+						 u8 hdr, unsigned int plen)
+{
+	u8 mode = hdr & EV3_UART_MSG_CMD_MASK;
+	const struct ev3_uart_mode *m = &p->sensor.modes[mode];
+
+	return mode == p->mode && p->pending_mode == EV3_UART_NO_MODE &&
+	       plen >= m->num_values * ev3_uart_data_size(m->data_type);
+}
+
+/* The XOR of the four bytes of @w. */
+static __always_inline u8 ev3_uart_xor32(u32 w)
+{
+	w ^= w >> 16;
+	return w ^ w >> 8;
+}
+
+/*
+ * The checksum test of ev3_uart_data_msg(): @x is the XOR of the payload
+ * bytes, @csum the message's last byte. (The RGB-RAW quirk is for 8-byte
+ * messages: see ev3_uart_data_take().)
+ */
+static __always_inline bool ev3_uart_data_csum_ok(u8 hdr, u8 x, u8 csum)
+{
+	return (u8)(0xff ^ hdr ^ x) == csum;
+}
+
+/*
+ * Check the checksum of the whole DATA message @msg of @plen payload bytes
+ * (a power of two, at most %EV3_UART_MAX_PAYLOAD), and copy its payload to
+ * @p->data if it is right. The payload is read once, in words, and written
+ * from the same registers: no loop over bytes and no call to memcpy() for
+ * the usual sizes.
+ *
+ * Return: true if the payload was taken.
+ */
+static __always_inline bool ev3_uart_data_take(struct ev3_uart_parser *p,
+					       const u8 *msg, unsigned int plen)
+{
+	const u8 *src = msg + 1;
+	u8 hdr = msg[0], csum = msg[plen + 1];
+	u32 w0, w1;
+
+	/* The sizes by how often sensors use them. */
+	if (plen == 2) {
+		if (!ev3_uart_data_csum_ok(hdr, src[0] ^ src[1], csum))
+			return false;
+		put_unaligned_le16(get_unaligned_le16(src), p->data);
+	} else if (plen == 8) {
+		w0 = get_unaligned_le32(src);
+		w1 = get_unaligned_le32(src + 4);
+		/* The quirk first: it spares RGB-RAW's useless checksums. */
+		if (!ev3_uart_rgb_raw_quirk(&p->sensor, hdr) &&
+		    !ev3_uart_data_csum_ok(hdr, ev3_uart_xor32(w0 ^ w1), csum))
+			return false;
+		put_unaligned_le32(w0, p->data);
+		put_unaligned_le32(w1, p->data + 4);
+	} else if (plen == 1) {
+		if (!ev3_uart_data_csum_ok(hdr, src[0], csum))
+			return false;
+		p->data[0] = src[0];
+	} else if (plen == 4) {
+		w0 = get_unaligned_le32(src);
+		if (!ev3_uart_data_csum_ok(hdr, ev3_uart_xor32(w0), csum))
+			return false;
+		put_unaligned_le32(w0, p->data);
+	} else {
+		/* 16 and 32: ev3_uart_data_msg() takes them. */
+		return false;
+	}
+	return true;
+}
+
+/*
+ * Deliver the whole DATA message @msg of @plen payload bytes (at most
+ * %EV3_UART_MAX_PAYLOAD) whose header passed ev3_uart_data_common(), if its
+ * checksum is right or the RGB-RAW quirk applies: what ev3_uart_data_msg()
+ * does with such a message. @fast: the header is @p->fast_hdr, so
+ * @p->data_err is 0 (see ev3_uart_data_fast()).
+ *
+ * Return: true if the message was delivered (@ev is %EV3_UART_EV_DATA).
+ */
+static __always_inline bool ev3_uart_data_deliver(struct ev3_uart_parser *p,
+						  const u8 *msg, unsigned int plen,
+						  struct ev3_uart_event *ev,
+						  bool fast)
+{
+	if (!ev3_uart_data_take(p, msg, plen))
+		return false;
+	p->frames++;
+	if (!fast && p->data_err)
+		p->data_err--;
+	p->data_since_tick = true;
+	ev->type = EV3_UART_EV_DATA;
+	ev->mode = msg[0] & EV3_UART_MSG_CMD_MASK;
+	ev->len = plen;
+	return true;
+}
+
+/*
+ * The fast path of the data phase: deliver the whole DATA message @msg of
+ * @plen payload bytes (at most %EV3_UART_MAX_PAYLOAD), in the caller's
+ * buffer or in @p->msg, if it is the common case (ev3_uart_data_common())
+ * with a good checksum or the RGB-RAW quirk. Anything else returns false,
+ * and ev3_uart_data_msg() deals with it: that is the one place where bad
+ * frames, SELECTs and stale modes are handled.
+ *
+ * @p->fast_hdr caches the checks: a header that passed
+ * ev3_uart_data_common() passes it again until a SELECT or a new data phase
+ * (@p->mode changes only on a SELECT, the modes only in a handshake). It is
+ * set only with nothing to parse again in @p->replay and no bad frame on
+ * the count (@p->data_err 0), and cleared by whatever changes that: a
+ * SELECT, a resync, a line error, an error (ev3_uart_reset()), a new data
+ * phase. So ev3_uart_parser_feed() delivers a message with that header (and
+ * of @p->fast_len bytes), whole or split between two calls, with only its
+ * checksum to check and @p->data_err to leave at 0.
+ *
+ * Return: true if the message was delivered (@ev is %EV3_UART_EV_DATA).
+ */
+static __always_inline bool ev3_uart_data_fast(struct ev3_uart_parser *p,
+					       const u8 *msg, unsigned int plen,
+					       struct ev3_uart_event *ev)
+{
+	u8 hdr = msg[0];
+
+	if (hdr != p->fast_hdr && !ev3_uart_data_common(p, hdr, plen))
+		return false;
+	if (!ev3_uart_data_deliver(p, msg, plen, ev, false))
+		return false;
+	/*
+	 * Trusted only with nothing left to parse again and no bad frame on
+	 * the count: see above.
+	 */
+	if (p->replay_pos == p->replay_len && !p->data_err) {
+		p->fast_hdr = hdr;
+		p->fast_len = plen + 2;
+	}
+	return true;
+}
+
+/* A whole message is in @p->msg: act on it. */
+static noinline void ev3_uart_msg_done(struct ev3_uart_parser *p,
+				       struct ev3_uart_event *ev)
+{
+	if (p->state != EV3_UART_STATE_DATA)
+		ev3_uart_info_msg(p, p->msg, p->msg_len, ev);
+	else if (!EV3_UART_FAST_PATH ||
+		 !ev3_uart_data_fast(p, p->msg, p->msg_len - 2, ev))
+		ev3_uart_data_msg(p, ev);
+	p->msg_len = 0;
+}
+
+/* The first byte of a message in the INFO and DATA states: its header. */
+static __always_inline void ev3_uart_msg_start(struct ev3_uart_parser *p,
+					       u8 b, struct ev3_uart_event *ev)
+{
+	/*
+	 * Quirk: a lone 0xff shows up at message boundaries: the infrared
+	 * sensor sends "00 ff" in its handshake, and a line glitch reads as
+	 * 0xff when the speed changes. 0xff would start a 128-byte DATA
+	 * message: skip it.
+	 */
+	if (b == 0xff) {
+		p->garbage++;
+		return;
+	}
+	if (p->state == EV3_UART_STATE_DATA) {
+		/* Re-align on the next plausible DATA header. */
+		if (!ev3_uart_data_hdr_ok(b)) {
 			p->garbage++;
 			return;
 		}
-		if (data) {
-			/* Re-align on the next plausible DATA header. */
-			if (!ev3_uart_data_hdr_ok(b)) {
-				p->garbage++;
-				return;
-			}
-		} else if ((b & EV3_UART_MSG_TYPE_MASK) == EV3_UART_MSG_SYS) {
-			return ev3_uart_sys_info(p, b, ev);
-		} else if (ev3_uart_payload_len(b) > EV3_UART_MAX_PAYLOAD) {
-			return ev3_uart_error(p, ev, "message too long");
-		}
+	} else if ((b & EV3_UART_MSG_TYPE_MASK) == EV3_UART_MSG_SYS) {
+		return ev3_uart_sys_info(p, b, ev);
+	} else if (ev3_uart_payload_len(b) > EV3_UART_MAX_PAYLOAD) {
+		return ev3_uart_error(p, ev, "message too long");
 	}
+	p->msg[0] = b;
+	p->msg_len = 1;
+	p->msg_size = ev3_uart_msg_len(b);
+}
 
-	p->msg[p->msg_len++] = b;
-	if (p->msg_len < ev3_uart_msg_len(p->msg[0]))
-		return;
+/*
+ * The rest of a message whose header is in @p->msg: nothing looks at these
+ * bytes before the message is whole, so they are taken as many at a time
+ * as @buf holds. The header bounds the length to %EV3_UART_MAX_MSG_LEN.
+ *
+ * Return: the number of bytes of @buf taken.
+ */
+static __always_inline size_t ev3_uart_msg_body(struct ev3_uart_parser *p,
+						const u8 *buf, size_t len,
+						struct ev3_uart_event *ev)
+{
+	unsigned int need = p->msg_size - p->msg_len;
 
-	if (data)
-		ev3_uart_data_msg(p, ev);
-	else
-		ev3_uart_info_msg(p, ev);
+	if (len < need) {
+		ev3_uart_copy_short(p->msg + p->msg_len, buf, len);
+		p->msg_len += len;
+		return len;
+	}
+	ev3_uart_copy_short(p->msg + p->msg_len, buf, need);
+	p->msg_len += need;
+	ev3_uart_msg_done(p, ev);
+	return need;
+}
+
+/* One byte, from @p->replay or from the caller's buffer. */
+static void ev3_uart_byte(struct ev3_uart_parser *p, u8 b,
+			  struct ev3_uart_event *ev)
+{
+	switch (p->state) {
+	case EV3_UART_STATE_SYNC:
+		ev3_uart_sync_byte(p, b, ev);
+		break;
+	case EV3_UART_STATE_ACKED:
+		p->garbage++;
+		break;
+	default:
+		if (!p->msg_len)
+			ev3_uart_msg_start(p, b, ev);
+		else
+			ev3_uart_msg_body(p, &b, 1, ev);
+		break;
+	}
+}
+
+/*
+ * The general case of ev3_uart_parser_feed(): byte by byte, except that the
+ * rest of a message whose header was accepted is taken in one go.
+ */
+static size_t ev3_uart_feed_bytes(struct ev3_uart_parser *p, const u8 *buf,
+				  size_t len, struct ev3_uart_event *ev)
+{
+	size_t used = 0;
+
+	do {
+		if (p->replay_pos < p->replay_len)
+			ev3_uart_byte(p, p->replay[p->replay_pos++], ev);
+		else if (used == len)
+			break;
+		else if (p->state != EV3_UART_STATE_INFO &&
+			 p->state != EV3_UART_STATE_DATA)
+			ev3_uart_byte(p, buf[used++], ev);
+		else if (p->msg_len)
+			used += ev3_uart_msg_body(p, buf + used, len - used, ev);
+		else
+			ev3_uart_msg_start(p, buf[used++], ev);
+	} while (ev->type == EV3_UART_EV_NONE);
+	return used;
+}
+
+/*
+ * ev3_uart_feed_bytes() in the INFO state with nothing to parse again, the
+ * handshake: a header, then the rest of the message in one go, until an
+ * event. Without one the state stays, and nothing is left to parse again
+ * (only a bad DATA message does that).
+ */
+static noinline size_t ev3_uart_feed_info(struct ev3_uart_parser *p,
+					  const u8 *buf, size_t len,
+					  struct ev3_uart_event *ev)
+{
+	size_t used = 0;
+	unsigned int n;
+	u8 b;
+
+	while (used < len) {
+		if (p->msg_len) {
+			/* The rest of a message (ev3_uart_msg_body()). */
+			n = p->msg_size - p->msg_len;
+			if (len - used < n) {
+				ev3_uart_copy_short(p->msg + p->msg_len, buf + used,
+						    len - used);
+				p->msg_len += len - used;
+				return len;
+			}
+			ev3_uart_copy_short(p->msg + p->msg_len, buf + used, n);
+			used += n;
+			ev3_uart_info_msg(p, p->msg, p->msg_size, ev);
+			p->msg_len = 0;
+		} else {
+			b = buf[used];
+			n = ev3_uart_msg_len(b);
+			if (n == 1 || ev3_uart_payload_len(b) > EV3_UART_MAX_PAYLOAD) {
+				/* 0xff, SYS or too long. */
+				ev3_uart_msg_start(p, b, ev);
+				used++;
+			} else if (len - used >= n) {
+				/* A whole message: where it is. */
+				ev3_uart_info_msg(p, buf + used, n, ev);
+				used += n;
+			} else {
+				/* The start of one: n is at most the room in @p->msg. */
+				ev3_uart_copy_short(p->msg, buf + used, len - used);
+				p->msg_len = len - used;
+				p->msg_size = n;
+				used = len;
+			}
+		}
+		if (ev->type != EV3_UART_EV_NONE)
+			break;
+	}
+	return used;
+}
+
+/* The payload length of a DATA header: 2^L. */
+static __always_inline unsigned int ev3_uart_data_plen(u8 hdr)
+{
+	return 1U << ((hdr & EV3_UART_MSG_SIZE_MASK) >> EV3_UART_MSG_SIZE_SHIFT);
+}
+
+/*
+ * The data phase: the start of a DATA message at the end of @buf, @len
+ * bytes (fewer than the message's, so at most %EV3_UART_MAX_PAYLOAD + 1),
+ * kept in @p->msg as ev3_uart_feed_bytes() would keep them.
+ */
+static noinline size_t ev3_uart_data_head(struct ev3_uart_parser *p,
+					  const u8 *buf, size_t len)
+{
+	ev3_uart_copy_short(p->msg, buf, len);
+	p->msg_len = len;
+	p->msg_size = ev3_uart_data_plen(buf[0]) + 2;
+	return len;
+}
+
+/*
+ * The end of ev3_uart_data_rest() for a message ev3_uart_data_fast() did
+ * not deliver: ev3_uart_data_msg() decides, then parsing goes on as in
+ * ev3_uart_feed_bytes().
+ */
+static noinline size_t ev3_uart_data_slow(struct ev3_uart_parser *p,
+					  const u8 *buf, size_t len,
+					  unsigned int need,
+					  struct ev3_uart_event *ev)
+{
+	p->msg_len += need;
+	ev3_uart_data_msg(p, ev);
 	p->msg_len = 0;
+	if (ev->type != EV3_UART_EV_NONE)
+		return need;
+	return need + ev3_uart_feed_bytes(p, buf + need, len - need, ev);
+}
+
+/*
+ * The data phase with the start of a DATA message in @p->msg (its header
+ * was checked, so the whole message fits): the rest of it, as much of it
+ * as @buf holds, then the message as ev3_uart_feed_bytes() would take it.
+ *
+ * Return: the bytes of @buf taken.
+ */
+static noinline size_t ev3_uart_data_rest(struct ev3_uart_parser *p,
+					  const u8 *buf, size_t len,
+					  struct ev3_uart_event *ev)
+{
+	unsigned int plen = ev3_uart_data_plen(p->msg[0]);
+	unsigned int need = plen + 2 - p->msg_len;
+
+	if (len < need) {
+		ev3_uart_copy_short(p->msg + p->msg_len, buf, len);
+		p->msg_len += len;
+		return len;
+	}
+	ev3_uart_copy_short(p->msg + p->msg_len, buf, need);
+	if (!ev3_uart_data_fast(p, p->msg, plen, ev))
+		return ev3_uart_data_slow(p, buf, len, need, ev);
+	p->msg_len = 0;
+	return need;
+}
+
+/*
+ * ev3_uart_parser_feed() but for a whole message with the header in
+ * @p->fast_hdr: in the data phase, a whole DATA message at the start of
+ * @buf for ev3_uart_data_fast(), taken where it is; the parts of a message
+ * split between two calls, taken a part at a time; everything else through
+ * ev3_uart_feed_bytes(). The slower cases are calls in tail position.
+ */
+static noinline size_t ev3_uart_feed(struct ev3_uart_parser *p, const u8 *buf,
+				     size_t len, struct ev3_uart_event *ev)
+{
+	unsigned int plen;
+	u8 hdr;
+
+	if (p->replay_pos != p->replay_len)
+		return ev3_uart_feed_bytes(p, buf, len, ev);
+	if (p->state == EV3_UART_STATE_INFO)
+		return ev3_uart_feed_info(p, buf, len, ev);
+	if (p->state != EV3_UART_STATE_DATA || !len)
+		return ev3_uart_feed_bytes(p, buf, len, ev);
+	if (p->msg_len)
+		return ev3_uart_data_rest(p, buf, len, ev);
+	hdr = buf[0];
+	if (!ev3_uart_data_hdr_ok(hdr))
+		return ev3_uart_feed_bytes(p, buf, len, ev);
+	plen = ev3_uart_data_plen(hdr);
+	if (len < plen + 2)
+		return ev3_uart_data_head(p, buf, len);
+	if (ev3_uart_data_fast(p, buf, plen, ev))
+		return plen + 2;
+	return ev3_uart_feed_bytes(p, buf, len, ev);
+}
+
+/*
+ * ev3_uart_parser_feed() with the start of a message in @p->msg: if it has
+ * the header in @p->fast_hdr, the rest of it, as much of it as @buf holds,
+ * and then the message delivered; else ev3_uart_feed().
+ */
+static noinline size_t ev3_uart_feed_rest(struct ev3_uart_parser *p,
+					  const u8 *buf, size_t len,
+					  struct ev3_uart_event *ev)
+{
+	/* A message is whole as soon as it is: have < n. */
+	unsigned int have = p->msg_len, n = p->fast_len, need = n - have;
+
+	if (p->msg[0] != p->fast_hdr) {
+		if (p->state == EV3_UART_STATE_INFO && p->replay_pos == p->replay_len)
+			return ev3_uart_feed_info(p, buf, len, ev);
+		return ev3_uart_feed(p, buf, len, ev);
+	}
+	if (len < need) {
+		ev3_uart_copy_short(p->msg + have, buf, len);
+		p->msg_len = have + len;
+		return len;
+	}
+	ev3_uart_copy_short(p->msg + have, buf, need);
+	if (!ev3_uart_data_deliver(p, p->msg, n - 2, ev, true))
+		return ev3_uart_data_slow(p, buf, len, need, ev);
+	p->msg_len = 0;
+	return need;
+}
+
+/*
+ * ev3_uart_parser_feed() with the start of a message with the header in
+ * @p->fast_hdr at the end of @buf.
+ */
+static noinline size_t ev3_uart_feed_head(struct ev3_uart_parser *p,
+					  const u8 *buf, size_t len)
+{
+	/* Fewer than @p->fast_len bytes: @p->msg has room for them. */
+	ev3_uart_copy_short(p->msg, buf, len);
+	p->msg_len = len;
+	p->msg_size = p->fast_len;
+	return len;
 }
 
 /**
@@ -915,31 +1431,26 @@ static void ev3_uart_msg_byte(struct ev3_uart_parser *p, u8 b,
 size_t ev3_uart_parser_feed(struct ev3_uart_parser *p, const u8 *buf,
 			    size_t len, struct ev3_uart_event *ev)
 {
-	size_t used = 0;
-	u8 b;
-
 	memset(ev, 0, sizeof(*ev));
-	while (ev->type == EV3_UART_EV_NONE) {
-		if (p->replay_pos < p->replay_len)
-			b = p->replay[p->replay_pos++];
-		else if (used < len)
-			b = buf[used++];
-		else
-			break;
-
-		switch (p->state) {
-		case EV3_UART_STATE_SYNC:
-			ev3_uart_sync_byte(p, b, ev);
-			break;
-		case EV3_UART_STATE_ACKED:
-			p->garbage++;
-			break;
-		default:
-			ev3_uart_msg_byte(p, b, ev);
-			break;
-		}
+	if (!EV3_UART_FAST_PATH)
+		return ev3_uart_feed_bytes(p, buf, len, ev);
+	/*
+	 * The data phase's common case first: a message with the header of
+	 * the last one ev3_uart_data_fast() delivered, whole at the start of
+	 * @buf, or split between two calls. A valid @p->fast_hdr means the
+	 * data phase with nothing to parse again (see ev3_uart_data_fast()),
+	 * and @p->fast_len is then the message's length (else at least 1).
+	 */
+	if (p->msg_len)
+		return ev3_uart_feed_rest(p, buf, len, ev);
+	if (len >= p->fast_len) {
+		if (buf[0] == p->fast_hdr &&
+		    ev3_uart_data_deliver(p, buf, p->fast_len - 2, ev, true))
+			return p->fast_len;
+	} else if (len && buf[0] == p->fast_hdr) {
+		return ev3_uart_feed_head(p, buf, len);
 	}
-	return used;
+	return ev3_uart_feed(p, buf, len, ev);
 }
 EXPORT_SYMBOL_IF_KUNIT(ev3_uart_parser_feed);
 
@@ -968,6 +1479,7 @@ void ev3_uart_parser_line_error(struct ev3_uart_parser *p,
 	case EV3_UART_STATE_DATA:
 		p->msg_len = 0;
 		p->bad_frames++;
+		ev3_uart_fast_clear(p);	/* data_err may no longer be 0 */
 		if (!ev3_uart_settling(p) && ++p->data_err > EV3_UART_MAX_DATA_ERR)
 			ev3_uart_error(p, ev, "too many line errors");
 		break;
@@ -992,6 +1504,7 @@ void ev3_uart_parser_start_data(struct ev3_uart_parser *p)
 	p->data_err = 0;
 	p->silent_ticks = 0;
 	p->data_since_tick = false;
+	ev3_uart_fast_clear(p);
 	p->frames = 0;
 }
 EXPORT_SYMBOL_IF_KUNIT(ev3_uart_parser_start_data);
@@ -1014,6 +1527,7 @@ int ev3_uart_parser_select(struct ev3_uart_parser *p, u8 mode)
 	if (mode >= p->sensor.num_modes)
 		return -EINVAL;
 	p->pending_mode = mode;
+	ev3_uart_fast_clear(p);
 	return 0;
 }
 EXPORT_SYMBOL_IF_KUNIT(ev3_uart_parser_select);

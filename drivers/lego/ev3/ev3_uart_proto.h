@@ -84,6 +84,8 @@ enum ev3_uart_msg_type {
 #define EV3_UART_TYPE_IR		33
 
 #define EV3_UART_NO_MODE		0xff
+/* No byte has this value: &ev3_uart_parser.fast_hdr holds no header. */
+#define EV3_UART_NO_HDR			0x100
 
 /**
  * enum ev3_uart_data_type - the wire type of the values of a mode
@@ -202,6 +204,8 @@ struct ev3_uart_event {
  * @sensor: the sensor description, complete from %EV3_UART_EV_HANDSHAKE on
  * @msg: the message being received (in SYNC state: the sliding window)
  * @msg_len: bytes held in @msg
+ * @msg_size: in the INFO and DATA states, the length of the message in @msg
+ *	(from its header), once it has one
  * @replay: bytes to parse again before new input (after a data-phase resync)
  * @replay_len: bytes held in @replay
  * @replay_pos: next byte of @replay to parse
@@ -215,6 +219,10 @@ struct ev3_uart_event {
  * @data_err: bad frames, less good ones (never below 0)
  * @silent_ticks: keep-alive periods in a row without a good DATA message
  * @data_since_tick: a good DATA message arrived since the last tick
+ * @fast_hdr: the header of the last DATA message the fast path delivered,
+ *	whose mode and size need no checking again until a SELECT, an error
+ *	or a new data phase; %EV3_UART_NO_HDR for none
+ * @fast_len: the length of a message with that header (at least 1)
  * @data: payload of the last DATA message delivered
  * @frames: good DATA messages since the last handshake
  * @bad_frames: DATA messages dropped (checksum, size or mode)
@@ -225,6 +233,7 @@ struct ev3_uart_parser {
 	struct ev3_uart_sensor sensor;
 	u8 msg[EV3_UART_MAX_MSG_LEN];
 	u8 msg_len;
+	u8 msg_size;
 	u8 replay[EV3_UART_MAX_MSG_LEN];
 	u8 replay_len;
 	u8 replay_pos;
@@ -238,6 +247,8 @@ struct ev3_uart_parser {
 	u8 data_err;
 	u8 silent_ticks;
 	bool data_since_tick;
+	u16 fast_hdr;
+	u8 fast_len;
 	u8 data[EV3_UART_MAX_PAYLOAD];
 	unsigned long frames;
 	unsigned long bad_frames;

@@ -1006,6 +1006,261 @@ static void test_line_errors(struct kunit *test)
 	KUNIT_EXPECT_EQ(test, c->p.state, EV3_UART_STATE_SYNC);
 }
 
+/* ---- the data phase's fast path ---- */
+
+/* One GYRO-ANG message (mode 0, S16) of the value @v. */
+static size_t enc_gyro_ang(u8 *buf, s16 v)
+{
+	u8 payload[2];
+
+	put_unaligned_le16(v, payload);
+	return enc_data(buf, 0, payload, 2);
+}
+
+/* Feed @len bytes in one call; the bytes it took, and the event in @ev. */
+static size_t feed_once(struct ctx *c, const u8 *buf, size_t len,
+			struct ev3_uart_event *ev)
+{
+	return ev3_uart_parser_feed(&c->p, buf, len, ev);
+}
+
+static void test_fast_whole_message(struct kunit *test)
+{
+	struct ctx *c = new_ctx(test);
+	struct ev3_uart_event ev;
+	u8 b[8];
+	size_t len;
+	s32 v;
+	int i;
+
+	connect(test, c, &sensors[2]);
+	/* The first message passes every check; the next ones its header's. */
+	for (i = 0; i < 3; i++) {
+		len = enc_gyro_ang(b, -100 + i);
+		KUNIT_ASSERT_EQ(test, feed_once(c, b, len, &ev), len);
+		KUNIT_ASSERT_EQ(test, ev.type, EV3_UART_EV_DATA);
+		KUNIT_EXPECT_EQ(test, ev.mode, 0);
+		KUNIT_EXPECT_FALSE(test, ev.mode_changed);
+		KUNIT_EXPECT_EQ(test, ev.len, 2);
+		KUNIT_EXPECT_EQ(test, ev3_uart_read_value(&c->p.sensor.modes[0], c->p.data,
+							  ev.len, 0, &v), 0);
+		KUNIT_EXPECT_EQ(test, v, -100 + i);
+		KUNIT_EXPECT_EQ(test, c->p.fast_hdr, b[0]);
+		KUNIT_EXPECT_EQ(test, c->p.fast_len, len);
+	}
+	KUNIT_EXPECT_EQ(test, c->p.frames, 3UL);
+	KUNIT_EXPECT_EQ(test, c->p.msg_len, 0);
+	KUNIT_EXPECT_TRUE(test, c->p.data_since_tick);
+}
+
+static void test_fast_split_everywhere(struct kunit *test)
+{
+	/* IR-SEEK: eight S8 values, an 8-byte payload. */
+	static const u8 seek[8] = { 1, 0xfe, 3, 0xfc, 5, 0xfa, 7, 0xf8 };
+	struct ctx *c;
+	struct ev3_uart_event ev;
+	u8 b[16];
+	size_t len, k;
+	int warm;
+
+	/* Split after every byte, with the header trusted or not yet. */
+	for (warm = 0; warm < 2; warm++) {
+		for (k = 1; k < 10; k++) {
+			c = new_ctx(test);
+			connect(test, c, &sensors[4]);
+			KUNIT_ASSERT_EQ(test, ev3_uart_parser_select(&c->p, 1), 0);
+			len = enc_data(b, 1, seek, 8);
+			KUNIT_ASSERT_EQ(test, len, 10U);
+			if (warm) {
+				/* One confirms the SELECT, the next is trusted. */
+				feed(&c->p, b, len, len, &c->r);
+				feed(&c->p, b, len, len, &c->r);
+				KUNIT_ASSERT_EQ(test, count(&c->r, EV3_UART_EV_DATA), 2U);
+				KUNIT_ASSERT_EQ(test, c->p.fast_hdr, b[0]);
+			}
+			KUNIT_EXPECT_EQ(test, feed_once(c, b, k, &ev), k);
+			KUNIT_EXPECT_EQ(test, ev.type, EV3_UART_EV_NONE);
+			KUNIT_EXPECT_EQ(test, c->p.msg_len, k);
+			KUNIT_EXPECT_EQ(test, feed_once(c, b + k, len - k, &ev), len - k);
+			KUNIT_ASSERT_EQ(test, ev.type, EV3_UART_EV_DATA);
+			KUNIT_EXPECT_EQ(test, ev.mode, 1);
+			KUNIT_EXPECT_EQ(test, ev.mode_changed, !warm);
+			KUNIT_EXPECT_EQ(test, ev.len, 8);
+			KUNIT_EXPECT_MEMEQ(test, c->p.data, seek, 8);
+			KUNIT_EXPECT_EQ(test, c->p.msg_len, 0);
+			KUNIT_EXPECT_EQ(test, c->p.bad_frames, 0UL);
+		}
+	}
+}
+
+static void test_fast_back_to_back(struct kunit *test)
+{
+	struct ctx *c = new_ctx(test);
+	struct ev3_uart_event ev;
+	u8 b[16];
+	size_t len, off, used;
+	s32 v;
+
+	connect(test, c, &sensors[2]);
+	len = enc_gyro_ang(b, 10);
+	len += enc_gyro_ang(b + len, 20);
+	len += enc_gyro_ang(b + len, 30);
+	/* One event a call, each right after its message's last byte. */
+	for (off = 0, v = 10; off < len; off += used, v += 10) {
+		s32 got;
+
+		used = feed_once(c, b + off, len - off, &ev);
+		KUNIT_ASSERT_EQ(test, used, 4U);
+		KUNIT_ASSERT_EQ(test, ev.type, EV3_UART_EV_DATA);
+		KUNIT_EXPECT_EQ(test, ev3_uart_read_value(&c->p.sensor.modes[0], c->p.data,
+							  ev.len, 0, &got), 0);
+		KUNIT_EXPECT_EQ(test, got, v);
+	}
+	KUNIT_EXPECT_EQ(test, c->p.frames, 3UL);
+}
+
+static void test_fast_bad_checksum_mid_batch(struct kunit *test)
+{
+	struct ctx *c = new_ctx(test);
+	u8 b[16];
+	size_t len, bad;
+	s32 v;
+
+	connect(test, c, &sensors[2]);
+	len = enc_gyro_ang(b, 1);
+	bad = len;
+	len += enc_gyro_ang(b + len, 2);
+	b[bad + 3] ^= 0x5a;
+	len += enc_gyro_ang(b + len, 3);
+	feed(&c->p, b, len, len, &c->r);
+	/* The bad one is dropped and counted; the good one after it is read. */
+	KUNIT_ASSERT_EQ(test, count(&c->r, EV3_UART_EV_DATA), 2U);
+	KUNIT_EXPECT_EQ(test, count(&c->r, EV3_UART_EV_ERROR), 0U);
+	KUNIT_EXPECT_EQ(test, c->p.bad_frames, 1UL);
+	KUNIT_EXPECT_EQ(test, c->p.data_err, 0);
+	KUNIT_EXPECT_EQ(test, ev3_uart_read_value(&c->p.sensor.modes[0], c->r.data[1], 2, 0,
+						  &v), 0);
+	KUNIT_EXPECT_EQ(test, v, 3);
+	KUNIT_EXPECT_EQ(test, c->p.replay_pos, c->p.replay_len);
+
+	/* Bad frames pile up as before, whether the header is trusted or not. */
+	for (bad = 0; bad <= EV3_UART_MAX_DATA_ERR; bad++) {
+		len = enc_gyro_ang(b, 4);
+		b[3] ^= 0x5a;
+		feed(&c->p, b, len, len, &c->r);
+	}
+	KUNIT_EXPECT_EQ(test, last(&c->r)->type, EV3_UART_EV_ERROR);
+	KUNIT_EXPECT_EQ(test, c->p.state, EV3_UART_STATE_SYNC);
+	KUNIT_EXPECT_EQ(test, c->p.fast_hdr, EV3_UART_NO_HDR);
+}
+
+static void test_fast_rgb_raw_in_batches(struct kunit *test)
+{
+	static const u8 rgb[8] = { 0x10, 0x00, 0x20, 0x00, 0x30, 0x00, 0x05, 0x00 };
+	struct ctx *c = new_ctx(test);
+	u8 b[64];
+	size_t len = 0, chunk;
+	int i;
+
+	connect(test, c, &sensors[0]);
+	KUNIT_ASSERT_EQ(test, ev3_uart_parser_select(&c->p, 4), 0);
+	/* Five RGB-RAW messages, all but the third with a wrong checksum. */
+	for (i = 0; i < 5; i++) {
+		len += enc_data(b + len, 4, rgb, 8);
+		if (i != 2)
+			b[len - 1] ^= 0x5a;
+	}
+	for (chunk = 1; chunk <= len; chunk++) {
+		c->r.n = 0;
+		feed(&c->p, b, len, chunk, &c->r);
+		KUNIT_EXPECT_EQ(test, count(&c->r, EV3_UART_EV_DATA), 5U);
+		KUNIT_EXPECT_EQ(test, last(&c->r)->mode, 4);
+		KUNIT_EXPECT_MEMEQ(test, c->r.data[4], rgb, 8);
+	}
+	KUNIT_EXPECT_EQ(test, c->p.bad_frames, 0UL);
+
+	/* Another mode of the colour sensor: a wrong checksum is wrong. */
+	KUNIT_ASSERT_EQ(test, ev3_uart_parser_select(&c->p, 3), 0);
+	len = enc_data(b, 3, rgb, 4);
+	feed(&c->p, b, len, len, &c->r);
+	len = enc_data(b, 3, rgb, 4);
+	b[len - 1] ^= 0x5a;
+	c->r.n = 0;
+	feed(&c->p, b, len, len, &c->r);
+	KUNIT_EXPECT_EQ(test, count(&c->r, EV3_UART_EV_DATA), 0U);
+	KUNIT_EXPECT_EQ(test, c->p.bad_frames, 1UL);
+}
+
+static void test_fast_straddling_batch_end(struct kunit *test)
+{
+	struct ctx *c = new_ctx(test);
+	struct ev3_uart_event ev;
+	u8 b[16];
+	size_t len;
+	s32 v;
+
+	connect(test, c, &sensors[2]);
+	len = enc_gyro_ang(b, 5);
+	len += enc_gyro_ang(b + len, 6);
+	len += enc_gyro_ang(b + len, 7);
+	/* First batch: a message and half the next... */
+	KUNIT_ASSERT_EQ(test, feed_once(c, b, 6, &ev), 4U);
+	KUNIT_ASSERT_EQ(test, ev.type, EV3_UART_EV_DATA);
+	KUNIT_ASSERT_EQ(test, feed_once(c, b + 4, 2, &ev), 2U);
+	KUNIT_ASSERT_EQ(test, ev.type, EV3_UART_EV_NONE);
+	KUNIT_EXPECT_EQ(test, c->p.msg_len, 2);
+	/* ...a SELECT in between does not let it through unchecked... */
+	KUNIT_ASSERT_EQ(test, ev3_uart_parser_select(&c->p, 1), 0);
+	KUNIT_EXPECT_EQ(test, c->p.fast_hdr, EV3_UART_NO_HDR);
+	/* ...second batch: its rest, then the last message. */
+	KUNIT_ASSERT_EQ(test, feed_once(c, b + 6, len - 6, &ev), 2U);
+	KUNIT_ASSERT_EQ(test, ev.type, EV3_UART_EV_DATA);
+	KUNIT_EXPECT_EQ(test, ev.mode, 0);	/* an old-mode message: not news */
+	KUNIT_EXPECT_FALSE(test, ev.mode_changed);
+	KUNIT_EXPECT_EQ(test, ev3_uart_read_value(&c->p.sensor.modes[0], c->p.data, 2, 0, &v),
+			0);
+	KUNIT_EXPECT_EQ(test, v, 6);
+	KUNIT_ASSERT_EQ(test, feed_once(c, b + 8, len - 8, &ev), 4U);
+	KUNIT_EXPECT_EQ(test, ev.type, EV3_UART_EV_DATA);
+	KUNIT_EXPECT_EQ(test, c->p.pending_mode, 1);
+}
+
+static void test_fast_header_forgotten(struct kunit *test)
+{
+	struct ctx *c = new_ctx(test);
+	struct ev3_uart_event ev;
+	u8 b[8];
+	size_t len;
+
+	connect(test, c, &sensors[2]);
+	len = enc_gyro_ang(b, 1);
+	feed(&c->p, b, len, len, &c->r);
+	KUNIT_ASSERT_EQ(test, c->p.fast_hdr, b[0]);
+	/* A line error may put a bad frame on the count: checks again. */
+	ev3_uart_parser_line_error(&c->p, &ev);
+	KUNIT_EXPECT_EQ(test, c->p.fast_hdr, EV3_UART_NO_HDR);
+	KUNIT_EXPECT_EQ(test, c->p.data_err, 1);
+	feed(&c->p, b, len, len, &c->r);
+	KUNIT_EXPECT_EQ(test, c->p.data_err, 0);
+	KUNIT_EXPECT_EQ(test, c->p.fast_hdr, b[0]);
+	/* The sensor lost: a new handshake, a new data phase. */
+	while (!ev3_uart_parser_tick(&c->p, &ev))
+		;
+	KUNIT_EXPECT_EQ(test, c->p.fast_hdr, EV3_UART_NO_HDR);
+	KUNIT_EXPECT_EQ(test, c->p.state, EV3_UART_STATE_SYNC);
+}
+
+static void test_handshake_every_batch_size(struct kunit *test)
+{
+	int chunk;
+
+	/* The old gyro, and the infrared sensor with its 00 ff. */
+	for (chunk = 1; chunk <= 40; chunk++) {
+		check_sensor(test, &sensors[2], chunk);
+		check_sensor(test, &sensors[4], chunk);
+	}
+}
+
 /* ---- values ---- */
 
 static void test_f32_to_fixed(struct kunit *test)
@@ -1363,6 +1618,14 @@ static struct kunit_case ev3_uart_proto_cases[] = {
 	KUNIT_CASE(test_keepalive_ticks),
 	KUNIT_CASE(test_bytes_dropped_while_acked),
 	KUNIT_CASE(test_line_errors),
+	KUNIT_CASE(test_fast_whole_message),
+	KUNIT_CASE(test_fast_split_everywhere),
+	KUNIT_CASE(test_fast_back_to_back),
+	KUNIT_CASE(test_fast_bad_checksum_mid_batch),
+	KUNIT_CASE(test_fast_rgb_raw_in_batches),
+	KUNIT_CASE(test_fast_straddling_batch_end),
+	KUNIT_CASE(test_fast_header_forgotten),
+	KUNIT_CASE(test_handshake_every_batch_size),
 	KUNIT_CASE(test_f32_to_fixed),
 	KUNIT_CASE(test_scale_value),
 	KUNIT_CASE(test_float_values),

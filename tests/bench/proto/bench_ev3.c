@@ -8,11 +8,22 @@
  * the offsets where the line then goes silent: the ticks give the sensor
  * up, and the next handshake is found.
  *
- * Usage: bench_ev3 STREAM UNPLUG [BATCH]
- * Prints: bytes, batches, handshakes, DATA messages, errors, garbage bytes.
+ * Usage: bench_ev3 [-b N | -r MAX] [-m MODE] [-z] STREAM UNPLUG
+ *   -b N     batches of N bytes (default 16)
+ *   -r MAX   batches of 1 to MAX bytes, drawn from a fixed seed (xorshift32),
+ *            so that every run gets the same batches
+ *   -m MODE  the host SELECTs MODE right after each handshake (the stream
+ *            then carries that mode's DATA messages)
+ *   -z       count the data phase only: bench_data_phase() is called as the
+ *            first data phase starts (callgrind --zero-before=bench_data_phase
+ *            drops what was counted before it)
+ * Prints: bytes, bytes counted, batches, handshakes, DATA messages, errors,
+ * garbage bytes, bad frames, a checksum of the values.
  */
 #include <stdio.h>
 #include <stdlib.h>
+#include <unistd.h>
+#include <linux/kernel.h>	/* tests/fuzz/shim: noinline */
 
 #include "ev3_uart_proto.h"
 
@@ -41,6 +52,21 @@ static u8 *read_file(const char *path, size_t *len)
 	return buf;
 }
 
+/* A mark for callgrind (--zero-before): not inlined, not optimised away. */
+noinline void bench_data_phase(void);
+noinline void bench_data_phase(void)
+{
+	__asm__ __volatile__("" ::: "memory");
+}
+
+static u32 rnd(u32 *x)
+{
+	*x ^= *x << 13;
+	*x ^= *x >> 17;
+	*x ^= *x << 5;
+	return *x;
+}
+
 static void count_event(const struct ev3_uart_event *ev, unsigned long *errors)
 {
 	if (ev->type == EV3_UART_EV_ERROR)
@@ -50,7 +76,10 @@ static void count_event(const struct ev3_uart_event *ev, unsigned long *errors)
 int main(int argc, char **argv)
 {
 	unsigned long batches = 0, handshakes = 0, data = 0, errors = 0;
-	size_t len, pos = 0, n, used, batch, unplug, since_tick = 0;
+	size_t len, pos = 0, n, used, batch = 16, rmax = 0, unplug, since_tick = 0;
+	size_t counted_from = 0;
+	int select = -1, zero = 0, opt;
+	u32 seed = 0x2545f491;
 	struct ev3_uart_parser p;
 	struct ev3_uart_event ev;
 	long long sum = 0;
@@ -59,19 +88,34 @@ int main(int argc, char **argv)
 	s32 v;
 	u8 *buf;
 
-	if (argc < 3) {
-		fprintf(stderr, "usage: %s STREAM UNPLUG [BATCH]\n", argv[0]);
-		return 2;
+	while ((opt = getopt(argc, argv, "b:r:m:z")) != -1) {
+		switch (opt) {
+		case 'b':
+			batch = strtoul(optarg, NULL, 0);
+			break;
+		case 'r':
+			rmax = strtoul(optarg, NULL, 0);
+			break;
+		case 'm':
+			select = atoi(optarg);
+			break;
+		case 'z':
+			zero = 1;
+			break;
+		default:
+			goto usage;
+		}
 	}
-	buf = read_file(argv[1], &len);
-	uf = fopen(argv[2], "r");
+	if (argc - optind != 2)
+		goto usage;
+	buf = read_file(argv[optind], &len);
+	uf = fopen(argv[optind + 1], "r");
 	if (!uf) {
-		perror(argv[2]);
+		perror(argv[optind + 1]);
 		return 1;
 	}
 	if (fscanf(uf, "%zu", &unplug) != 1)
 		unplug = len;
-	batch = argc > 3 ? strtoul(argv[3], NULL, 0) : 16;
 	if (!batch)
 		batch = 1;
 
@@ -86,6 +130,8 @@ int main(int argc, char **argv)
 			if (fscanf(uf, "%zu", &unplug) != 1)
 				unplug = len;
 		}
+		if (rmax)
+			batch = 1 + rnd(&seed) % rmax;
 		n = len - pos < batch ? len - pos : batch;
 		if (unplug > pos && n > unplug - pos)
 			n = unplug - pos;
@@ -105,6 +151,15 @@ int main(int argc, char **argv)
 			case EV3_UART_EV_HANDSHAKE:
 				handshakes++;
 				ev3_uart_parser_start_data(&p);
+				if (select >= 0 && ev3_uart_parser_select(&p, select)) {
+					fprintf(stderr, "SELECT %d refused\n", select);
+					return 1;
+				}
+				if (zero == 1) {
+					bench_data_phase();
+					counted_from = pos;
+					zero = 2;
+				}
 				break;
 			case EV3_UART_EV_DATA:
 				data++;
@@ -121,10 +176,15 @@ int main(int argc, char **argv)
 			}
 		}
 	}
-	printf("bytes %zu batches %lu handshakes %lu data %lu ", len, batches,
-	       handshakes, data);
-	printf("errors %lu garbage %lu checksum %lld\n", errors, p.garbage, sum);
+	printf("bytes %zu counted %zu batches %lu handshakes %lu data %lu ", len,
+	       len - counted_from, batches, handshakes, data);
+	printf("errors %lu garbage %lu bad %lu checksum %lld\n", errors, p.garbage,
+	       p.bad_frames, sum);
 	fclose(uf);
 	free(buf);
 	return 0;
+usage:
+	fprintf(stderr, "usage: %s [-b N | -r MAX] [-m MODE] [-z] STREAM UNPLUG\n",
+		argv[0]);
+	return 2;
 }

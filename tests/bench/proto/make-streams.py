@@ -11,6 +11,17 @@ Usage: tests/bench/proto/make-streams.py OUTDIR [--quick]
   --quick). OUTDIR/ev3.unplug: the offsets in the stream where the sensor
   was unplugged (one a line): the line is silent then until the host's
   keep-alive gives the sensor up.
+- The three stream shapes of issue 19, each OUTDIR/NAME.stream with an empty
+  OUTDIR/NAME.unplug (the sensor stays plugged in) and OUTDIR/NAME.json
+  (what it holds: sensor, handshake length, mode, messages, bad checksums):
+  gyro-ang: the gyro's handshake, then 100000 GYRO-ANG DATA messages
+  (mode 0, 4 bytes each; 10000 with --quick);
+  color-rgb-raw: the colour sensor's handshake, then 50000 RGB-RAW DATA
+  messages (mode 4, header 0xdc, 10 bytes each; 5000 with --quick), nine
+  in ten with the wrong checksum the real firmware sends; the host SELECTs
+  mode 4 after the handshake;
+  gyro-old-handshake: the handshake of the old (5-mode) gyro firmware, 244
+  bytes, and nothing else.
 - OUTDIR/nxt.records: a program's polling loop against
   tests/emulator/nxt_brick.py's firmware model, with its replies: 4 x
   GetInputValues, 3 x GetOutputState, SetOutputState, LSWrite,
@@ -21,7 +32,9 @@ Usage: tests/bench/proto/make-streams.py OUTDIR [--quick]
 Deterministic: the same files every time.
 """
 import importlib.util
+import json
 import os
+import random
 import sys
 
 TOP = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..', '..'))
@@ -29,6 +42,7 @@ spec = importlib.util.spec_from_file_location('make_seeds',
                                               os.path.join(TOP, 'tests', 'fuzz', 'make-seeds.py'))
 seeds = importlib.util.module_from_spec(spec)
 spec.loader.exec_module(seeds)
+sensors = seeds.ev3
 
 # Typed ioctls by their number in tests/fuzz/nxt_ioctls.h (1 + index).
 SET_OUTPUT_STATE, SET_INPUT_MODE, GET_OUTPUT_STATE, GET_INPUT_VALUES = 5, 6, 7, 8
@@ -84,7 +98,32 @@ def main():
         f.write(''.join('%d\n' % o for o in unplugged))
     with open(os.path.join(out, 'nxt.records'), 'wb') as f:
         f.write(nxt)
-    print('ev3.stream: %d bytes; nxt.records: %d bytes' % (len(ev3), len(nxt)))
+    n = 10 if quick else 1
+    rng = random.Random(19)
+    shapes = {}
+    for name, sdef, firmware, mode, count in (
+            ('gyro-ang', sensors.GYRO, 'new', 0, 100000 // n),
+            ('color-rgb-raw', sensors.COLOR, None, 4, 50000 // n),
+            ('gyro-old-handshake', sensors.GYRO_OLD, 'old', None, 0)):
+        hs = sensors.handshake(sdef)
+        data = seeds.frames(sdef, mode, count, rng) if count else b''
+        size = len(data) // count if count else 0
+        # What the stream holds, for the figures' notes (proto/run.sh).
+        info = {'sensor': sdef.driver, 'firmware': firmware, 'handshake_bytes': len(hs),
+                'mode': mode, 'mode_name': sdef.modes[mode].name if count else None,
+                'messages': count, 'message_bytes': size,
+                'bad_checksums': sum(1 for i in range(0, len(data), size or 1)
+                                     if sensors.checksum(data[i:i + size - 1]) != data[i + size - 1])}
+        shapes[name] = hs + data
+        with open(os.path.join(out, name + '.stream'), 'wb') as f:
+            f.write(hs + data)
+        open(os.path.join(out, name + '.unplug'), 'w').close()
+        with open(os.path.join(out, name + '.json'), 'w') as f:
+            json.dump(info, f, indent=1)
+            f.write('\n')
+    print('ev3.stream: %d bytes; nxt.records: %d bytes; %s' %
+          (len(ev3), len(nxt), ', '.join('%s.stream: %d bytes' % (k, len(v))
+                                          for k, v in shapes.items())))
 
 
 if __name__ == '__main__':
