@@ -22,7 +22,8 @@
  * paths are read alike. The value is the first s16 of the payload; 0xffff
  * (the emulator's keep-alive answers) is not counted. It prints "ready" once
  * its files are open, then reads until SIGUSR1 (the sender has stopped)
- * and, after that, until a whole period brings nothing on any line; then:
+ * and, after that, until two periods in a row bring no sample (but
+ * markers) on any line; then:
  *
  *   line I READ DISTINCT DUPLICATED OUT_OF_ORDER BAD
  *   jitter P50_NS P99_NS MAX_NS INTERVALS   (-m iio: |interval between
@@ -82,10 +83,13 @@ static int64_t now_ns(void)
 	return ts.tv_sec * 1000000000LL + ts.tv_nsec;
 }
 
+static unsigned long samples;
+
 static void sample(struct line *l, unsigned int v, int64_t ts)
 {
 	if (v == MARKER)
 		return;
+	samples++;
 	l->read++;
 	if (l->bitmap[v / 8] & (1U << (v % 8))) {
 		l->dup++;
@@ -168,10 +172,10 @@ static void decode(struct line *l)
 	l->pend_len = n;
 }
 
-/* Read all there is on every line; the bytes read. */
-static size_t read_all(void)
+/* Read all there is on every line; the samples read. */
+static unsigned long read_all(void)
 {
-	size_t total = 0;
+	unsigned long before = samples;
 	unsigned int i;
 
 	for (i = 0; i < nlines; i++) {
@@ -191,11 +195,10 @@ static size_t read_all(void)
 			if (!n)
 				break;
 			l->pend_len += n;
-			total += n;
 			decode(l);
 		}
 	}
-	return total;
+	return samples - before;
 }
 
 static int cmp64(const void *a, const void *b)
@@ -273,10 +276,10 @@ int main(int argc, char **argv)
 	clock_gettime(CLOCK_MONOTONIC, &next);
 	for (;;) {
 		int stop = stopping;	/* before the read: nothing is left behind */
-		size_t got = read_all();
+		unsigned long got = read_all();
 
 		if (stop) {
-			/* Two empty periods in a row: the last bytes are in. */
+			/* Two periods in a row without a sample: all are in. */
 			quiet_rounds = got ? 0 : quiet_rounds + 1;
 			if (quiet_rounds >= 2)
 				break;

@@ -3,12 +3,16 @@
 Usage (in the VM, from the checkout; see Documentation/lego/benchmarks.rst):
 
   tests/vm-run --share DIR -- python3 tests/bench/guest/ev3_bench.py --out DIR [--quick]
+      [--only samples] [--seconds S] [--runs N]
 
 Writes DIR/ev3.json ({"section", "figures", "notes"}, see the benchmark
 results interface) and prints each figure next to its reference. The
 sensors are played by tests/bench/ev3/ev3_stream (a small C program, built
 on the host by `make -C tests/bench/ev3`, else here into /tmp) on the far
-ends of lego_nullmodem lines, which pace bytes at the writer's baud rate.
+ends of lego_nullmodem lines, which pace bytes at the writer's baud rate;
+their sample streams come from the null modem's own generator (gen_hz),
+and tests/bench/ev3/ev3_read reads them, from IIO or, for the userspace
+reference, from N_TTY.
 Exits 1 on an error (a sensor that never connects, a missing tool), not on a
 missed target.
 """
@@ -42,7 +46,6 @@ STREAM_ACK_MS = 1000
 IIO_DEVICES = '/sys/bus/iio/devices/iio:device*'
 GROUP = 4                   # sensors connected together (one ev3_stream each)
 SETTLE_S = 2.0              # all connected sensors must still be there this long after
-TAIL_S = 1.5                # read this long after the senders' schedules end
 SELECT_DELAY_MS = 15.0      # the gyro's reply delay (research: 10-15 ms)
 NM_PARAMS = '/sys/module/lego_nullmodem/parameters/'
 RATE = 1000                 # messages a second per sensor, from the null modem's generator
@@ -60,13 +63,17 @@ SAMPLES_NOTE = (
     'buffers); (2) the userspace reference: the same bytes on N_TTY (raw), read and decoded '
     '(header, payload, checksum) by ev3_read -m tty. The same C program reads both, waking every '
     '%(period)g ms and reading all lines. Lost = sent (the generator\'s count) - distinct '
-    'values read. CPU per sample = busy guest CPU over the run (/proc/stat: user, nice, system, '
-    'irq, softirq, steal; USER_HZ ticks) - the generator running alone on the same lines with '
-    'none open (its timer, the sender\'s cost) - the emulated sensors\' own CPU, over the '
-    'distinct samples read. It thus holds, for both paths alike, the tty core\'s flip buffer '
-    'work (what a real UART driver costs too), and for (1) the discipline, IIO and the '
-    'keep-alives, for (2) N_TTY; plus the reader process (user + system, its getrusage(), '
-    'also given apart). Under TCG: compare the two paths within a run, not with hardware.')
+    'values read. CPU per sample = the CPU time of every task over the run (the scheduler\'s '
+    'se.sum_exec_runtime, exact, where /proc/stat is sampled at the periodic tick, in a '
+    'fixed phase with the 1 ms schedule) but the bench\'s own and the emulated sensors\' '
+    '(ev3_stream reading keep-alives), less the same with the generator running alone on the '
+    'same lines and none open (the sender\'s cost), over the distinct samples read. Interrupts '
+    'and softirqs are charged to the task they interrupt, so what runs in them while the CPU '
+    'is idle (the generator\'s timer, mostly) is not counted. It thus holds, for both paths '
+    'alike, the tty core\'s flip buffer work in its kworker (what a real UART driver costs '
+    'too); for (1) the discipline, IIO and the keep-alives, for (2) N_TTY; plus the reader '
+    'process (user + system, its getrusage(): exact too, also given apart). '
+    'Under TCG: compare the two paths within a run, not with hardware.')
 
 
 class BenchError(Exception):
@@ -290,20 +297,31 @@ def nm_param(name, value=None):
     return None
 
 
-def cpu_busy():
-    """Busy CPU time of the guest so far (USER_HZ ticks, /proc/stat)."""
-    with open('/proc/stat') as f:
-        w = [int(x) for x in f.readline().split()[1:9]]
-    # user nice system idle iowait irq softirq steal: all but idle and iowait
-    return w[0] + w[1] + w[2] + w[5] + w[6] + w[7]
+def task_runtimes():
+    """{(pid, tid): CPU time in s} of every task (se.sum_exec_runtime, /proc/PID/task/TID/sched).
+
+    The scheduler's own clock, exact to the ns, where /proc/stat and the
+    processes' utime/stime are sampled at the tick (periodic here): the
+    generator's 1 ms schedule keeps a fixed phase with that tick, and its
+    work would be seen or missed all together.
+    """
+    out = {}
+    for path in glob.glob('/proc/[0-9]*/task/[0-9]*/sched'):
+        w = path.split('/')
+        try:
+            with open(path) as f:
+                for ln in f:
+                    if ln.startswith('se.sum_exec_runtime'):
+                        out[(int(w[2]), int(w[4]))] = float(ln.split(':')[1]) / 1e3
+                        break
+        except (OSError, ValueError):
+            pass        # gone meanwhile
+    return out
 
 
-def proc_ticks(pid):
-    """A process's user + system time so far (USER_HZ ticks, /proc/PID/stat)."""
-    with open('/proc/%d/stat' % pid) as f:
-        # comm may hold spaces: fields after the ')' start at state (field 3).
-        w = f.read().rsplit(')', 1)[1].split()
-    return int(w[11]) + int(w[12])
+def runtime_delta(a, b, exclude):
+    """CPU time (s) of the tasks of b since a, those of processes in `exclude` left out."""
+    return sum(t - a.get(k, 0.0) for k, t in b.items() if k[0] not in exclude)
 
 
 def iio_count():
@@ -387,22 +405,34 @@ def parse_reader(out):
     return res
 
 
+def signal_all(procs, sig):
+    for p, _ in procs:
+        p.send_signal(sig)
+
+
 def generate(nsensors, seconds, reader=None, senders=()):
     """The generator on lines 0..nsensors-1 for `seconds`, then the reader's tail.
 
-    Returns the generator's counters, the reader's report and the busy CPU
-    of the window (seconds) less the senders' own (ev3_stream reading
-    keep-alives), with the window's length.
+    The senders (ev3_stream -g -q -k) stop answering keep-alives just before
+    the generator starts and answer them again as soon as it has stopped:
+    the discipline drops a sensor that sent nothing for 700 ms.
+
+    Returns the generator's counters, the reader's report, the CPU time of
+    every task over the window but the bench's own, the senders' (ev3_stream
+    reading keep-alives) and the reader's (in its report), and the window's
+    length.
     """
-    hz = os.sysconf('SC_CLK_TCK')
     nm_param('gen_lines', (1 << nsensors) - 1)
     nm_param('gen_payload', STREAM_PAYLOAD)
-    pids = [p.pid for p, _ in senders]
-    own0 = sum(map(proc_ticks, pids))
-    b0, t0 = cpu_busy(), time.monotonic()
+    exclude = {os.getpid()} | {p.pid for p, _ in senders} | ({reader.pid} if reader else set())
+    r0, t0 = task_runtimes(), time.monotonic()
+    signal_all(senders, signal.SIGUSR1)
+    if senders:
+        time.sleep(0.05)    # a keep-alive answer on its way is in
     nm_param('gen_hz', RATE)
     time.sleep(seconds)
     nm_param('gen_hz', 0)
+    signal_all(senders, signal.SIGUSR2)
     gen = {'sent': [int(x) for x in nm_param('gen_sent').split(',')][:nsensors],
            'dropped': sum(int(x) for x in nm_param('gen_dropped').split(',')),
            'span': int(nm_param('gen_span_ns')) / 1e9,
@@ -415,9 +445,8 @@ def generate(nsensors, seconds, reader=None, senders=()):
         if reader.returncode:
             raise BenchError('ev3_read failed: %s' % err.strip())
         rep = parse_reader(out)
-    b1, t1 = cpu_busy(), time.monotonic()
-    own = sum(map(proc_ticks, pids)) - own0
-    return gen, rep, (b1 - b0 - own) / hz, t1 - t0
+    r1, t1 = task_runtimes(), time.monotonic()
+    return gen, rep, runtime_delta(r0, r1, exclude), t1 - t0
 
 
 def sample_run(binary, reader, work, nsensors, seconds, path, base_rate):
@@ -429,7 +458,7 @@ def sample_run(binary, reader, work, nsensors, seconds, path, base_rate):
             # Connected, the sensors answer NACKs (value 0xffff) until
             # SIGUSR1; then they are quiet (-q) while the generator sends,
             # and answer NACKs again after SIGUSR2 (-k), so that every
-            # sensor is still there when its buffer is disabled.
+            # sensor is still there when its buffer is disabled (generate()).
             procs = connect(binary, work, nsensors, '-r', 0, '-g', '-q', '-k',
                             '-d', seconds + 120, '-n', 20, '-t', STREAM_ACK_MS)
             by_line = {}
@@ -446,9 +475,6 @@ def sample_run(binary, reader, work, nsensors, seconds, path, base_rate):
             devs = [by_line[i] for i in range(nsensors)]
             files = ['/dev/iio:device' + d.rsplit('iio:device', 1)[1] for d in devs]
             rd = start_reader(reader, 'iio', files)
-            for p, _ in procs:
-                p.send_signal(signal.SIGUSR1)
-            time.sleep(0.05)    # a keep-alive answer on its way is in
         else:
             rd = start_reader(reader, 'tty', ['/dev/ttyNM%d' % (2 * p) for p in range(nsensors)])
         try:
@@ -457,8 +483,6 @@ def sample_run(binary, reader, work, nsensors, seconds, path, base_rate):
             if rd.poll() is None:
                 rd.kill()
                 rd.wait()
-        for p, _ in procs:
-            p.send_signal(signal.SIGUSR2)
         for d in devs:
             ev3.write_attr(d, 'buffer/enable', '0')
         for p, _ in procs:
@@ -476,7 +500,7 @@ def sample_run(binary, reader, work, nsensors, seconds, path, base_rate):
         raise BenchError('a line sent %d values: the s16 counter wrapped' % max(gen['sent']))
     lines = [rep['line'][i] for i in range(nsensors)]
     distinct = sum(ln['distinct'] for ln in lines)
-    kernel = busy - base_rate * span - rep['cpu']
+    kernel = busy - base_rate * span
     return {'path': path, 'n': nsensors, 'sent': sent, 'distinct': distinct,
             'lost': sent - distinct, 'dup': sum(ln['dup'] for ln in lines),
             'reordered': sum(ln['reordered'] for ln in lines),
@@ -484,7 +508,7 @@ def sample_run(binary, reader, work, nsensors, seconds, path, base_rate):
             'rates': [x / gen['span'] for x in gen['sent']], 'late': gen['late'],
             'burst': gen['burst'], 'gen_cpu': gen['cpu'], 'jitter': rep['jitter'],
             'busy': busy, 'span': span, 'base_rate': base_rate,
-            'per_sample': (busy - base_rate * span) / max(distinct, 1) * 1e6,
+            'per_sample': (kernel + rep['cpu']) / max(distinct, 1) * 1e6,
             'reader': rep['cpu'] / max(distinct, 1) * 1e6,
             'kernel': kernel / max(distinct, 1) * 1e6, 'stopped': stopped}
 
@@ -560,11 +584,10 @@ def sample_figures(n, runs):
                'below the reference in every run', lead,
                'median of %d runs; driver path %s us (of which the reader process, user + '
                'system: %s us; the rest, kernel: %s us), reference %s us (of which the reader: '
-               '%s us; the rest, kernel: %s us). Busy guest CPU over each run (/proc/stat, all '
-               'but idle and iowait), less the generator alone on the same lines with none open '
-               '(%s %% of one CPU; its timer function alone: %.2f us a message) and less the '
-               'emulated sensors\' own CPU (ev3_stream reading keep-alives), divided by the '
-               'distinct samples read'
+               '%s us; the rest, kernel: %s us). CPU time of every task over each run '
+               '(se.sum_exec_runtime) but the bench\'s and the emulated sensors\', less the '
+               'generator alone on the same lines with none open (%s %% of one CPU; its timer '
+               'function alone: %.2f us a message), divided by the distinct samples read'
                % (len(runs), spread(drv), spread([r['reader'] for r in iio]),
                   spread([r['kernel'] for r in iio]), spread(ref),
                   spread([r['reader'] for r in tty]), spread([r['kernel'] for r in tty]),
