@@ -24,9 +24,11 @@
  *    first DATA message of the new mode;
  *  - with -g, only answers NACKs (value 0xffff, not counted) until it gets
  *    SIGUSR1, then starts the -d SECONDS of its schedule;
- *  - with -q, sends nothing during its schedule (it still reads the host's
- *    NACKs): the DATA messages come from elsewhere, the null modem's
- *    generator (gen_hz), and must not be interleaved with its own;
+ *  - with -q, sends nothing during its schedule: the DATA messages come
+ *    from elsewhere, the null modem's generator (gen_hz), and must not be
+ *    interleaved with its own; nor does it expect NACKs then (the generator
+ *    takes the host's bytes), its one-second watchdog starting again when
+ *    the schedule ends;
  *  - ends its schedule early on SIGUSR2;
  *  - with -k, answers NACKs only again (value 0xffff, not counted) once
  *    its schedule is over, so that the host can stop reading while the
@@ -450,6 +452,8 @@ int main(int argc, char **argv)
 
 			if (!l->live)
 				continue;
+			if (quiet && go)
+				l->last_nack = t;	/* -q: no NACKs now */
 			if (t - l->last_nack > WATCHDOG_NS) {
 				l->live = 0;
 				l->stopped = "watchdog";

@@ -51,31 +51,34 @@ NM_PARAMS = '/sys/module/lego_nullmodem/parameters/'
 RATE = 1000                 # messages a second per sensor, from the null modem's generator
 READ_PERIOD_MS = 10         # ev3_read wakes this often and reads every line
 SAMPLES_NOTE = (
-    'Sample delivery: lego_nullmodem\'s generator (gen_hz, test-only) puts one 4-byte GYRO-ANG '
-    'DATA message with a counting s16 value into each line every 1/%(rate)d s from one hrtimer '
-    'on an absolute schedule (a late tick sends what was due since), straight into the '
-    'receiving tty\'s buffer as a UART driver would, so the rate is exact whatever the guest '
-    'is doing and is measured by the module\'s own counters (sent per line / time from start '
-    'to stop). Each run: %(seconds)g s; %(runs)d runs of each path, each round after a run of '
-    'the generator alone, the two paths taking turns to go first (after one short run of the '
-    'reference, not counted, that starts the workqueue threads the tty layer needs). Paths: '
-    '(1) lego_ev3_uart: the gyros connect first (ev3_stream handshakes, in groups of 4, and '
-    'waits %(ack)d ms for the host\'s ACK instead of the real 80 ms; during the stream it only '
-    'reads the keep-alives, -q), and ev3_read -m iio reads every /dev/iio:deviceN (16384-scan '
-    'buffers); (2) the userspace reference: the same bytes on N_TTY (raw), read and decoded '
-    '(header, payload, checksum) by ev3_read -m tty. The same C program reads both, waking every '
-    '%(period)g ms and reading all lines. Lost = sent (the generator\'s count) - distinct '
-    'values read. CPU per sample = the CPU time of every task over the run (the scheduler\'s '
-    'se.sum_exec_runtime, exact, where /proc/stat is sampled at the periodic tick, in a '
-    'fixed phase with the 1 ms schedule) but the bench\'s own and the emulated sensors\' '
-    '(ev3_stream reading keep-alives), less the same with the generator running alone on the '
-    'same lines and none open (the sender\'s cost), over the distinct samples read. Interrupts '
-    'and softirqs are charged to the task they interrupt, so what runs in them while the CPU '
-    'is idle (the generator\'s timer, mostly) is not counted. It thus holds, for both paths '
-    'alike, the tty core\'s flip buffer work in its kworker (what a real UART driver costs '
-    'too); for (1) the discipline, IIO and the keep-alives, for (2) N_TTY; plus the reader '
-    'process (user + system, its getrusage(): exact too, also given apart). '
-    'Under TCG: compare the two paths within a run, not with hardware.')
+    "Sample delivery: lego_nullmodem's generator (gen_hz, test-only) puts one 4-byte GYRO-ANG"
+    ' DATA message with a counting s16 value into each line every 1/%(rate)d s from one '
+    'hrtimer on an absolute schedule (a late tick sends what was due since), straight into '
+    "the receiving tty's buffer as a UART driver would, so the rate is exact whatever the "
+    "guest is doing and is measured by the module's own counters (sent per line / time from "
+    'start to stop). Each run: %(seconds)g s; %(runs)d runs of each path, each round after a '
+    'run of the generator alone, the two paths taking turns to go first (after one short run '
+    'of the reference, not counted, that starts the workqueue threads the tty layer needs). '
+    'Paths: (1) lego_ev3_uart: the gyros connect first (ev3_stream handshakes, in groups of '
+    "4, and waits %(ack)d ms for the host's ACK instead of the real 80 ms; it is quiet during"
+    " the stream, -q, and the null modem takes the discipline's keep-alives at once, as a "
+    "wire would, without passing them on: the sensor's side costs nothing), and ev3_read -m "
+    'iio reads every /dev/iio:deviceN (16384-scan buffers); (2) the userspace reference: the '
+    'same bytes on N_TTY (raw), read and decoded (header, payload, checksum) by ev3_read -m '
+    'tty. The same C program reads both, waking every %(period)g ms and reading all lines. '
+    "Lost = sent (the generator's count) - distinct values read. CPU per sample = the CPU "
+    "time of every task over the run (the scheduler's se.sum_exec_runtime, exact, where "
+    '/proc/stat is sampled at the periodic tick, in a fixed phase with the 1 ms schedule) but'
+    " the bench's own and the emulated sensors' (ev3_stream, asleep during the stream), less "
+    "the same with the generator running alone on the same lines and none open (the sender's "
+    'cost), over the distinct samples read. Interrupts and softirqs are charged to the task '
+    "they interrupt, so what runs in them while the CPU is idle (the generator's timer, "
+    "mostly) is not counted. It thus holds, for both paths alike, the tty core's flip buffer "
+    'work in its kworker (what a real UART driver costs too); for (1) the discipline, IIO and'
+    ' sending the keep-alives (which the reference, unlike a real userspace driver, does not '
+    'send), for (2) N_TTY; plus the reader process (user + system, its getrusage(): exact '
+    'too, also given apart). Under TCG: compare the two paths within a run, not with '
+    'hardware.')
 
 
 class BenchError(Exception):
@@ -437,6 +440,7 @@ def generate(nsensors, seconds, reader=None, senders=()):
     signal_all(senders, signal.SIGUSR2)
     gen = {'sent': [int(x) for x in nm_param('gen_sent').split(',')][:nsensors],
            'dropped': sum(int(x) for x in nm_param('gen_dropped').split(',')),
+           'tx': sum(int(x) for x in nm_param('gen_tx').split(',')),
            'span': int(nm_param('gen_span_ns')) / 1e9,
            'cpu': int(nm_param('gen_cpu_ns')) / 1e9,
            'late': int(nm_param('gen_late')), 'burst': int(nm_param('gen_max_burst'))}
@@ -506,7 +510,7 @@ def sample_run(binary, reader, work, nsensors, seconds, path, base_rate):
     return {'path': path, 'n': nsensors, 'sent': sent, 'distinct': distinct,
             'lost': sent - distinct, 'dup': sum(ln['dup'] for ln in lines),
             'reordered': sum(ln['reordered'] for ln in lines),
-            'bad': sum(ln['bad'] for ln in lines), 'dropped': gen['dropped'],
+            'bad': sum(ln['bad'] for ln in lines), 'dropped': gen['dropped'], 'tx': gen['tx'],
             'rates': [x / gen['span'] for x in gen['sent']], 'late': gen['late'],
             'burst': gen['burst'], 'gen_cpu': gen['cpu'], 'jitter': rep['jitter'],
             'busy': busy, 'span': span, 'base_rate': base_rate,
@@ -570,9 +574,11 @@ def sample_figures(n, runs):
         figure('%s: samples lost (lego_ev3_uart, IIO)' % label, lost_i, 'samples',
                'samples sent by the generator', sent_i, '0 lost', lost_i == 0,
                '%d runs: %d sent, %d distinct read from the IIO buffers, %d duplicated, %d out '
-               'of order, %d refused by the tty buffer%s'
+               'of order, %d refused by the tty buffer; the discipline wrote %d bytes '
+               '(keep-alives) meanwhile%s'
                % (len(runs), sent_i, sum(r['distinct'] for r in iio), sum(r['dup'] for r in iio),
                   sum(r['reordered'] for r in iio), sum(r['dropped'] for r in iio),
+                  sum(r['tx'] for r in iio),
                   '; lines stopped: ' + ', '.join(stopped) if stopped else '')),
         figure('%s: samples lost (reference: N_TTY, decoded in userspace)' % label, lost_t,
                'samples', 'samples sent by the generator', sent_t, '0 lost', lost_t == 0,
