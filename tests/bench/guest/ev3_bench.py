@@ -557,8 +557,9 @@ def sample_figures(n, runs):
     # A lead is claimed only beyond the run-to-run spread of either path.
     spread_max = max(max(drv) - min(drv), max(ref) - min(ref))
     gap = statistics.median(ref) - statistics.median(drv)
-    lead = max(drv) < min(ref) and gap > spread_max
-    behind = min(drv) > max(ref) and -gap > spread_max
+    several = len(runs) > 1     # one run has no spread to measure a lead against
+    lead = several and max(drv) < min(ref) and gap > spread_max
+    behind = several and min(drv) > max(ref) and -gap > spread_max
     sent_i = sum(r['sent'] for r in iio)
     lost_i = sum(r['lost'] for r in iio)
     sent_t = sum(r['sent'] for r in tty)
@@ -622,6 +623,9 @@ def sample_figures(n, runs):
         verdict = ('the userspace reference used less CPU per sample than the line discipline in '
                    'every run, by %.1f us (medians), more than the spread of either (%.1f us)'
                    % (-gap, spread_max))
+    elif not several:
+        verdict = ('%.1f us (driver) and %.1f us (reference): one run gives no run-to-run spread, '
+                   'so no lead is claimed' % (drv[0], ref[0]))
     else:
         verdict = ('medians %.1f us (driver) and %.1f us (reference), %.1f us apart, within the '
                    'run-to-run spread (driver %.1f to %.1f us, reference %.1f to %.1f us): no lead '
