@@ -551,7 +551,7 @@ def sample_figures(n, runs):
     base = [r[0] for r in runs]
     rates = [x for r in iio + tty for x in r['rates']]
     reached = min(rates)
-    label = '%d sensors at %.0f messages/s each' % (n, reached)
+    label = '%d sensors at %.1f messages/s each (lowest measured)' % (n, reached)
     drv = [r['per_sample'] for r in iio]
     ref = [r['per_sample'] for r in tty]
     # A lead is claimed only beyond the run-to-run spread of either path.
