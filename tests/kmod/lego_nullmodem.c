@@ -22,10 +22,35 @@
  *    time the discipline's ACK against the sensor's on the line itself,
  *    whatever the emulator's thread was doing.
  *
+ * And a sensor stream generator for the sample-delivery benchmark
+ * (tests/bench/guest/ev3_bench.py), so that the sender's rate is exact and
+ * costs one timer rather than a userspace program writing every line:
+ *  - gen_lines (a bitmask of pairs) and gen_payload (bytes, a power of two
+ *    up to 32) choose the lines and the message; writing gen_hz > 0 starts
+ *    the generator (its counters reset), writing 0 stops it;
+ *  - while it runs, one hrtimer on an absolute schedule puts one EV3 DATA
+ *    message (mode 0, a counting s16 value 0, 1, 2... in its first two
+ *    payload bytes, then the checksum) every 1/gen_hz s straight into the
+ *    receive buffer of ttyNM(2n) for each pair n in gen_lines, as a sensor
+ *    on ttyNM(2n+1) would send it, without the pacing (the message is 4
+ *    bytes at 57600 baud: 694 us of a 1000 us period). A late tick sends
+ *    the messages that were due since, at most GEN_MAX_BURST at once;
+ *  - gen_sent (per pair) counts the messages sent, whether or not the line
+ *    is open, gen_dropped those the tty buffer refused (a UART overrun),
+ *    gen_span_ns the time from start to stop, gen_late the ticks that sent
+ *    more than one message a line, gen_max_burst the most, and gen_cpu_ns
+ *    the time spent in the timer function.
+ * The line's own writer (ttyNM(2n+1)) must stay quiet meanwhile: its paced
+ * bytes would interleave with the generated messages. What the host writes
+ * on ttyNM(2n) meanwhile (the line discipline's keep-alives) is taken at
+ * once and counted in gen_tx, not paced nor passed on: the sensor's side of
+ * the benchmark then costs nothing but the generator's timer.
+ *
  * Not meant for anything but tests.
  */
 #include <linux/hrtimer.h>
 #include <linux/kfifo.h>
+#include <linux/log2.h>
 #include <linux/module.h>
 #include <linux/slab.h>
 #include <linux/spinlock.h>
@@ -37,6 +62,9 @@
 
 #define NM_FIFO_SIZE	4096
 #define NM_TICK_NS	(500 * NSEC_PER_USEC)
+#define NM_MAX_PAIRS	16
+#define GEN_MAX_BURST	64
+#define GEN_MAX_HZ	100000
 
 static unsigned int pairs = 4;
 module_param(pairs, uint, 0444);
@@ -50,6 +78,67 @@ static unsigned long long ack_ns[32];
 module_param_array(ack_ns, ullong, NULL, 0444);
 MODULE_PARM_DESC(ack_ns,
 		 "per port: ktime_get_ns() when its last 2400-baud burst ending in 0x04 was sent");
+
+static unsigned int gen_lines;
+module_param(gen_lines, uint, 0644);
+MODULE_PARM_DESC(gen_lines, "generator: bitmask of the pairs whose even port receives a stream");
+
+static unsigned int gen_payload = 2;
+module_param(gen_payload, uint, 0644);
+MODULE_PARM_DESC(gen_payload, "generator: payload bytes of each DATA message (1, 2, 4 ... 32)");
+
+static unsigned long gen_sent[NM_MAX_PAIRS];
+module_param_array(gen_sent, ulong, NULL, 0444);
+MODULE_PARM_DESC(gen_sent, "generator: messages sent per pair since the last start");
+
+static unsigned long gen_dropped[NM_MAX_PAIRS];
+module_param_array(gen_dropped, ulong, NULL, 0444);
+MODULE_PARM_DESC(gen_dropped, "generator: messages per pair the tty buffer had no room for");
+
+static unsigned long long gen_span_ns;
+module_param(gen_span_ns, ullong, 0444);
+MODULE_PARM_DESC(gen_span_ns, "generator: ns from the last start to the last stop");
+
+static unsigned long long gen_cpu_ns;
+module_param(gen_cpu_ns, ullong, 0444);
+MODULE_PARM_DESC(gen_cpu_ns, "generator: ns spent in its timer function since the last start");
+
+static unsigned long gen_tx[NM_MAX_PAIRS];
+module_param_array(gen_tx, ulong, NULL, 0444);
+MODULE_PARM_DESC(gen_tx, "generator: bytes per pair the host wrote, taken at once, since the last start");
+
+static unsigned long gen_late;
+module_param(gen_late, ulong, 0444);
+MODULE_PARM_DESC(gen_late, "generator: ticks that sent more than one message a line");
+
+static unsigned int gen_max_burst;
+module_param(gen_max_burst, uint, 0444);
+MODULE_PARM_DESC(gen_max_burst, "generator: most messages a line sent in one tick");
+
+/**
+ * struct nm_gen - the stream generator (see the top of the file)
+ * @timer: its tick, on an absolute schedule
+ * @start: when it was started
+ * @period_ns: 1/gen_hz
+ * @due: messages sent per line so far
+ * @lines: gen_lines when it was started
+ * @payload: gen_payload when it was started
+ * @running: started (read by nm_write())
+ * @seq: the next value of each pair
+ */
+struct nm_gen {
+	struct hrtimer timer;
+	ktime_t start;
+	u64 period_ns;
+	u64 due;
+	unsigned int lines;
+	unsigned int payload;
+	bool running;
+	u16 seq[NM_MAX_PAIRS];
+};
+
+static unsigned int gen_hz;
+static struct nm_gen nm_gen;
 
 /**
  * struct nm_port - one end of a cable
@@ -157,6 +246,114 @@ static enum hrtimer_restart nm_tick(struct hrtimer *timer)
 	return HRTIMER_RESTART;
 }
 
+/* One DATA message: header, @payload bytes (@v in the first two), checksum. */
+static unsigned int nm_gen_msg(u8 *msg, unsigned int payload, u16 v)
+{
+	unsigned int i;
+	u8 sum = 0xff;
+
+	memset(msg, 0, payload + 2);
+	msg[0] = 0xc0 | ilog2(payload) << 3;	/* DATA, mode 0 */
+	msg[1] = v & 0xff;
+	if (payload > 1)
+		msg[2] = v >> 8;
+	for (i = 0; i <= payload; i++)
+		sum ^= msg[i];
+	msg[payload + 1] = sum;
+	return payload + 2;
+}
+
+static enum hrtimer_restart nm_gen_tick(struct hrtimer *timer)
+{
+	struct nm_gen *g = container_of(timer, struct nm_gen, timer);
+	u64 t0 = ktime_get_ns();
+	u64 due = div64_u64(t0 - ktime_to_ns(g->start), g->period_ns);
+	unsigned int burst, pair, k, len, room;
+	u8 msg[2 + 32];
+
+	burst = min_t(u64, due - g->due, GEN_MAX_BURST);
+	g->due += burst;
+	if (burst > 1)
+		gen_late++;
+	gen_max_burst = max(gen_max_burst, burst);
+	for (pair = 0; burst && pair < pairs; pair++) {
+		struct tty_port *port = &nm_ports[2 * pair].port;
+		struct tty_struct *tty;
+
+		if (!(g->lines & BIT(pair)))
+			continue;
+		tty = tty_port_tty_get(port);
+		for (k = 0; k < burst; k++) {
+			len = nm_gen_msg(msg, g->payload, g->seq[pair]++);
+			gen_sent[pair]++;
+			/* Nobody listening: the message is lost on the wire. */
+			if (!tty)
+				continue;
+			room = tty_insert_flip_string(port, msg, len);
+			if (room < len)
+				gen_dropped[pair]++;
+		}
+		if (tty) {
+			tty_flip_buffer_push(port);
+			tty_kref_put(tty);
+		}
+	}
+	gen_cpu_ns += ktime_get_ns() - t0;
+	/* Due one period after the last one sent (at once when behind). */
+	hrtimer_set_expires(timer, ktime_add_ns(g->start, (g->due + 1) * g->period_ns));
+	return HRTIMER_RESTART;
+}
+
+static int nm_gen_set(const char *val, const struct kernel_param *kp)
+{
+	struct nm_gen *g = &nm_gen;
+	unsigned int hz;
+	int ret;
+
+	ret = kstrtouint(val, 0, &hz);
+	if (ret)
+		return ret;
+	if (hz > GEN_MAX_HZ)
+		return -EINVAL;
+	if (!nm_ports)		/* at load time: only "off" */
+		return hz ? -EINVAL : 0;
+	if (hz && (!gen_payload || gen_payload > 32 || !is_power_of_2(gen_payload)))
+		return -EINVAL;
+	/* Writes to a parameter are serialised (kernel_param_lock). */
+	if (gen_hz) {
+		WRITE_ONCE(g->running, false);
+		hrtimer_cancel(&g->timer);
+		gen_span_ns = ktime_get_ns() - ktime_to_ns(g->start);
+	}
+	gen_hz = hz;
+	if (!hz)
+		return 0;
+	memset(gen_sent, 0, sizeof(gen_sent));
+	memset(gen_dropped, 0, sizeof(gen_dropped));
+	memset(gen_tx, 0, sizeof(gen_tx));
+	memset(g->seq, 0, sizeof(g->seq));
+	gen_span_ns = 0;
+	gen_cpu_ns = 0;
+	gen_late = 0;
+	gen_max_burst = 0;
+	g->lines = READ_ONCE(gen_lines) & (BIT(pairs) - 1);
+	g->payload = READ_ONCE(gen_payload);
+	g->period_ns = div_u64(NSEC_PER_SEC, hz);
+	g->due = 0;
+	g->start = ktime_get();
+	hrtimer_start(&g->timer, ktime_add_ns(g->start, g->period_ns), HRTIMER_MODE_ABS_SOFT);
+	/* nm_write() takes the host's bytes from now on. */
+	smp_store_release(&g->running, true);
+	return 0;
+}
+
+static const struct kernel_param_ops nm_gen_ops = {
+	.set = nm_gen_set,
+	.get = param_get_uint,
+};
+module_param_cb(gen_hz, &nm_gen_ops, &gen_hz, 0644);
+MODULE_PARM_DESC(gen_hz, "generator: DATA messages a second per line, 0: stopped (default)");
+
 static int nm_install(struct tty_driver *driver, struct tty_struct *tty)
 {
 	return tty_port_install(&nm_ports[tty->index].port, driver, tty);
@@ -176,8 +373,18 @@ static LEGO_TTY_WRITE_RET nm_write(struct tty_struct *tty, const u8 *buf,
 				   LEGO_TTY_COUNT count)
 {
 	struct nm_port *p = &nm_ports[tty->index];
+	unsigned int pair = tty->index / 2;
 	unsigned long flags;
 	unsigned int n;
+
+	/* The host's side of a generated line: taken at once (see the top). */
+	if (!(tty->index & 1) && smp_load_acquire(&nm_gen.running) &&
+	    (READ_ONCE(nm_gen.lines) & BIT(pair))) {
+		spin_lock_irqsave(&p->lock, flags);
+		gen_tx[pair] += count;
+		spin_unlock_irqrestore(&p->lock, flags);
+		return count;
+	}
 
 	spin_lock_irqsave(&p->lock, flags);
 	if (READ_ONCE(fifo_room))
@@ -261,7 +468,7 @@ static int __init nm_init(void)
 	unsigned int i, n;
 	int ret;
 
-	if (!pairs || pairs > 16)
+	if (!pairs || pairs > NM_MAX_PAIRS)
 		return -EINVAL;
 	n = 2 * pairs;
 	nm_ports = kcalloc(n, sizeof(*nm_ports), GFP_KERNEL);
@@ -298,6 +505,7 @@ static int __init nm_init(void)
 		tty_port_link_device(&p->port, nm_driver, i);
 	}
 
+	hrtimer_setup(&nm_gen.timer, nm_gen_tick, CLOCK_MONOTONIC, HRTIMER_MODE_ABS_SOFT);
 	ret = tty_register_driver(nm_driver);
 	if (ret)
 		goto put_driver;
@@ -317,6 +525,7 @@ static void __exit nm_exit(void)
 {
 	unsigned int i;
 
+	hrtimer_cancel(&nm_gen.timer);
 	tty_unregister_driver(nm_driver);
 	for (i = 0; i < 2 * pairs; i++) {
 		hrtimer_cancel(&nm_ports[i].timer);

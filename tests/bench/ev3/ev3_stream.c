@@ -3,7 +3,7 @@
  * ev3_stream - play EV3 UART sensors on the far ends of tty lines, fast.
  *
  *   ev3_stream -H HANDSHAKE [-s BAUD] [-p BYTES] [-r HZ] [-d SECONDS]
- *              [-D MS] [-c] [-g] [-k] [-t MS] [-n TRIES] TTY...
+ *              [-D MS] [-c] [-g] [-k] [-q] [-t MS] [-n TRIES] TTY...
  *
  * A benchmark aid for tests/bench/guest/ev3_bench.py (the Python emulator
  * cannot send thousands of messages a second inside the TCG test VM). Per
@@ -24,6 +24,11 @@
  *    first DATA message of the new mode;
  *  - with -g, only answers NACKs (value 0xffff, not counted) until it gets
  *    SIGUSR1, then starts the -d SECONDS of its schedule;
+ *  - with -q, sends nothing during its schedule: the DATA messages come
+ *    from elsewhere, the null modem's generator (gen_hz), and must not be
+ *    interleaved with its own; nor does it expect NACKs then (the generator
+ *    takes the host's bytes), its one-second watchdog starting again when
+ *    the schedule ends;
  *  - ends its schedule early on SIGUSR2;
  *  - with -k, answers NACKs only again (value 0xffff, not counted) once
  *    its schedule is over, so that the host can stop reading while the
@@ -84,6 +89,7 @@ static struct line lines[MAX_LINES];
 static unsigned int nlines;
 static unsigned int payload = 2;
 static int constant;
+static int quiet;
 static volatile sig_atomic_t go = 1;
 
 static volatile sig_atomic_t stop;
@@ -174,6 +180,8 @@ static void send_data(struct line *l, int64_t t)
 	unsigned int i;
 	unsigned char sum = 0xff;
 
+	if (quiet && go)
+		return;		/* -q: the generator sends */
 	memset(msg, 0, sizeof(msg));
 	msg[0] = 0xc0 | size_code(payload) << 3 | (l->mode & 7);
 	msg[1] = v & 0xff;
@@ -321,7 +329,7 @@ static int handshake(const unsigned char *hs, size_t hs_len, int64_t ack_wait,
 static void usage(void)
 {
 	fprintf(stderr, "Usage: ev3_stream -H HANDSHAKE [-s BAUD] [-p BYTES] [-r HZ] [-d SECONDS]\n"
-		"                  [-D MS] [-c] [-g] [-k] [-t MS] [-n TRIES] TTY...\n");
+		"                  [-D MS] [-c] [-g] [-k] [-q] [-t MS] [-n TRIES] TTY...\n");
 	exit(2);
 }
 
@@ -341,7 +349,7 @@ int main(int argc, char **argv)
 	FILE *f;
 	int opt;
 
-	while ((opt = getopt(argc, argv, "H:s:p:r:d:D:cgkt:n:")) != -1) {
+	while ((opt = getopt(argc, argv, "H:s:p:r:d:D:cgkqt:n:")) != -1) {
 		switch (opt) {
 		case 'H':
 			hs_path = optarg;
@@ -369,6 +377,9 @@ int main(int argc, char **argv)
 			break;
 		case 'k':
 			linger = 1;
+			break;
+		case 'q':
+			quiet = 1;
 			break;
 		case 't':
 			ack_ms = atof(optarg);
@@ -441,6 +452,8 @@ int main(int argc, char **argv)
 
 			if (!l->live)
 				continue;
+			if (quiet && go)
+				l->last_nack = t;	/* -q: no NACKs now */
 			if (t - l->last_nack > WATCHDOG_NS) {
 				l->live = 0;
 				l->stopped = "watchdog";

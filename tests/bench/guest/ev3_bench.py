@@ -3,12 +3,16 @@
 Usage (in the VM, from the checkout; see Documentation/lego/benchmarks.rst):
 
   tests/vm-run --share DIR -- python3 tests/bench/guest/ev3_bench.py --out DIR [--quick]
+      [--only samples] [--seconds S] [--runs N]
 
 Writes DIR/ev3.json ({"section", "figures", "notes"}, see the benchmark
 results interface) and prints each figure next to its reference. The
 sensors are played by tests/bench/ev3/ev3_stream (a small C program, built
 on the host by `make -C tests/bench/ev3`, else here into /tmp) on the far
-ends of lego_nullmodem lines, which pace bytes at the writer's baud rate.
+ends of lego_nullmodem lines, which pace bytes at the writer's baud rate;
+their sample streams come from the null modem's own generator (gen_hz),
+and tests/bench/ev3/ev3_read reads them, from IIO or, for the userspace
+reference, from N_TTY.
 Exits 1 on an error (a sensor that never connects, a missing tool), not on a
 missed target.
 """
@@ -42,8 +46,39 @@ STREAM_ACK_MS = 1000
 IIO_DEVICES = '/sys/bus/iio/devices/iio:device*'
 GROUP = 4                   # sensors connected together (one ev3_stream each)
 SETTLE_S = 2.0              # all connected sensors must still be there this long after
-TAIL_S = 1.5                # read this long after the senders' schedules end
 SELECT_DELAY_MS = 15.0      # the gyro's reply delay (research: 10-15 ms)
+NM_PARAMS = '/sys/module/lego_nullmodem/parameters/'
+RATE = 1000                 # messages a second per sensor, from the null modem's generator
+READ_PERIOD_MS = 10         # ev3_read wakes this often and reads every line
+SAMPLES_NOTE = (
+    "Sample delivery: lego_nullmodem's generator (gen_hz, test-only) puts one 4-byte GYRO-ANG"
+    ' DATA message with a counting s16 value into each line every 1/%(rate)d s from one '
+    'hrtimer on an absolute schedule (a late tick sends what was due since), straight into '
+    "the receiving tty's buffer as a UART driver would, so the rate is exact whatever the "
+    "guest is doing and is measured by the module's own counters (sent per line / time from "
+    'start to stop). Each run: %(seconds)g s; %(runs)d runs of each path, each round after a '
+    'run of the generator alone, the two paths taking turns to go first (after one short run '
+    'of the reference, not counted, that starts the workqueue threads the tty layer needs). '
+    'Paths: (1) lego_ev3_uart: the gyros connect first (ev3_stream handshakes, in groups of '
+    "4, and waits %(ack)d ms for the host's ACK instead of the real 80 ms; it is quiet during"
+    " the stream, -q, and the null modem takes the discipline's keep-alives at once, as a "
+    "wire would, without passing them on: the sensor's side costs nothing), and ev3_read -m "
+    'iio reads every /dev/iio:deviceN (16384-scan buffers); (2) the userspace reference: the '
+    'same bytes on N_TTY (raw), read and decoded (header, payload, checksum) by ev3_read -m '
+    'tty. The same C program reads both, waking every %(period)g ms and reading all lines. '
+    "Lost = sent (the generator's count) - distinct values read. CPU per sample = the CPU "
+    "time of every task over the run (the scheduler's se.sum_exec_runtime, exact, where "
+    '/proc/stat is sampled at the periodic tick, in a fixed phase with the 1 ms schedule) but'
+    " the bench's own and the emulated sensors' (ev3_stream, asleep during the stream), less "
+    "the same with the generator running alone on the same lines and none open (the sender's "
+    'cost), over the distinct samples read. Interrupts and softirqs are charged to the task '
+    "they interrupt, so what runs in them while the CPU is idle (the generator's timer, "
+    "mostly) is not counted. It thus holds, for both paths alike, the tty core's flip buffer "
+    'work in its kworker (what a real UART driver costs too); for (1) the discipline, IIO and'
+    ' sending the keep-alives (which the reference, unlike a real userspace driver, does not '
+    'send), for (2) N_TTY; plus the reader process (user + system, its getrusage(): exact '
+    'too, also given apart). Under TCG: compare the two paths within a run, not with '
+    'hardware.')
 
 
 class BenchError(Exception):
@@ -63,17 +98,17 @@ def pct(values, p):
 
 # ---- setup ----
 
-def streamer(work):
-    """The ev3_stream binary: the host's build, else built here."""
-    built = os.path.join(TOP, 'tests', 'bench', 'ev3', 'ev3_stream')
-    src = os.path.join(TOP, 'tests', 'bench', 'ev3', 'ev3_stream.c')
+def build(work, name):
+    """A tool of tests/bench/ev3: the host's build, else built here."""
+    built = os.path.join(TOP, 'tests', 'bench', 'ev3', name)
+    src = built + '.c'
     if os.path.exists(built) and os.path.getmtime(built) >= os.path.getmtime(src):
         return built
-    out = os.path.join(work, 'ev3_stream')
+    out = os.path.join(work, name)
     r = subprocess.run(['cc', '-O2', '-Wall', '-Wextra', '-Werror', '-std=gnu11', '-o', out, src],
                        capture_output=True, text=True)
     if r.returncode:
-        raise BenchError('cannot build ev3_stream: %s' % r.stderr.strip())
+        raise BenchError('cannot build %s: %s' % (name, r.stderr.strip()))
     return out
 
 
@@ -256,22 +291,42 @@ def bench_handshake(binary, work, runs):
 
 # ---- 2. sample delivery ----
 
-def proc_stat():
-    with open('/proc/stat') as f:
-        w = f.readline().split()
-    # user nice system idle iowait irq softirq (USER_HZ ticks)
-    return {'system': int(w[3]), 'irq': int(w[6]), 'softirq': int(w[7]), 'all': sum(map(int, w[1:9]))}
+def nm_param(name, value=None):
+    """Read (value None) or write a lego_nullmodem parameter."""
+    path = NM_PARAMS + name
+    if value is None:
+        with open(path) as f:
+            return f.read().strip()
+    with open(path, 'w') as f:
+        f.write(str(value))
+    return None
 
 
-def system_ticks(pid):
-    """A process's system time so far (USER_HZ ticks, /proc/PID/stat stime)."""
-    with open('/proc/%d/stat' % pid) as f:
-        # comm may hold spaces: fields after the ')' start at state (field 3).
-        return int(f.read().rsplit(')', 1)[1].split()[12])
+def task_runtimes():
+    """{(pid, tid): CPU time in s} of every task (se.sum_exec_runtime, /proc/PID/task/TID/sched).
+
+    The scheduler's own clock, exact to the ns, where /proc/stat and the
+    processes' utime/stime are sampled at the tick (periodic here): the
+    generator's 1 ms schedule keeps a fixed phase with that tick, and its
+    work would be seen or missed all together.
+    """
+    out = {}
+    for path in glob.glob('/proc/[0-9]*/task/[0-9]*/sched'):
+        w = path.split('/')
+        try:
+            with open(path) as f:
+                for ln in f:
+                    if ln.startswith('se.sum_exec_runtime'):
+                        out[(int(w[2]), int(w[4]))] = float(ln.split(':')[1]) / 1e3
+                        break
+        except (OSError, ValueError):
+            pass        # gone meanwhile
+    return out
 
 
-def kernel_ticks(a, b):
-    return sum(b[k] - a[k] for k in ('system', 'irq', 'softirq'))
+def runtime_delta(a, b, exclude):
+    """CPU time (s) of the tasks of b since a, those of processes in `exclude` left out."""
+    return sum(t - a.get(k, 0.0) for k, t in b.items() if k[0] not in exclude)
 
 
 def iio_count():
@@ -320,8 +375,6 @@ def stop(procs):
 def merge(procs, timeout=30):
     """Wait for every sender; their reports with lines renumbered to pairs."""
     res = {'hs': {}, 'select': [], 'line': {}, 'total': None}
-    sent = own = 0
-    rates = []
     for p, pairs in procs:
         out, err = p.communicate(timeout=timeout)
         if p.returncode:
@@ -329,157 +382,256 @@ def merge(procs, timeout=30):
         r = parse(out)
         for i, ln in r['line'].items():
             res['line'][pairs[i]] = ln
-        if r['total']:
-            sent += r['total'][0]
-            rates.append(r['total'][2])
-            own += r['total'][3]
-    if rates:
-        res['total'] = (sent, None, statistics.mean(rates), own)
     return res
 
 
-def bench_stream(binary, work, nsensors, seconds):
-    hz = os.sysconf('SC_CLK_TCK')
-    fds = [attach(p) for p in range(nsensors)]
-    devs, iio_fds, tty_of = [], [], {}
-    procs = []
+def start_reader(reader, mode, files):
+    """ev3_read on `files`, once it has them open."""
+    p = subprocess.Popen([reader, '-m', mode, '-P', str(READ_PERIOD_MS),
+                          '-i', str(1e6 / RATE)] + files,
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    if p.stdout.readline().strip() != 'ready':
+        p.kill()
+        raise BenchError('ev3_read %s: %s' % (mode, p.communicate()[1].strip()))
+    return p
+
+
+def parse_reader(out):
+    res = {'line': {}, 'jitter': None, 'cpu': None}
+    for ln in out.splitlines():
+        w = ln.split()
+        if w and w[0] == 'line':
+            res['line'][int(w[1])] = dict(zip(('read', 'distinct', 'dup', 'reordered', 'bad'),
+                                              map(int, w[2:7])))
+        elif w and w[0] == 'jitter':
+            res['jitter'] = [int(x) / 1e6 for x in w[1:4]]
+        elif w and w[0] == 'cpu':
+            res['cpu'] = (int(w[1]) + int(w[2])) / 1e6     # seconds, user + system
+    return res
+
+
+def signal_all(procs, sig):
+    for p, _ in procs:
+        p.send_signal(sig)
+
+
+def generate(nsensors, seconds, reader=None, senders=()):
+    """The generator on lines 0..nsensors-1 for `seconds`, then the reader's tail.
+
+    The senders (ev3_stream -g -q -k) stop answering keep-alives just before
+    the generator starts and answer them again as soon as it has stopped:
+    the discipline drops a sensor that sent nothing for 700 ms.
+
+    Returns the generator's counters, the reader's report, the CPU time of
+    every task over the window but the bench's own, the senders' (ev3_stream
+    reading keep-alives) and the reader's (in its report), and the window's
+    length.
+    """
+    nm_param('gen_lines', (1 << nsensors) - 1)
+    nm_param('gen_payload', STREAM_PAYLOAD)
+    exclude = {os.getpid()} | {p.pid for p, _ in senders} | ({reader.pid} if reader else set())
+    r0, t0 = task_runtimes(), time.monotonic()
+    signal_all(senders, signal.SIGUSR1)
+    if senders:
+        time.sleep(0.05)    # a keep-alive answer on its way is in
+    nm_param('gen_hz', RATE)
+    time.sleep(seconds)
+    nm_param('gen_hz', 0)
+    signal_all(senders, signal.SIGUSR2)
+    gen = {'sent': [int(x) for x in nm_param('gen_sent').split(',')][:nsensors],
+           'dropped': sum(int(x) for x in nm_param('gen_dropped').split(',')),
+           'tx': sum(int(x) for x in nm_param('gen_tx').split(',')),
+           'span': int(nm_param('gen_span_ns')) / 1e9,
+           'cpu': int(nm_param('gen_cpu_ns')) / 1e9,
+           'late': int(nm_param('gen_late')), 'burst': int(nm_param('gen_max_burst'))}
+    rep = None
+    if reader:
+        reader.send_signal(signal.SIGUSR1)
+        out, err = reader.communicate(timeout=60)
+        if reader.returncode:
+            raise BenchError('ev3_read failed: %s' % err.strip())
+        rep = parse_reader(out)
+    r1, t1 = task_runtimes(), time.monotonic()
+    return gen, rep, runtime_delta(r0, r1, exclude), t1 - t0
+
+
+def sample_run(binary, reader, work, nsensors, seconds, path, base_rate):
+    """One run of `path` ('iio': the line discipline, 'tty': the reference)."""
+    fds, procs, devs = [], [], []
     try:
-        # Connected, the sensors answer NACKs (value 0xffff) until SIGUSR1.
-        # After their -d seconds they answer NACKs again (-k), so every
-        # sensor is still there when its buffer is drained and disabled.
-        procs = connect(binary, work, nsensors, '-r', 1000, '-g', '-k', '-d', seconds,
-                        '-n', 20, '-t', STREAM_ACK_MS)
-        for d in sorted(glob.glob(IIO_DEVICES)):
-            ev3.write_attr(d, 'current_timestamp_clock', 'monotonic')
-            ev3.write_attr(d, 'scan_elements/in_angl0_en', '1')
-            ev3.write_attr(d, 'scan_elements/in_timestamp_en', '1')
-            ev3.write_attr(d, 'buffer/length', '16384')
-            devs.append(d)
-            # The tty the IIO device hangs off (gone with it after the run).
-            tty_of[d] = os.path.basename(os.path.realpath(os.path.join(d, '..')))
+        if path == 'iio':
+            fds = [attach(p) for p in range(nsensors)]
+            # Connected, the sensors answer NACKs (value 0xffff) until
+            # SIGUSR1; then they are quiet (-q) while the generator sends,
+            # and answer NACKs again after SIGUSR2 (-k), so that every
+            # sensor is still there when its buffer is disabled (generate()).
+            procs = connect(binary, work, nsensors, '-r', 0, '-g', '-q', '-k',
+                            '-d', seconds + 120, '-n', 20, '-t', STREAM_ACK_MS)
+            by_line = {}
+            for d in sorted(glob.glob(IIO_DEVICES)):
+                tty = os.path.basename(os.path.realpath(os.path.join(d, '..')))
+                if not tty.startswith('ttyNM'):
+                    raise BenchError('%s hangs off %s, not a null-modem line' % (d, tty))
+                ev3.write_attr(d, 'current_timestamp_clock', 'monotonic')
+                ev3.write_attr(d, 'scan_elements/in_angl0_en', '1')
+                ev3.write_attr(d, 'scan_elements/in_timestamp_en', '1')
+                ev3.write_attr(d, 'buffer/length', '16384')
+                ev3.write_attr(d, 'buffer/enable', '1')
+                by_line[int(tty[len('ttyNM'):]) // 2] = d
+            devs = [by_line[i] for i in range(nsensors)]
+            files = ['/dev/iio:device' + d.rsplit('iio:device', 1)[1] for d in devs]
+            rd = start_reader(reader, 'iio', files)
+        else:
+            rd = start_reader(reader, 'tty', ['/dev/ttyNM%d' % (2 * p) for p in range(nsensors)])
+        try:
+            gen, rep, busy, span = generate(nsensors, seconds, rd, procs)
+        finally:
+            if rd.poll() is None:
+                rd.kill()
+                rd.wait()
         for d in devs:
-            iio_fds.append(os.open('/dev/iio:device' + d.rsplit('iio:device', 1)[1],
-                                   os.O_RDONLY | os.O_NONBLOCK))
-            ev3.write_attr(d, 'buffer/enable', '1')
-        data = {fd: bytearray() for fd in iio_fds}
-        t0, s0 = time.monotonic(), proc_stat()
-        for p, _ in procs:
-            p.send_signal(signal.SIGUSR1)
-        while time.monotonic() < t0 + seconds + TAIL_S:
-            r, _, _ = select.select(iio_fds, [], [], 0.2)
-            for fd in r:
-                try:
-                    data[fd] += os.read(fd, 1 << 16)
-                except BlockingIOError:
-                    pass
-        t1, s1 = time.monotonic(), proc_stat()
-        for d, fd in zip(devs, iio_fds):
-            data[fd] += ev3.drain(fd, 5.0)
             ev3.write_attr(d, 'buffer/enable', '0')
-            data[fd] += ev3.drain(fd, 5.0)
         for p, _ in procs:
             p.terminate()
-        res = merge(procs)
-    finally:
-        stop(procs)
-        for fd in iio_fds:
-            os.close(fd)
-        for fd in fds:
-            os.close(fd)
-        wait_sensor_gone()
-    # Map each IIO device to its line by the tty it hangs off.
-    sent = read = lost = dup = reordered = 0
-    intervals = []
-    stopped = []
-    for d, fd in zip(devs, iio_fds):
-        tty = tty_of[d]
-        if not tty.startswith('ttyNM'):
-            raise BenchError('%s hangs off %s, not a null-modem line' % (d, tty))
-        line = int(tty[len('ttyNM'):]) // 2
-        ln = res['line'][line]
-        sent += ln[0]
-        if ln[5] != 'time':
-            stopped.append('%s: %s' % (tty, ln[5]))
-        buf = bytes(data[fd])
-        samples = [struct.unpack_from('<i4xq', buf, i) for i in range(0, len(buf) - 15, 16)]
-        # The stream counts 0, 1, 2... (fewer than 0xffff values); 0xffff
-        # marks the keep-alive replies before it.
-        samples = [(v & 0xffff, t) for v, t in samples if v & 0xffff != 0xffff]
-        vals = [v for v, _ in samples]
-        if ln[0] >= 0xffff:
-            raise BenchError('%s sent %d values: the s16 counter wrapped' % (tty, ln[0]))
-        reordered += sum(1 for i in range(1, len(vals)) if vals[i] < vals[i - 1])
-        read += len(set(vals))
-        dup += len(vals) - len(set(vals))
-        lost += ln[0] - len(set(vals))
-        ts = [t for _, t in samples]
-        intervals += [(ts[i] - ts[i - 1]) / 1e6 for i in range(1, len(ts))]
-    dev = [abs(x - 1.0) for x in intervals]
-    ticks = kernel_ticks(s0, s1)
-    span = t1 - t0
-    total = res['total']
-    own = total[3] / 1e6 * hz if total else 0    # the sender's own write() calls, in ticks
-    late = sum(ln[2] for ln in res['line'].values())
-    return {'n': nsensors, 'sent': sent, 'read': read, 'lost': lost, 'dup': dup,
-            'reordered': reordered, 'rate': total[2] if total else 0, 'late': late, 'stopped': stopped,
-            'p50': pct(dev, 50) if dev else None, 'p99': pct(dev, 99) if dev else None,
-            'max': max(dev) if dev else None, 'ticks': ticks, 'own': own, 'span': span,
-            'hz': hz, 'seconds': seconds}
-
-
-def bench_idle(binary, work, nsensors, seconds):
-    """Kernel CPU (ticks/s) with the sensors connected, answering NACKs only."""
-    fds = [attach(p) for p in range(nsensors)]
-    procs = []
-    try:
-        procs = connect(binary, work, nsensors, '-r', 0, '-d', seconds + 30.0,
-                        '-n', 20, '-t', STREAM_ACK_MS)
-        pids = [p.pid for p, _ in procs]
-        s0, t0, own0 = proc_stat(), time.monotonic(), sum(map(system_ticks, pids))
-        time.sleep(seconds)
-        s1, t1, own1 = proc_stat(), time.monotonic(), sum(map(system_ticks, pids))
-        for p, _ in procs:
-            p.send_signal(signal.SIGUSR2)
-        merge(procs)
+        res = merge(procs) if procs else {'line': {}}
     finally:
         stop(procs)
         for fd in fds:
             os.close(fd)
         wait_sensor_gone()
-    # The sender's own system time (its poll loop) is left out here as it is
-    # from the streaming run: what remains is the drivers' keep-alive work.
-    return (kernel_ticks(s0, s1) - (own1 - own0)) / (t1 - t0)
+    stopped = ['ttyNM%d: %s' % (2 * i, ln[5]) for i, ln in sorted(res['line'].items())
+               if ln[5] != 'time']
+    sent = sum(gen['sent'])
+    if max(gen['sent']) >= 0xffff:
+        raise BenchError('a line sent %d values: the s16 counter wrapped' % max(gen['sent']))
+    lines = [rep['line'][i] for i in range(nsensors)]
+    distinct = sum(ln['distinct'] for ln in lines)
+    kernel = busy - base_rate * span
+    return {'path': path, 'n': nsensors, 'sent': sent, 'distinct': distinct,
+            'lost': sent - distinct, 'dup': sum(ln['dup'] for ln in lines),
+            'reordered': sum(ln['reordered'] for ln in lines),
+            'bad': sum(ln['bad'] for ln in lines), 'dropped': gen['dropped'], 'tx': gen['tx'],
+            'rates': [x / gen['span'] for x in gen['sent']], 'late': gen['late'],
+            'burst': gen['burst'], 'gen_cpu': gen['cpu'], 'jitter': rep['jitter'],
+            'busy': busy, 'span': span, 'base_rate': base_rate,
+            'per_sample': (kernel + rep['cpu']) / max(distinct, 1) * 1e6,
+            'reader': rep['cpu'] / max(distinct, 1) * 1e6,
+            'kernel': kernel / max(distinct, 1) * 1e6, 'stopped': stopped}
 
 
-def stream_figures(r, idle_rate):
-    n = r['n']
-    hz = r['hz']
-    k_ticks = r['ticks'] - idle_rate * r['span'] - r['own']
-    per_sample = k_ticks / hz / max(r['read'], 1) * 1e6
+def bench_samples(binary, reader, work, nsensors, seconds, runs):
+    """`runs` rounds of: the generator alone (no line open), the discipline, the reference.
+
+    The two paths take turns to go first, and a short run of the reference,
+    not counted, comes before them all: the first stream on many lines makes
+    the kernel start more workqueue threads (the tty layer's receive work),
+    a cost that should fall on neither path.
+    """
+    out = []
+    sample_run(binary, reader, work, nsensors, 1.0, 'tty', 0.0)
+    for i in range(runs):
+        gen, _, busy, span = generate(nsensors, seconds)
+        base = {'rate': busy / span, 'sent': sum(gen['sent']), 'span': gen['span'],
+                'gen_cpu': gen['cpu']}
+        res = {}
+        for path in ('iio', 'tty') if i % 2 == 0 else ('tty', 'iio'):
+            res[path] = sample_run(binary, reader, work, nsensors, seconds, path, base['rate'])
+        out.append((base, res['iio'], res['tty']))
+    return out
+
+
+def spread(values, fmt='%.1f'):
+    return (fmt + ' (min ' + fmt + ', max ' + fmt + ')') % (
+        statistics.median(values), min(values), max(values))
+
+
+def sample_figures(n, runs):
+    iio = [r[1] for r in runs]
+    tty = [r[2] for r in runs]
+    base = [r[0] for r in runs]
+    rates = [x for r in iio + tty for x in r['rates']]
+    reached = min(rates)
+    label = '%d sensors at %.1f messages/s each (lowest measured)' % (n, reached)
+    drv = [r['per_sample'] for r in iio]
+    ref = [r['per_sample'] for r in tty]
+    # A lead is claimed only beyond the run-to-run spread of either path.
+    spread_max = max(max(drv) - min(drv), max(ref) - min(ref))
+    gap = statistics.median(ref) - statistics.median(drv)
+    several = len(runs) > 1     # one run has no spread to measure a lead against
+    lead = several and max(drv) < min(ref) and gap > spread_max
+    behind = several and min(drv) > max(ref) and -gap > spread_max
+    sent_i = sum(r['sent'] for r in iio)
+    lost_i = sum(r['lost'] for r in iio)
+    sent_t = sum(r['sent'] for r in tty)
+    lost_t = sum(r['lost'] for r in tty)
+    jit = [r['jitter'] for r in iio if r['jitter']]
+    stopped = [s for r in iio for s in r['stopped']]
     figs = [
-        figure('%d sensors at 1 kHz: samples lost' % n, r['lost'], 'samples',
-               'samples sent by the sensors', r['sent'], '0 lost', r['lost'] == 0,
-               '%d sent, %d distinct read from the IIO buffers, %d duplicated, %d out of order; '
-               'sender rate %.1f messages/s per sensor (target 1000), %d late ticks skipped%s'
-               % (r['sent'], r['read'], r['dup'], r['reordered'], r['rate'], r['late'],
-                  '; lines stopped: ' + ', '.join(r['stopped']) if r['stopped'] else '')),
-        figure('%d sensors at 1 kHz: timestamp interval deviation p99' % n,
-               round(r['p99'], 3) if r['p99'] is not None else 'n/a', 'ms',
-               'ideal period', 1.0, None, None,
-               'IIO timestamps, |interval - 1 ms|: p50 %s ms, p99 %s ms, max %s ms'
-               % tuple('%.3f' % x if x is not None else 'n/a'
-                       for x in (r['p50'], r['p99'], r['max']))),
-        figure('%d sensors at 1 kHz: kernel CPU per sample' % n, round(per_sample, 1), 'us',
-               'idle kernel CPU (subtracted)', '%.2f %% of one CPU' % (idle_rate / hz * 100),
-               None, None,
-               '/proc/stat system+irq+softirq over %.1f s: %d ticks at %d Hz, minus the idle '
-               'baseline (%.2f ticks/s, sensors connected, NACK replies only, the sender\'s own '
-               'system time left out) and the sender\'s '
-               'own system time (%.1f ticks, its write() calls); divided by %d samples read. '
-               'Includes the null modem\'s pacing timers.'
-               % (r['span'], r['ticks'], hz, idle_rate, r['own'], r['read'])),
+        figure('%s: rate reached per sensor' % label, round(reached, 1), 'messages/s',
+               'the generator\'s schedule', RATE, 'within 0.5 %% of %d/s' % RATE,
+               reached >= RATE * 0.995,
+               'lego_nullmodem\'s generator: messages sent per line / time from its start to '
+               'its stop, its own counters; per sensor over %d runs of both paths: median %.1f, '
+               'min %.1f, max %.1f; ticks late (more than one message a line at once): %d, '
+               'at most %d at once'
+               % (len(runs), statistics.median(rates), min(rates), max(rates),
+                  sum(r['late'] for r in iio + tty), max(r['burst'] for r in iio + tty))),
+        figure('%s: samples lost (lego_ev3_uart, IIO)' % label, lost_i, 'samples',
+               'samples sent by the generator', sent_i, '0 lost', lost_i == 0,
+               '%d runs: %d sent, %d distinct read from the IIO buffers, %d duplicated, %d out '
+               'of order, %d refused by the tty buffer; the discipline wrote %d bytes '
+               '(keep-alives) meanwhile%s'
+               % (len(runs), sent_i, sum(r['distinct'] for r in iio), sum(r['dup'] for r in iio),
+                  sum(r['reordered'] for r in iio), sum(r['dropped'] for r in iio),
+                  sum(r['tx'] for r in iio),
+                  '; lines stopped: ' + ', '.join(stopped) if stopped else '')),
+        figure('%s: samples lost (reference: N_TTY, decoded in userspace)' % label, lost_t,
+               'samples', 'samples sent by the generator', sent_t, '0 lost', lost_t == 0,
+               '%d runs: %d sent, %d distinct decoded, %d duplicated, %d out of order, %d bytes '
+               'that began no valid message, %d refused by the tty buffer'
+               % (len(runs), sent_t, sum(r['distinct'] for r in tty), sum(r['dup'] for r in tty),
+                  sum(r['reordered'] for r in tty), sum(r['bad'] for r in tty),
+                  sum(r['dropped'] for r in tty))),
+        figure('%s: IIO timestamp interval deviation p99' % label,
+               round(max(j[1] for j in jit), 3) if jit else 'n/a', 'ms',
+               'ideal period', 1e3 / RATE, None, None,
+               '|interval - %.0f ms| between consecutive IIO timestamps of a sensor, worst run: '
+               'p50 %s ms, p99 %s ms, max %s ms'
+               % ((1e3 / RATE,) + (tuple('%.3f' % max(j[k] for j in jit) for k in range(3))
+                                   if jit else ('n/a',) * 3))),
+        figure('%s: CPU per sample, lego_ev3_uart + IIO + C reader' % label,
+               round(statistics.median(drv), 1), 'us',
+               'userspace reference: N_TTY + C reader decoding', round(statistics.median(ref), 1),
+               'below the reference in every run, by more than the run-to-run spread', lead,
+               'median of %d runs; driver path %s us (of which the reader process, user + '
+               'system: %s us; the rest, kernel: %s us), reference %s us (of which the reader: '
+               '%s us; the rest, kernel: %s us). CPU time of every task over each run '
+               '(se.sum_exec_runtime) but the bench\'s and the emulated sensors\', less the '
+               'generator alone on the same lines with none open (%s %% of one CPU; its timer '
+               'function alone: %.2f us a message), divided by the distinct samples read'
+               % (len(runs), spread(drv), spread([r['reader'] for r in iio]),
+                  spread([r['kernel'] for r in iio]), spread(ref),
+                  spread([r['reader'] for r in tty]), spread([r['kernel'] for r in tty]),
+                  spread([b['rate'] * 100 for b in base], '%.2f'),
+                  statistics.median(b['gen_cpu'] / max(b['sent'], 1) * 1e6 for b in base))),
     ]
-    return figs
+    if lead:
+        verdict = ('the line discipline used less CPU per sample than the userspace reference in '
+                   'every run, by %.1f us (medians), more than the spread of either (%.1f us)'
+                   % (gap, spread_max))
+    elif behind:
+        verdict = ('the userspace reference used less CPU per sample than the line discipline in '
+                   'every run, by %.1f us (medians), more than the spread of either (%.1f us)'
+                   % (-gap, spread_max))
+    elif not several:
+        verdict = ('%.1f us (driver) and %.1f us (reference): one run gives no run-to-run spread, '
+                   'so no lead is claimed' % (drv[0], ref[0]))
+    else:
+        verdict = ('medians %.1f us (driver) and %.1f us (reference), %.1f us apart, within the '
+                   'run-to-run spread (driver %.1f to %.1f us, reference %.1f to %.1f us): no lead '
+                   'is claimed' % (statistics.median(drv), statistics.median(ref), abs(gap),
+                                   min(drv), max(drv), min(ref), max(ref)))
+    return figs, '%d sensors, %d runs: %s.' % (n, len(runs), verdict)
 
 
 # ---- 3. mode switch ----
@@ -533,45 +685,54 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     ap.add_argument('--out', required=True, help='directory for ev3.json')
     ap.add_argument('--quick', action='store_true', help='a short run for development')
+    ap.add_argument('--only', choices=['samples'],
+                    help='only this part (the sample delivery), for development')
+    ap.add_argument('--seconds', type=float,
+                    help='seconds of each sample-delivery run (default 20, --quick 5)')
+    ap.add_argument('--runs', type=int,
+                    help='sample-delivery runs of each path (default 3, --quick 1)')
     args = ap.parse_args()
     if os.environ.get('LEGO_IN_VM') != '1':
         print('ev3_bench: run me in the test VM (tests/vm-run)', file=sys.stderr)
         return 1
+    if args.seconds and not 0 < args.seconds * RATE < 0xffff:
+        print('ev3_bench: --seconds: the s16 counter would wrap', file=sys.stderr)
+        return 2
     os.makedirs(args.out, exist_ok=True)
     work = tempfile.mkdtemp(prefix='ev3bench.')
     figures, notes = [], []
     try:
-        binary = streamer(work)
+        binary = build(work, 'ev3_stream')
+        reader = build(work, 'ev3_read')
         ensure_ev3_module()
         nullmodem(16)
-        f, n = bench_handshake(binary, work, 2 if args.quick else 5)
-        figures += f
-        notes += n
-        seconds = 5 if args.quick else 60
-        failed = []
+        if not args.only:
+            f, n = bench_handshake(binary, work, 2 if args.quick else 5)
+            figures += f
+            notes += n
+        seconds = args.seconds or (5 if args.quick else 20)
+        runs = args.runs or (1 if args.quick else 3)
+        failed, verdicts = [], []
         for nsensors in (4, 16):
             try:
-                idle = bench_idle(binary, work, nsensors, 2 if args.quick else 5)
-                r = bench_stream(binary, work, nsensors, seconds)
+                res = bench_samples(binary, reader, work, nsensors, seconds, runs)
             except (BenchError, OSError) as e:
                 # A sensor lost mid-run (its device gone: ENODEV, ENOENT)
                 # spoils this figure, not the ones after it.
                 failed.append('%d sensors: %s' % (nsensors, e))
                 continue
-            figures += stream_figures(r, idle)
-        notes.append('Sample delivery: ev3_stream plays gyros (GYRO-ANG, 4-byte DATA messages at '
-                     '57600 baud) on lego_nullmodem lines, each sending a counting s16 value on a '
-                     '1 ms absolute schedule for %d s; the bench reads /dev/iio:deviceN of each '
-                     '(buffer of 16384 scans) and counts distinct values against what the sender '
-                     'wrote. Inside the TCG VM the sender cannot always keep 1 kHz: its real rate '
-                     'is given. To connect many lines at once in the slow VM, the sensors wait '
-                     '%d ms for the host\'s ACK instead of the real 80 ms (the handshake figures '
-                     'above keep 80 ms).' % (seconds, STREAM_ACK_MS))
-        figures += bench_mode_switch(binary, work, 6 if args.quick else 20)
-        notes.append('Mode switch: from the write to the lego-sensor mode attribute to value0 '
-                     'showing the new mode\'s value (the sensor sends 1000 x (mode + 1)); the '
-                     'emulated sensor answers SELECT after %.0f ms, like the gyro.'
-                     % SELECT_DELAY_MS)
+            f, v = sample_figures(nsensors, res)
+            figures += f
+            verdicts.append(v)
+        notes.append(SAMPLES_NOTE % {'seconds': seconds, 'runs': runs, 'rate': RATE,
+                                     'period': READ_PERIOD_MS, 'ack': STREAM_ACK_MS})
+        notes += ['CPU per sample, %s' % v for v in verdicts]
+        if not args.only:
+            figures += bench_mode_switch(binary, work, 6 if args.quick else 20)
+            notes.append('Mode switch: from the write to the lego-sensor mode attribute to '
+                         'value0 showing the new mode\'s value (the sensor sends 1000 x (mode + '
+                         '1)); the emulated sensor answers SELECT after %.0f ms, like the gyro.'
+                         % SELECT_DELAY_MS)
         if failed:
             raise BenchError('; '.join(failed))
     except (BenchError, OSError, subprocess.SubprocessError) as e:
@@ -583,13 +744,16 @@ def main():
     notes.append('Run %s in a TCG VM%s.' % (time.strftime('%Y-%m-%d %H:%M:%S UTC', time.gmtime()),
                                              ' (--quick)' if args.quick else ''))
     with open(os.path.join(args.out, 'ev3.json'), 'w') as f:
-        json.dump({'section': 'EV3 UART sensors (handshake, sample delivery, mode switch)',
+        json.dump({'section': 'EV3 UART sensors (handshake, sample delivery, mode switch)'
+                   if not args.only else 'EV3 UART sensors (sample delivery only)',
                    'figures': figures, 'notes': notes}, f, indent=1)
     for fig in figures:
         print('%-55s %10s %-7s ref %s %s (%s) %s' % (
             fig['name'], fig['value'], fig['unit'], fig['reference_value'], fig['unit'],
             fig['reference'], {True: 'MET', False: 'MISSED', None: ''}[fig['met']]))
         print('    ' + fig['detail'])
+    for note in notes:
+        print('  - ' + note)
     return status
 
 
