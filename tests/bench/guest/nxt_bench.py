@@ -2,7 +2,7 @@
 """NXT benchmark (issue 6, figure 5; issue 19), run inside the test VM.
 
     python3 tests/bench/guest/nxt_bench.py --out DIR [--quick] [--seconds S]
-        [--runs R] [--client PATH] [--clients 1,4,8]
+        [--runs R] [--client PATH] [--clients 1,4,8] [--models fast,tick]
 
 One emulated brick (tests/emulator/nxt_brick.py, in its own process, on
 dummy_udc.0) answers GetBatteryLevel (00 0B), through
@@ -118,6 +118,19 @@ def cpu_seconds(who):
     return ru.ru_utime + ru.ru_stime
 
 
+def run_nxt_python_process(clients, seconds):
+    """run_nxt_python() in a process of its own: pyusb's libusb context,
+    kept in a long-lived process, would still list the brick of an emulator
+    that has been stopped and started again since (ENODEV)."""
+    cmd = [sys.executable, os.path.abspath(__file__), '--nxt-python', str(clients),
+           '--seconds', str(seconds)]
+    res = subprocess.run(cmd, capture_output=True, text=True, timeout=seconds + 120)
+    if res.returncode != 0:
+        raise SetupError('%s failed (%d): %s' % (' '.join(cmd), res.returncode,
+                                                  res.stderr.strip()[-2000:]))
+    return json.loads(res.stdout)
+
+
 def run_nxt_python(clients, seconds):
     import nxt.locator
     import usb.util
@@ -225,7 +238,7 @@ def one_round(args, node, results, model, rnd):
             results.setdefault((model, 'libusb', n), []).append(r)
             log('%s round %d: libusb %d: %s' % (model, rnd, n, r))
         for n in args.clients:
-            r = run_nxt_python(n, args.seconds)
+            r = run_nxt_python_process(n, args.seconds)
             results.setdefault((model, 'nxt-python', n), []).append(r)
             log('%s round %d: nxt-python %d: %s' % (model, rnd, n, r))
     finally:
@@ -242,6 +255,8 @@ def measure(args):
     results = {}                        # (model, path, clients) -> [result of each round]
     nxtdev.load_driver()
     for model, extra in MODELS:
+        if model not in args.models:
+            continue
         emu = Emulator(extra)
         try:
             node = nxtdev.node_of(SERIAL)
@@ -296,7 +311,7 @@ def spread_text(values, fmt='%.1f'):
 def figures(results, args):
     figs = []
     plural = lambda n: 's' * (n > 1)
-    for model, _ in MODELS:
+    for model in args.models:
         tag = '' if model == 'fast' else ', 1 ms tick'
         for n in args.clients:
             ref = summary(results[(model, 'libusb', n)])
@@ -386,7 +401,7 @@ def data_notes(results, args):
     """What the figures say, worked out from them (not written by hand)."""
     notes = []
     plural = lambda n: 's' * (n > 1)
-    for model, _ in MODELS:
+    for model in args.models:
         parts = []
         for n in args.clients:
             parts.append('%d client%s: %s; %s' % (
@@ -396,9 +411,10 @@ def data_notes(results, args):
                           'nxt-python')))
         notes.append('Rate ratios, %s, median of the rounds (min to max): %s.'
                      % (MODEL_TEXT[model], '; '.join(parts)))
+    first = args.models[0]
     for n in args.clients:
-        dev = summary(results[('fast', 'dev', n)])
-        lib = summary(results[('fast', 'libusb', n)])
+        dev = summary(results[(first, 'dev', n)])
+        lib = summary(results[(first, 'libusb', n)])
         if n == 1:
             continue
         text = ('%d clients, p50 and p99: /dev/nxtN %.1f and %.1f ms, libusb %.1f and %.1f ms; '
@@ -411,12 +427,14 @@ def data_notes(results, args):
                      'order, and the one that has just let it go often takes it again.')
         notes.append(text)
     cpu = ', '.join('%s %s us' % (SHORT[p], '/'.join(
-        '%.0f' % summary(results[('fast', p, n)])['cpu_us'] for n in args.clients))
+        '%.0f' % summary(results[(first, p, n)])['cpu_us'] for n in args.clients))
         for p in ('dev', 'libusb', 'nxt-python'))
     notes.append('CPU time of the client process per transaction (user and system, the '
                  'kernel\'s work for its system calls included; the emulated brick\'s and '
-                 'dummy_hcd\'s work, which all paths share, not), at %s clients: %s.'
-                 % ('/'.join(str(n) for n in args.clients), cpu))
+                 'dummy_hcd\'s work, which all paths share, not), %s, at %s clients: %s.'
+                 % (MODEL_TEXT[first], '/'.join(str(n) for n in args.clients), cpu))
+    if 'tick' not in args.models:
+        return notes
     tick = [summary(results[('tick', 'dev', n)])['tps'] for n in args.clients]
     notes.append('With the 1 ms tick, /dev/nxtN reaches %s transactions/s at %s clients: '
                  '%s of the firmware\'s ceiling of one command per tick.'
@@ -428,14 +446,27 @@ def data_notes(results, args):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
-    ap.add_argument('--out', required=True, help='directory for nxt.json')
+    ap.add_argument('--out', help='directory for nxt.json')
     ap.add_argument('--quick', action='store_true',
                     help='short run (2 rounds of 2 s per measurement)')
     ap.add_argument('--seconds', type=float, help='seconds per measurement (default 5)')
     ap.add_argument('--runs', type=int, help='rounds (default 3)')
     ap.add_argument('--clients', default='1,4,8', help='concurrent clients (default 1,4,8)')
     ap.add_argument('--client', default=DEFAULT_CLIENT, help='the C client binary')
+    ap.add_argument('--models', default='fast,tick',
+                    help='the emulated brick\'s models to run: fast (as fast as it goes), '
+                    'tick (the 1 ms firmware tick); default both')
+    ap.add_argument('--nxt-python', type=int, metavar='N', help=argparse.SUPPRESS)
     args = ap.parse_args()
+    if args.nxt_python:
+        # One nxt-python measurement, in a process of its own: JSON on stdout.
+        print(json.dumps(run_nxt_python(args.nxt_python, args.seconds or 5.0)))
+        return
+    if not args.out:
+        ap.error('--out is required')
+    args.models = [m for m in args.models.split(',') if m]
+    if not args.models or set(args.models) - {m for m, _ in MODELS}:
+        sys.exit('nxt_bench: --models takes fast and tick')
     args.seconds = args.seconds or (2.0 if args.quick else 5.0)
     args.runs = args.runs or (2 if args.quick else 3)
     args.clients = [int(c) for c in args.clients.split(',')]
@@ -468,7 +499,8 @@ def main():
             'and its threads share the handle, each taking a mutex around bulk OUT 0x01 + '
             'bulk IN 0x82 (NXT replies carry no transaction id).',
             'nxt-python 3.5.1: stock usb backend (pyusb 1.x, libusb-1.0), driver unbound, '
-            'threads sharing one nxt.brick.Brick (its lock serialises each command).',
+            'threads sharing one nxt.brick.Brick (its lock serialises each command), in a '
+            'Python process of its own for each measurement.',
             'Every reply checked: opcode, status 0 and %d mV. %d rounds; in each, every '
             'path at 1, 4 and 8 clients for %.1f s, one after the other; figures are the '
             'median of the rounds. Whole run %.0f s on %s, kernel %s.'
