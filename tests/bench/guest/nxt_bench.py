@@ -220,34 +220,32 @@ def median(values):
 
 
 def one_round(args, node, results, model, rnd):
-    """One round: every path at every client count, once; the paths take
-    turns within the round, so that a change in the host's load falls on
-    all of them."""
+    """One round: every path at every client count, once. The three paths
+    at one client count run back to back, so that a change in the host's
+    load falls on all of them as much as it can."""
     for n in args.clients:
         r = run_client(args.client, 'dev', node, n, args.seconds)
         results.setdefault((model, 'dev', n), []).append(r)
         log('%s round %d: dev %d: %s' % (model, rnd, n, r))
-    intf = nxtdev.interface_of(SERIAL)
-    name = os.path.basename(intf)
-    with open(nxtdev.DRIVER + '/unbind', 'w') as f:
-        f.write(name)
-    try:
-        wait_for(lambda: not os.path.exists(node), 5, 'the node outlived the unbind')
-        for n in args.clients:
+        intf = nxtdev.interface_of(SERIAL)
+        name = os.path.basename(intf)
+        with open(nxtdev.DRIVER + '/unbind', 'w') as f:
+            f.write(name)
+        try:
+            wait_for(lambda: not os.path.exists(node), 5, 'the node outlived the unbind')
             r = run_client(args.client, 'libusb', '0694:0002', n, args.seconds)
             results.setdefault((model, 'libusb', n), []).append(r)
             log('%s round %d: libusb %d: %s' % (model, rnd, n, r))
-        for n in args.clients:
             r = run_nxt_python_process(n, args.seconds)
             results.setdefault((model, 'nxt-python', n), []).append(r)
             log('%s round %d: nxt-python %d: %s' % (model, rnd, n, r))
-    finally:
-        with open(nxtdev.DRIVER + '/bind', 'w') as f:
-            f.write(name)
-    node = nxtdev.node_of(SERIAL)
-    if not node:
-        raise SetupError('no /dev/nxtN after binding the driver again')
-    run_client(args.client, 'dev', node, 1, 0.5)      # warm up: open drains 20 ms
+        finally:
+            with open(nxtdev.DRIVER + '/bind', 'w') as f:
+                f.write(name)
+        node = nxtdev.node_of(SERIAL)
+        if not node:
+            raise SetupError('no /dev/nxtN after binding the driver again')
+        run_client(args.client, 'dev', node, 1, 0.5)      # warm up: open drains 20 ms
     return node
 
 
@@ -501,9 +499,9 @@ def main():
             'nxt-python 3.5.1: stock usb backend (pyusb 1.x, libusb-1.0), driver unbound, '
             'threads sharing one nxt.brick.Brick (its lock serialises each command), in a '
             'Python process of its own for each measurement.',
-            'Every reply checked: opcode, status 0 and %d mV. %d rounds; in each, every '
-            'path at 1, 4 and 8 clients for %.1f s, one after the other; figures are the '
-            'median of the rounds. Whole run %.0f s on %s, kernel %s.'
+            'Every reply checked: opcode, status 0 and %d mV. %d rounds; in each, for 1, 4 '
+            'and 8 clients, /dev/nxtN, libusb and nxt-python for %.1f s each, back to back; '
+            'figures are the median of the rounds. Whole run %.0f s on %s, kernel %s.'
             % (BATTERY_MV, args.runs, args.seconds, time.monotonic() - started,
                platform.machine(), platform.release()),
             'Guest clocksource: %s.' % clock + (
