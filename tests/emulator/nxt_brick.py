@@ -73,8 +73,11 @@ What dummy_hcd and raw-gadget cannot reproduce, and other simplifications:
   sees a disconnect, as when VBUS goes away.
 - BootCommand replies "Yes" and then unplugs; SAM-BA (03EB:6124) is not
   emulated.
-- The 1 ms scheduler is not modelled; commands are handled as fast as Python
-  goes. Regulation, synchronisation, turn ratio, ramps and brake are not
+- The 1 ms scheduler is modelled only with `tick` (--tick-ms 1): a command
+  is then handled at the first tick at or after its arrival, and at most
+  one per tick (the next pass comes at the first tick after the last one,
+  its wait for the host included, has ended). Without it commands are
+  handled as fast as Python goes. Regulation, synchronisation, turn ratio, ramps and brake are not
   modelled: a running motor turns at 10 degrees per second per unit of
   power and stops exactly at its tacho limit. The firmware's exact sensor
   scaling and flash allocation are not modelled either: values, sizes and
@@ -88,7 +91,7 @@ after receiving a command, before replying), `mislength` (sends a reply to
 the same opcode but of the wrong length before each real reply).
 
 Usage: python3 tests/emulator/nxt_brick.py [--udc dummy_udc.0]
-    [--serial 001653A0B1C2] [--name NXT] [--hostile MODE]
+    [--serial 001653A0B1C2] [--name NXT] [--hostile MODE] [--tick-ms MS]
 runs until SIGTERM or SIGINT and prints one line when the host has configured
 the brick. Tests import RawGadgetBrick (start, stop, unplug, replug) and
 Firmware (the brick's behaviour alone, with an injectable clock).
@@ -1163,7 +1166,7 @@ class RawGadgetBrick:
 
     def __init__(self, udc='dummy_udc.0', serial='001653A0B1C2', name='NXT',
                  hostile=None, firmware=None, driver='dummy_udc', seed=1,
-                 reply_timeout=USB_REPLY_TIMEOUT, verbose=False):
+                 reply_timeout=USB_REPLY_TIMEOUT, verbose=False, tick=None):
         if hostile is not None and hostile not in HOSTILE_MODES:
             raise ValueError('hostile must be one of %s' % ', '.join(HOSTILE_MODES))
         if len(serial) != 12 or any(c not in '0123456789ABCDEF' for c in serial):
@@ -1174,6 +1177,8 @@ class RawGadgetBrick:
         self.rng = random.Random(seed)
         self.reply_timeout = reply_timeout
         self.verbose = verbose
+        self.tick = tick                # seconds per scheduler pass, or None
+        self._next_pass = 0.0           # (tick) the earliest next pass
         self.configured = threading.Event()
         self.events = []
         self.commands = 0
@@ -1188,6 +1193,9 @@ class RawGadgetBrick:
         self._config = 0
         self._ep_out = self._ep_in = self._ep_hidden = None
         self._parked = threading.Event()
+        # A reply the command loop writes itself: (thread id, deadline),
+        # 'interrupted' once the IN loop's watchdog stopped the write.
+        self._writing = None
 
     def log(self, what):
         self.events.append((time.monotonic(), what))
@@ -1393,11 +1401,23 @@ class RawGadgetBrick:
         self.commands += 1
         return packet
 
+    def _wait_for_pass(self):
+        """(tick) Sleep until the scheduler pass that reads the command
+        that has just come: the first tick at or after now and after the
+        last pass ended."""
+        now = time.monotonic()
+        start = max(now, self._next_pass)
+        at = -(-start // self.tick) * self.tick
+        if at > now:
+            time.sleep(at - now)
+
     def _command_loop(self):
         while not self._stopping.is_set():
             packet = self._next_command()
             if packet is None:
                 continue
+            if self.tick:
+                self._wait_for_pass()
             self.log('command %s' % packet.hex())
             if self.hostile == 'disconnect':
                 self._unplug_soon('unplugging instead of replying')
@@ -1407,6 +1427,9 @@ class RawGadgetBrick:
                 self._stopping.wait(self.fw.busy)
             if reply is not None:
                 self._send(reply)
+            if self.tick:
+                # The next pass is on the next tick after this one ended.
+                self._next_pass = (time.monotonic() // self.tick + 1) * self.tick
             if self.fw.rebooting:
                 self._unplug_soon('rebooting into SAM-BA (not emulated)')
                 return
@@ -1447,6 +1470,8 @@ class RawGadgetBrick:
     def _queue_reply(self, reply):
         """Put `reply` in the IN FIFO and wait, as the firmware does, for
         the host to collect it."""
+        if self._write_reply(reply):
+            return
         item = _Reply(reply)
         with self._cond:
             if len(self._banks) >= IN_BANKS:
@@ -1466,6 +1491,53 @@ class RawGadgetBrick:
                 self._stopping.wait(min(left, 0.05))
         if item is not None and not item.collected.is_set():
             self.log('reply not collected in time, left queued')
+
+    def _write_reply(self, reply):
+        """The common case of _queue_reply(), with no thread in between:
+        when no older reply is queued, write `reply` to the IN endpoint
+        from here and return once the host has read it. If it has not
+        within reply_timeout, the IN loop's watchdog interrupts the write,
+        and the reply goes to the IN loop to stay queued while the firmware
+        goes on. False when this does not apply (an older reply is queued,
+        or nothing is parked yet after a reset): queue it instead."""
+        gen = self.times_configured
+        with self._cond:
+            if self._banks or not self._parked.is_set():
+                return False
+            self._writing = (threading.get_ident(), time.monotonic() + self.reply_timeout)
+        try:
+            self._io(USB_RAW_IOCTL_EP_WRITE, self._ep_in, reply)
+        except OSError as e:
+            with self._cond:
+                interrupted = self._writing == 'interrupted'
+                self._writing = None
+                if interrupted and not self._stopping.is_set():
+                    # Not collected in time: it stays queued, the firmware goes on.
+                    self.log('reply not collected in time, left queued')
+                    self._banks.append(_Reply(reply))
+                    self._cond.notify_all()
+                    return True
+            if self._stopping.is_set():
+                return True
+            if e.errno != errno.EINTR:
+                self.log('IN endpoint flushed (%s), 1 replies dropped' % e)
+                self._after_flush(e, gen)
+            return True
+        with self._cond:
+            self._writing = None
+        self.log('reply collected %s' % reply.hex())
+        return True
+
+    def _watchdog(self):
+        """(IN loop, under _cond) Interrupt a write of _write_reply() that
+        has waited reply_timeout for the host."""
+        w = self._writing
+        if w and w != 'interrupted' and time.monotonic() >= w[1]:
+            self._writing = 'interrupted'
+            try:
+                signal.pthread_kill(w[0], WAKE_SIGNAL)
+            except ProcessLookupError:
+                pass
 
     def _park_loop(self):
         """Keep a packet in dummy_hcd's IN FIFO, on the endpoint nobody reads.
@@ -1488,7 +1560,8 @@ class RawGadgetBrick:
         while not self._stopping.is_set():
             with self._cond:
                 while not self._banks and not self._stopping.is_set():
-                    self._cond.wait(0.1)
+                    self._watchdog()
+                    self._cond.wait(min(0.05, self.reply_timeout / 5))
                 if self._stopping.is_set():
                     return
                 item = self._banks[0]
@@ -1523,13 +1596,17 @@ def main():
     ap.add_argument('--name', default='NXT', help='brick name (GetDeviceInfo)')
     ap.add_argument('--hostile', choices=HOSTILE_MODES)
     ap.add_argument('--verbose', action='store_true', help='log every event and command')
+    ap.add_argument('--tick-ms', type=float, default=0,
+                    help='model the firmware\'s scheduler: at most one command per tick of '
+                    'MS ms (the real brick: 1); default 0, as fast as possible')
     args = ap.parse_args()
 
     done = threading.Event()
     for sig in (signal.SIGTERM, signal.SIGINT):
         signal.signal(sig, lambda signum, frame: done.set())
     brick = RawGadgetBrick(udc=args.udc, driver=args.driver, serial=args.serial,
-                           name=args.name, hostile=args.hostile, verbose=args.verbose)
+                           name=args.name, hostile=args.hostile, verbose=args.verbose,
+                           tick=args.tick_ms / 1000 if args.tick_ms > 0 else None)
     try:
         brick.start()
     except OSError as e:

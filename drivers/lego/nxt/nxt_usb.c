@@ -107,6 +107,22 @@ static void nxt_orphan(struct nxt_usb *nxt, struct nxt_xfer *x)
 	nxt->orphan_op = x->tg[1];
 }
 
+/*
+ * The slot is free, or the first in line changed: wakes the first in line,
+ * the only one that may claim it (nxt_claim()). @lock held.
+ */
+static void nxt_wake_next(struct nxt_usb *nxt)
+{
+	struct nxt_xfer *next;
+
+	lockdep_assert_held(&nxt->lock);
+	if (nxt->cur)
+		return;
+	next = list_first_entry_or_null(&nxt->queue, struct nxt_xfer, queue);
+	if (next)
+		wake_up(&next->wait);
+}
+
 /* Ends the transaction @x with @status and frees the slot. @lock held. */
 static void nxt_finish(struct nxt_usb *nxt, struct nxt_xfer *x, int status)
 {
@@ -115,10 +131,13 @@ static void nxt_finish(struct nxt_usb *nxt, struct nxt_xfer *x, int status)
 	if (nxt->cur == x) {
 		nxt->cur = NULL;
 		timer_delete(&nxt->timer);
+		nxt_wake_next(nxt);
 	}
 	/* A telegram never sent has no reply to wait for. */
 	if (status && x->want_reply && x->sent)
 		nxt_orphan(nxt, x);
+	wake_up(&x->wait);
+	/* poll() and suspend(); nobody else sleeps there. */
 	wake_up_all(&nxt->wait);
 }
 
@@ -296,7 +315,9 @@ static void nxt_out_complete(struct urb *urb)
 	}
 	/* The last touch of @x: its owner may free it once it sees this. */
 	x->out_done = true;
-	wake_up_all(&nxt->wait);
+	/* An owner waiting for the reply too is woken when it comes. */
+	if (!x->reply_wait || x->status != -EINPROGRESS)
+		wake_up(&x->wait);
 	spin_unlock_irqrestore(&nxt->lock, flags);
 }
 
@@ -480,6 +501,7 @@ static void nxt_dequeue(struct nxt_usb *nxt, struct nxt_xfer *x)
 {
 	spin_lock_irq(&nxt->lock);
 	list_del_init(&x->queue);
+	nxt_wake_next(nxt);
 	spin_unlock_irq(&nxt->lock);
 	wake_up_all(&nxt->wait);
 }
@@ -501,12 +523,16 @@ bool nxt_xfer_done(struct nxt_usb *nxt, struct nxt_xfer *x)
 	return done;
 }
 
+/*
+ * Whether the OUT URB of @x has completed and, if its owner waits for the
+ * reply too (@reply_wait), whether @x has finished.
+ */
 static bool nxt_out_done(struct nxt_usb *nxt, struct nxt_xfer *x)
 {
 	bool done;
 
 	spin_lock_irq(&nxt->lock);
-	done = x->out_done;
+	done = x->out_done && (!x->reply_wait || x->status != -EINPROGRESS);
 	spin_unlock_irq(&nxt->lock);
 	return done;
 }
@@ -661,29 +687,15 @@ out:
 	return ret;
 }
 
-/**
- * nxt_xfer_start() - send a telegram
- * @nxt: the brick
- * @x: the transaction, owned by the caller (see nxt_usb.h)
- * @tg: the telegram
- * @len: its length
- * @timeout_ms: time from now within which the reply must have arrived
- * @nonblock: fail with -%EAGAIN instead of waiting for the brick to be free
- *
- * Claims the brick's slot and sends @tg. Returns once the telegram has been
- * sent; its reply, if its type asks for one, arrives in @x later (see
- * nxt_xfer_wait()), and so does its error if the reply was judged before
- * this returned: once the brick has the telegram, this returns 0.
- *
- * Return: 0, or -%EINVAL / -%EMSGSIZE for a bad telegram, -%EAGAIN
- * (@nonblock: the brick is busy, a late reply is being drained or a reset
- * is under way; nothing was sent), -%ERESTARTSYS (a signal before anything
- * was sent), -%EINTR (a signal while the telegram was being sent), -%ENODEV,
- * -%ENOMEM, -%ETIMEDOUT if the brick did not take the telegram in time,
- * -%EPIPE if it stalled, -%EIO.
+/*
+ * nxt_xfer_start(), and with @reply_wait the reply's wait of nxt_transact()
+ * too: then it returns once the reply has come as well (or a signal, which
+ * ends the wait but not the transaction), so that its owner sleeps once per
+ * transaction.
  */
-int nxt_xfer_start(struct nxt_usb *nxt, struct nxt_xfer *x, const u8 *tg,
-		   size_t len, unsigned int timeout_ms, bool nonblock)
+static int nxt_xfer_run(struct nxt_usb *nxt, struct nxt_xfer *x, const u8 *tg,
+			size_t len, unsigned int timeout_ms, bool nonblock,
+			bool reply_wait)
 {
 	struct urb *urb;
 	int want, ret, err = 0;
@@ -695,9 +707,11 @@ int nxt_xfer_start(struct nxt_usb *nxt, struct nxt_xfer *x, const u8 *tg,
 	memset(x, 0, sizeof(*x));
 	x->nxt = nxt;
 	INIT_LIST_HEAD(&x->queue);
+	init_waitqueue_head(&x->wait);
 	memcpy(x->tg, tg, len);
 	x->len = len;
 	x->want_reply = want;
+	x->reply_wait = reply_wait && want;
 
 	urb = usb_alloc_urb(0, GFP_KERNEL);
 	if (!urb)
@@ -716,7 +730,7 @@ int nxt_xfer_start(struct nxt_usb *nxt, struct nxt_xfer *x, const u8 *tg,
 			nxt_dequeue(nxt, x);
 			err = -EAGAIN;
 		}
-	} else if (wait_event_interruptible(nxt->wait, nxt_claim(nxt, x, &err))) {
+	} else if (wait_event_interruptible(x->wait, nxt_claim(nxt, x, &err))) {
 		nxt_dequeue(nxt, x);
 		err = -ERESTARTSYS;
 	}
@@ -737,7 +751,7 @@ int nxt_xfer_start(struct nxt_usb *nxt, struct nxt_xfer *x, const u8 *tg,
 		return ret;
 	}
 
-	if (wait_event_interruptible(nxt->wait, nxt_out_done(nxt, x))) {
+	if (wait_event_interruptible(x->wait, nxt_out_done(nxt, x))) {
 		/*
 		 * Its completion runs before usb_kill_urb() returns and
 		 * finishes @x with -EINTR if the kill stopped it. If the
@@ -766,6 +780,33 @@ int nxt_xfer_start(struct nxt_usb *nxt, struct nxt_xfer *x, const u8 *tg,
 }
 
 /**
+ * nxt_xfer_start() - send a telegram
+ * @nxt: the brick
+ * @x: the transaction, owned by the caller (see nxt_usb.h)
+ * @tg: the telegram
+ * @len: its length
+ * @timeout_ms: time from now within which the reply must have arrived
+ * @nonblock: fail with -%EAGAIN instead of waiting for the brick to be free
+ *
+ * Claims the brick's slot and sends @tg. Returns once the telegram has been
+ * sent; its reply, if its type asks for one, arrives in @x later (see
+ * nxt_xfer_wait()), and so does its error if the reply was judged before
+ * this returned: once the brick has the telegram, this returns 0.
+ *
+ * Return: 0, or -%EINVAL / -%EMSGSIZE for a bad telegram, -%EAGAIN
+ * (@nonblock: the brick is busy, a late reply is being drained or a reset
+ * is under way; nothing was sent), -%ERESTARTSYS (a signal before anything
+ * was sent), -%EINTR (a signal while the telegram was being sent), -%ENODEV,
+ * -%ENOMEM, -%ETIMEDOUT if the brick did not take the telegram in time,
+ * -%EPIPE if it stalled, -%EIO.
+ */
+int nxt_xfer_start(struct nxt_usb *nxt, struct nxt_xfer *x, const u8 *tg,
+		   size_t len, unsigned int timeout_ms, bool nonblock)
+{
+	return nxt_xfer_run(nxt, x, tg, len, timeout_ms, nonblock, false);
+}
+
+/**
  * nxt_xfer_wait() - wait for a started transaction to finish
  * @nxt: the brick
  * @x: a transaction nxt_xfer_start() started
@@ -782,7 +823,7 @@ int nxt_xfer_wait(struct nxt_usb *nxt, struct nxt_xfer *x, bool nonblock)
 	if (nonblock) {
 		if (!nxt_xfer_done(nxt, x))
 			return -EAGAIN;
-	} else if (wait_event_interruptible(nxt->wait, nxt_xfer_done(nxt, x))) {
+	} else if (wait_event_interruptible(x->wait, nxt_xfer_done(nxt, x))) {
 		return -ERESTARTSYS;
 	}
 	spin_lock_irq(&nxt->lock);
@@ -824,11 +865,12 @@ int nxt_transact(struct nxt_usb *nxt, struct nxt_xfer *x, const u8 *tg,
 {
 	int ret;
 
-	ret = nxt_xfer_start(nxt, x, tg, len, timeout_ms, nonblock);
+	ret = nxt_xfer_run(nxt, x, tg, len, timeout_ms, nonblock, true);
 	if (ret || !x->want_reply)
 		return ret;
-	ret = nxt_xfer_wait(nxt, x, false);
-	if (ret == -ERESTARTSYS) {
+	/* Not finished yet: a signal ended the wait. */
+	ret = nxt_xfer_wait(nxt, x, true);
+	if (ret == -EAGAIN) {
 		nxt_xfer_cancel(nxt, x);
 		ret = -EINTR;
 	}
@@ -961,6 +1003,7 @@ err_put:
 static void nxt_usb_disconnect(struct usb_interface *intf)
 {
 	struct nxt_usb *nxt = usb_get_intfdata(intf);
+	struct nxt_xfer *x;
 
 	/* No new opens; then no new transfers; then none in flight. */
 	usb_deregister_dev(intf, &nxt_usb_class);
@@ -971,6 +1014,9 @@ static void nxt_usb_disconnect(struct usb_interface *intf)
 	nxt->gone = true;
 	if (nxt->cur && nxt->cur->status == -EINPROGRESS)
 		nxt_finish(nxt, nxt->cur, -ENODEV);
+	/* Those waiting for the slot see @gone (nxt_claim()). */
+	list_for_each_entry(x, &nxt->queue, queue)
+		wake_up(&x->wait);
 	spin_unlock_irq(&nxt->lock);
 	/* Poisoned: a completion or a late work item cannot resubmit them. */
 	usb_poison_anchored_urbs(&nxt->out_anchor);

@@ -10,6 +10,10 @@
  * it, sends its telegram, and holds it until its reply has arrived, its
  * timeout has passed or it was cancelled. Callers waiting for the slot get
  * it in the order they came (@queue), so no client of a busy brick starves.
+ * Each transaction has a wait queue of its own: its owner is woken for its
+ * own progress only, and a freed slot wakes only the first in line, so the
+ * waiters of a busy brick are not all woken at every step of every
+ * transaction.
  * A 64-byte IN transfer is kept pending from the first transaction on (the
  * "reader"), so the brick never freezes waiting for a host to collect a
  * reply; a packet that does not answer the transaction in the slot is
@@ -121,8 +125,9 @@ struct nxt_info {
  * @orphan: a transaction ended without the reply to its telegram, which
  *	the brick took: the drain ends when that reply comes (@lock)
  * @orphan_op: the opcode of that telegram (@lock)
- * @wait: woken when the slot is freed, a transaction progresses or the
- *	brick goes away
+ * @wait: woken when a transaction finishes, the queue changes, a drain
+ *	ends or the brick goes away: for poll(), suspend() and drains (the
+ *	owner of a transaction sleeps on its &nxt_xfer.wait)
  * @in_urb: the reader's URB
  * @in_buf: its 64-byte buffer
  * @out_anchor: telegrams in flight, killed on disconnect, reset, suspend
@@ -173,6 +178,12 @@ struct nxt_usb {
  * struct nxt_xfer - one telegram and its reply
  * @nxt: the brick it is sent to
  * @queue: its entry in the brick's queue while it waits for the slot (@lock)
+ * @wait: its owner sleeps here: woken when the transaction may claim the
+ *	slot, its telegram is sent, it finishes, or the brick goes away;
+ *	always with @lock held, so that the owner, which checks under @lock,
+ *	cannot free it before the wake-up is done
+ * @reply_wait: the owner waits for the reply and the OUT URB together
+ *	(nxt_transact()): the OUT URB's completion alone does not wake it
  * @tg: the telegram
  * @len: its length
  * @want_reply: the telegram's type asks for a reply
@@ -195,6 +206,8 @@ struct nxt_usb {
 struct nxt_xfer {
 	struct nxt_usb *nxt;
 	struct list_head queue;
+	wait_queue_head_t wait;
+	bool reply_wait;
 	u8 tg[NXT_TELEGRAM_MAX];
 	unsigned int len;
 	bool want_reply;
