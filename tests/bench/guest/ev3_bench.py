@@ -688,9 +688,9 @@ def main():
     ap.add_argument('--only', choices=['samples'],
                     help='only this part (the sample delivery), for development')
     ap.add_argument('--seconds', type=float,
-                    help='seconds of each sample-delivery run (default 20, --quick 5)')
+                    help='seconds of each sample-delivery run (default 12, --quick 5)')
     ap.add_argument('--runs', type=int,
-                    help='sample-delivery runs of each path (default 3, --quick 1)')
+                    help='sample-delivery runs of each path (default 5, --quick 1)')
     args = ap.parse_args()
     if os.environ.get('LEGO_IN_VM') != '1':
         print('ev3_bench: run me in the test VM (tests/vm-run)', file=sys.stderr)
@@ -710,8 +710,8 @@ def main():
             f, n = bench_handshake(binary, work, 2 if args.quick else 5)
             figures += f
             notes += n
-        seconds = args.seconds or (5 if args.quick else 20)
-        runs = args.runs or (1 if args.quick else 3)
+        seconds = args.seconds or (5 if args.quick else 12)
+        runs = args.runs or (1 if args.quick else 5)
         failed, verdicts = [], []
         for nsensors in (4, 16):
             try:

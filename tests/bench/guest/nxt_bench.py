@@ -448,7 +448,7 @@ def main():
     ap.add_argument('--quick', action='store_true',
                     help='short run (2 rounds of 2 s per measurement)')
     ap.add_argument('--seconds', type=float, help='seconds per measurement (default 5)')
-    ap.add_argument('--runs', type=int, help='rounds (default 3)')
+    ap.add_argument('--runs', type=int, help='rounds (default 5)')
     ap.add_argument('--clients', default='1,4,8', help='concurrent clients (default 1,4,8)')
     ap.add_argument('--client', default=DEFAULT_CLIENT, help='the C client binary')
     ap.add_argument('--models', default='fast,tick',
@@ -466,7 +466,7 @@ def main():
     if not args.models or set(args.models) - {m for m, _ in MODELS}:
         sys.exit('nxt_bench: --models takes fast and tick')
     args.seconds = args.seconds or (2.0 if args.quick else 5.0)
-    args.runs = args.runs or (2 if args.quick else 3)
+    args.runs = args.runs or (2 if args.quick else 5)
     args.clients = [int(c) for c in args.clients.split(',')]
     if not os.access(args.client, os.X_OK):
         sys.exit('nxt_bench: %s missing: build it on the host with make -C tests/bench/nxt'
