@@ -38,6 +38,10 @@ def connect(line, kind):
     emu = line.plug(kind)
     path = find_sensor(line.address, timeout=15)
     assert path, 'no sensor for %s (emulator events: %s)' % (kind, emu.events)
+    if isinstance(kind, str):
+        # LEGO's sensors have IIO channels: the IIO device comes just after
+        # the lego-sensor device, and the tool's listing should show it.
+        iio_of(path, timeout=10)
     return emu, path
 
 
@@ -109,9 +113,20 @@ def steady(addresses, check, tries=4):
     pytest.fail('the sensors %s reconnected during each of %d tries' % (addresses, tries))
 
 
-def iio_of(path):
+def iio_of(path, timeout=0):
     """The IIO device of the sensor at `path`, found as the docs say: the
-    one with the same parent (the tty) and the sensor's address as label."""
+    one with the same parent (the tty) and the sensor's address as label.
+    The driver registers it just after the lego-sensor device: `timeout`
+    seconds to wait for it (None if it has not come by then)."""
+    deadline = time.monotonic() + timeout
+    while True:
+        name = _iio_of(path)
+        if name or time.monotonic() >= deadline:
+            return name
+        time.sleep(0.05)
+
+
+def _iio_of(path):
     tty = os.path.realpath(os.path.join(path, 'device'))
     found = []
     address = read_attr(path, 'address')
@@ -195,7 +210,7 @@ def test_text_listing(line):
         assert f['Driver'] == 'lego-ev3-us'
         assert f['Mode'] == 'US-DIST-CM'
         assert f['Modes'] == read_attr(path, 'modes')
-        iio = iio_of(path)
+        iio = iio_of(path, timeout=10)
         assert iio and f['IIO'] == iio
         assert read_attr(os.path.join(IIO, iio), 'name') == 'lego-ev3-us'
         assert f['value0'] == '26.3 cm'             # 263 with 1 decimal
@@ -383,7 +398,9 @@ def test_mode_busy_with_iio_buffer(line):
 
     def check(paths):
         path, = paths
-        dev = os.path.join(IIO, iio_of(path))
+        name = iio_of(path, timeout=10)
+        assert name, 'no IIO device for ' + path
+        dev = os.path.join(IIO, name)
         write_attr(dev, 'scan_elements/in_distance0_en', '1')
         write_attr(dev, 'buffer/enable', '1')
         try:
