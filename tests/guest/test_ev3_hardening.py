@@ -284,6 +284,18 @@ def test_iio_device_held_open_across_unplug(line):
     try:
         emu.stop()
         assert ev3.wait_gone(dev, 5)
+        # The sysfs directory goes first (cdev_device_del()); until
+        # iio_device_unregister() has then cleared the device's info, a
+        # read may still return the scans captured before the unplug.
+        deadline = time.monotonic() + 5
+        while True:
+            try:
+                os.read(fd, 4096)
+            except OSError as e:
+                assert e.errno in (errno.ENODEV, errno.EAGAIN), e
+                break
+            assert time.monotonic() < deadline, 'reads still succeed 5 s after the unplug'
+            time.sleep(0.01)
         for _ in range(3):
             with pytest.raises(OSError) as e:
                 os.read(fd, 64)
