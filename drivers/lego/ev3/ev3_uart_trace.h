@@ -44,20 +44,6 @@ enum ev3_uart_trace_sensor {
 };
 #endif
 
-#define ev3_uart_trace_msg_names				\
-	{ EV3_UART_TRACE_TYPE,		"TYPE" },		\
-	{ EV3_UART_TRACE_ACK,		"ACK" },		\
-	{ EV3_UART_TRACE_NACK,		"NACK" },		\
-	{ EV3_UART_TRACE_SELECT,	"SELECT" },		\
-	{ EV3_UART_TRACE_WRITE,		"WRITE" },		\
-	{ EV3_UART_TRACE_DATA,		"DATA" }
-
-#define ev3_uart_trace_state_names				\
-	{ 0,	"SYNC" },					\
-	{ 1,	"INFO" },					\
-	{ 2,	"ACKED" },					\
-	{ 3,	"DATA" }
-
 TRACE_DEFINE_ENUM(EV3_UART_TRACE_TYPE);
 TRACE_DEFINE_ENUM(EV3_UART_TRACE_ACK);
 TRACE_DEFINE_ENUM(EV3_UART_TRACE_NACK);
@@ -78,58 +64,56 @@ TRACE_DEFINE_ENUM(EV3_UART_TRACE_FAILED);
  * modes) or DATA (@arg is the mode, @len the payload length).
  */
 TRACE_EVENT(ev3_uart_rx,
-	TP_PROTO(const char *tty, u8 msg, u8 arg, u8 len, u8 accept,
-		 bool mode_changed),
-	TP_ARGS(tty, msg, arg, len, accept, mode_changed),
-	TP_STRUCT__entry(
-		__string(tty, tty)
-		__field(u8, msg)
-		__field(u8, arg)
-		__field(u8, len)
-		__field(u8, accept)
-		__field(bool, mode_changed)
-	),
-	TP_fast_assign(
-		lego_assign_str(tty, tty);
-		__entry->msg = msg;
-		__entry->arg = arg;
-		__entry->len = len;
-		__entry->accept = accept;
-		__entry->mode_changed = mode_changed;
-	),
-	TP_printk("tty=%s msg=%s arg=%u len=%u accept=%s mode_changed=%d",
-		  __get_str(tty),
-		  __print_symbolic(__entry->msg, ev3_uart_trace_msg_names),
-		  __entry->arg, __entry->len,
-		  __print_symbolic(__entry->accept,
-				   { EV3_UART_TRACE_NONE, "-" },
-				   { EV3_UART_TRACE_CSUM, "checksum" },
-				   { EV3_UART_TRACE_QUIRK_RGB_RAW, "rgb-raw-quirk" }),
-		  __entry->mode_changed)
+	    TP_PROTO(const char *tty, u8 msg, u8 arg, u8 len, u8 accept,
+		     bool mode_changed),
+	    TP_ARGS(tty, msg, arg, len, accept, mode_changed),
+	    TP_STRUCT__entry(__string(tty, tty)
+			     __field(u8, msg)
+			     __field(u8, arg)
+			     __field(u8, len)
+			     __field(u8, accept)
+			     __field(bool, mode_changed)),
+	    TP_fast_assign(lego_assign_str(tty, tty);
+			   __entry->msg = msg;
+			   __entry->arg = arg;
+			   __entry->len = len;
+			   __entry->accept = accept;
+			   __entry->mode_changed = mode_changed;),
+	    TP_printk("tty=%s msg=%s arg=%u len=%u accept=%s mode_changed=%d",
+		      __get_str(tty),
+		      __print_symbolic(__entry->msg,
+				       { EV3_UART_TRACE_TYPE, "TYPE" },
+				       { EV3_UART_TRACE_ACK, "ACK" },
+				       { EV3_UART_TRACE_NACK, "NACK" },
+				       { EV3_UART_TRACE_SELECT, "SELECT" },
+				       { EV3_UART_TRACE_WRITE, "WRITE" },
+				       { EV3_UART_TRACE_DATA, "DATA" }),
+		      __entry->arg, __entry->len,
+		      __print_symbolic(__entry->accept,
+				       { EV3_UART_TRACE_NONE, "-" },
+				       { EV3_UART_TRACE_CSUM, "checksum" },
+				       { EV3_UART_TRACE_QUIRK_RGB_RAW, "rgb-raw-quirk" }),
+		      __entry->mode_changed)
 );
 
 /* The sensor's handshake, complete (its ACK came). */
 TRACE_EVENT(ev3_uart_handshake,
-	TP_PROTO(const char *tty, u8 type, u8 num_modes, u8 num_view_modes,
-		 u32 speed),
-	TP_ARGS(tty, type, num_modes, num_view_modes, speed),
-	TP_STRUCT__entry(
-		__string(tty, tty)
-		__field(u8, type)
-		__field(u8, num_modes)
-		__field(u8, num_view_modes)
-		__field(u32, speed)
-	),
-	TP_fast_assign(
-		lego_assign_str(tty, tty);
-		__entry->type = type;
-		__entry->num_modes = num_modes;
-		__entry->num_view_modes = num_view_modes;
-		__entry->speed = speed;
-	),
-	TP_printk("tty=%s type=%u modes=%u view_modes=%u speed=%u",
-		  __get_str(tty), __entry->type, __entry->num_modes,
-		  __entry->num_view_modes, __entry->speed)
+	    TP_PROTO(const char *tty, u8 type, u8 num_modes, u8 num_view_modes,
+		     u32 speed),
+	    TP_ARGS(tty, type, num_modes, num_view_modes, speed),
+	    TP_STRUCT__entry(__string(tty, tty)
+			     __field(u8, type)
+			     __field(u8, num_modes)
+			     __field(u8, num_view_modes)
+			     __field(u32, speed)),
+	    TP_fast_assign(lego_assign_str(tty, tty);
+			   __entry->type = type;
+			   __entry->num_modes = num_modes;
+			   __entry->num_view_modes = num_view_modes;
+			   __entry->speed = speed;),
+	    TP_printk("tty=%s type=%u modes=%u view_modes=%u speed=%u",
+		      __get_str(tty), __entry->type, __entry->num_modes,
+		      __entry->num_view_modes, __entry->speed)
 );
 
 /*
@@ -137,100 +121,98 @@ TRACE_EVENT(ev3_uart_handshake,
  * WRITE (@arg: its first byte); @len bytes; @ret 0 or the tty's error.
  */
 TRACE_EVENT(ev3_uart_tx,
-	TP_PROTO(const char *tty, u8 msg, u8 hdr, u8 arg, u8 len, int ret),
-	TP_ARGS(tty, msg, hdr, arg, len, ret),
-	TP_STRUCT__entry(
-		__string(tty, tty)
-		__field(u8, msg)
-		__field(u8, hdr)
-		__field(u8, arg)
-		__field(u8, len)
-		__field(int, ret)
-	),
-	TP_fast_assign(
-		lego_assign_str(tty, tty);
-		__entry->msg = msg;
-		__entry->hdr = hdr;
-		__entry->arg = arg;
-		__entry->len = len;
-		__entry->ret = ret;
-	),
-	TP_printk("tty=%s msg=%s hdr=0x%02x arg=%u len=%u ret=%d",
-		  __get_str(tty),
-		  __print_symbolic(__entry->msg, ev3_uart_trace_msg_names),
-		  __entry->hdr, __entry->arg, __entry->len, __entry->ret)
+	    TP_PROTO(const char *tty, u8 msg, u8 hdr, u8 arg, u8 len, int ret),
+	    TP_ARGS(tty, msg, hdr, arg, len, ret),
+	    TP_STRUCT__entry(__string(tty, tty)
+			     __field(u8, msg)
+			     __field(u8, hdr)
+			     __field(u8, arg)
+			     __field(u8, len)
+			     __field(int, ret)),
+	    TP_fast_assign(lego_assign_str(tty, tty);
+			   __entry->msg = msg;
+			   __entry->hdr = hdr;
+			   __entry->arg = arg;
+			   __entry->len = len;
+			   __entry->ret = ret;),
+	    TP_printk("tty=%s msg=%s hdr=0x%02x arg=%u len=%u ret=%d",
+		      __get_str(tty),
+		      __print_symbolic(__entry->msg,
+				       { EV3_UART_TRACE_TYPE, "TYPE" },
+				       { EV3_UART_TRACE_ACK, "ACK" },
+				       { EV3_UART_TRACE_NACK, "NACK" },
+				       { EV3_UART_TRACE_SELECT, "SELECT" },
+				       { EV3_UART_TRACE_WRITE, "WRITE" },
+				       { EV3_UART_TRACE_DATA, "DATA" }),
+		      __entry->hdr, __entry->arg, __entry->len, __entry->ret)
 );
 
 /* The tty was switched to @speed baud (@ret: 0 or -EINVAL if it could not). */
 TRACE_EVENT(ev3_uart_speed,
-	TP_PROTO(const char *tty, u32 speed, int ret),
-	TP_ARGS(tty, speed, ret),
-	TP_STRUCT__entry(
-		__string(tty, tty)
-		__field(u32, speed)
-		__field(int, ret)
-	),
-	TP_fast_assign(
-		lego_assign_str(tty, tty);
-		__entry->speed = speed;
-		__entry->ret = ret;
-	),
-	TP_printk("tty=%s speed=%u ret=%d", __get_str(tty), __entry->speed,
-		  __entry->ret)
+	    TP_PROTO(const char *tty, u32 speed, int ret),
+	    TP_ARGS(tty, speed, ret),
+	    TP_STRUCT__entry(__string(tty, tty)
+			     __field(u32, speed)
+			     __field(int, ret)),
+	    TP_fast_assign(lego_assign_str(tty, tty);
+			   __entry->speed = speed;
+			   __entry->ret = ret;),
+	    TP_printk("tty=%s speed=%u ret=%d", __get_str(tty), __entry->speed,
+		      __entry->ret)
 );
 
 /* The parser went from state @from to @to (enum ev3_uart_state), and why. */
 TRACE_EVENT(ev3_uart_state,
-	TP_PROTO(const char *tty, u8 from, u8 to, const char *reason),
-	TP_ARGS(tty, from, to, reason),
-	TP_STRUCT__entry(
-		__string(tty, tty)
-		__field(u8, from)
-		__field(u8, to)
-		__string(reason, reason)
-	),
-	TP_fast_assign(
-		lego_assign_str(tty, tty);
-		__entry->from = from;
-		__entry->to = to;
-		lego_assign_str(reason, reason);
-	),
-	TP_printk("tty=%s from=%s to=%s reason=\"%s\"", __get_str(tty),
-		  __print_symbolic(__entry->from, ev3_uart_trace_state_names),
-		  __print_symbolic(__entry->to, ev3_uart_trace_state_names),
-		  __get_str(reason))
+	    TP_PROTO(const char *tty, u8 from, u8 to, const char *reason),
+	    TP_ARGS(tty, from, to, reason),
+	    TP_STRUCT__entry(__string(tty, tty)
+			     __field(u8, from)
+			     __field(u8, to)
+			     __string(reason, reason)),
+	    TP_fast_assign(lego_assign_str(tty, tty);
+			   __entry->from = from;
+			   __entry->to = to;
+			   lego_assign_str(reason, reason);),
+	    TP_printk("tty=%s from=%s to=%s reason=\"%s\"", __get_str(tty),
+		      __print_symbolic(__entry->from,
+				       { 0, "SYNC" },
+				       { 1, "INFO" },
+				       { 2, "ACKED" },
+				       { 3, "DATA" }),
+		      __print_symbolic(__entry->to,
+				       { 0, "SYNC" },
+				       { 1, "INFO" },
+				       { 2, "ACKED" },
+				       { 3, "DATA" }),
+		      __get_str(reason))
 );
 
 /* A sensor was registered, lost, dropped on close, or failed to register. */
 TRACE_EVENT(ev3_uart_sensor,
-	TP_PROTO(const char *tty, u8 what, u8 type, const char *driver,
-		 const char *dev, u32 speed),
-	TP_ARGS(tty, what, type, driver, dev, speed),
-	TP_STRUCT__entry(
-		__string(tty, tty)
-		__field(u8, what)
-		__field(u8, type)
-		__string(driver, driver)
-		__string(dev, dev)
-		__field(u32, speed)
-	),
-	TP_fast_assign(
-		lego_assign_str(tty, tty);
-		__entry->what = what;
-		__entry->type = type;
-		lego_assign_str(driver, driver);
-		lego_assign_str(dev, dev);
-		__entry->speed = speed;
-	),
-	TP_printk("tty=%s event=%s type=%u driver=%s dev=%s speed=%u",
-		  __get_str(tty),
-		  __print_symbolic(__entry->what,
-				   { EV3_UART_TRACE_REGISTERED, "registered" },
-				   { EV3_UART_TRACE_LOST, "lost" },
-				   { EV3_UART_TRACE_CLOSED, "closed" },
-				   { EV3_UART_TRACE_FAILED, "failed" }),
-		  __entry->type, __get_str(driver), __get_str(dev),
-		  __entry->speed)
+	    TP_PROTO(const char *tty, u8 what, u8 type, const char *driver,
+		     const char *dev, u32 speed),
+	    TP_ARGS(tty, what, type, driver, dev, speed),
+	    TP_STRUCT__entry(__string(tty, tty)
+			     __field(u8, what)
+			     __field(u8, type)
+			     __string(driver, driver)
+			     __string(dev, dev)
+			     __field(u32, speed)),
+	    TP_fast_assign(lego_assign_str(tty, tty);
+			   __entry->what = what;
+			   __entry->type = type;
+			   lego_assign_str(driver, driver);
+			   lego_assign_str(dev, dev);
+			   __entry->speed = speed;),
+	    TP_printk("tty=%s event=%s type=%u driver=%s dev=%s speed=%u",
+		      __get_str(tty),
+		      __print_symbolic(__entry->what,
+				       { EV3_UART_TRACE_REGISTERED, "registered" },
+				       { EV3_UART_TRACE_LOST, "lost" },
+				       { EV3_UART_TRACE_CLOSED, "closed" },
+				       { EV3_UART_TRACE_FAILED, "failed" }),
+		      __entry->type, __get_str(driver), __get_str(dev),
+		      __entry->speed)
 );
 
 #endif /* _EV3_UART_TRACE_H */
