@@ -285,6 +285,10 @@ static void event(struct host *h, const struct ev3_uart_event *ev, size_t rest)
 		CHECK(p->state == EV3_UART_STATE_SYNC);
 		CHECK(ev->reason && ev->reason[0]);
 		break;
+	case EV3_UART_EV_MSG:
+		CHECK(p->report_msgs && p->state == EV3_UART_STATE_INFO);
+		CHECK(ev->len >= 3 && ev->len <= EV3_UART_MAX_MSG_LEN);
+		break;
 	default:
 		CHECK(0);
 	}

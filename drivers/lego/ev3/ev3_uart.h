@@ -74,6 +74,8 @@ struct ev3_uart_iio;
  *	attached; the parser's own counts are added when it restarts)
  * @syncs: TYPE messages that started a handshake
  * @handshakes: handshakes completed (the sensor's ACK)
+ * @info_msgs: handshake messages (CMD, INFO) received while ev3_uart_rx
+ *	was traced (the parser reports them only then)
  * @data_msgs: good DATA messages
  * @resyncs: protocol errors, each a return to 2400 baud (resync)
  * @line_errors: bytes received with a framing, parity or overrun error
@@ -94,6 +96,7 @@ struct ev3_uart_iio;
 struct ev3_uart_stats {
 	u64 syncs;
 	u64 handshakes;
+	u64 info_msgs;
 	u64 data_msgs;
 	u64 resyncs;
 	u64 line_errors;

@@ -32,6 +32,7 @@
 #include <linux/debugfs.h>
 #include <linux/hrtimer.h>
 #include <linux/jiffies.h>
+#include <linux/log2.h>
 #include <linux/lockdep.h>
 #include <linux/module.h>
 #include <linux/moduleparam.h>
@@ -318,6 +319,16 @@ static u8 ev3_uart_accepted_by(const struct ev3_uart_port *port, u8 mode,
 }
 
 /*
+ * The header a DATA message of @mode with @len payload bytes had (the
+ * ultrasonic sensor's US-DC-IN quirk aside: see ev3_uart_data_msg()).
+ */
+static u8 ev3_uart_data_hdr(u8 mode, u8 len)
+{
+	return EV3_UART_MSG_DATA | (ilog2(len ?: 1) << EV3_UART_MSG_SIZE_SHIFT) |
+	       (mode & EV3_UART_MSG_CMD_MASK);
+}
+
+/*
  * Called under port->lock, in the receive path (and from keepalive_work).
  * @rest: bytes received after the message that caused @ev, in the same batch.
  * @from: the parser's state before it made @ev.
@@ -337,13 +348,25 @@ static void ev3_uart_event(struct ev3_uart_port *port,
 		pr_debug("%s: sensor type %u syncing\n", port->tty->name,
 			 port->parser.sensor.type);
 		port->stats.syncs++;
-		trace_ev3_uart_rx(port->tty->name, EV3_UART_TRACE_TYPE, s->type,
-				  1, EV3_UART_TRACE_CSUM, false);
+		trace_ev3_uart_rx(port->tty->name, EV3_UART_TRACE_TYPE,
+				  EV3_UART_MSG_CMD | EV3_UART_CMD_TYPE, s->type, 0,
+				  3, EV3_UART_TRACE_CSUM, false);
+		break;
+	case EV3_UART_EV_MSG:
+		/* Only while ev3_uart_rx is enabled (see receive_buf()). */
+		port->stats.info_msgs++;
+		trace_ev3_uart_rx(port->tty->name,
+				  (ev->mode & EV3_UART_MSG_TYPE_MASK) == EV3_UART_MSG_INFO ?
+				  EV3_UART_TRACE_INFO : EV3_UART_TRACE_CMD,
+				  ev->mode, ev->mode & EV3_UART_MSG_CMD_MASK,
+				  port->parser.msg_info, ev->len,
+				  EV3_UART_TRACE_CSUM, false);
 		break;
 	case EV3_UART_EV_HANDSHAKE:
 		port->stats.handshakes++;
 		trace_ev3_uart_rx(port->tty->name, EV3_UART_TRACE_ACK,
-				  s->num_modes, 0, EV3_UART_TRACE_NONE, false);
+				  EV3_UART_SYS_ACK, s->num_modes, 0, 1,
+				  EV3_UART_TRACE_NONE, false);
 		trace_ev3_uart_handshake(port->tty->name, s->type, s->num_modes,
 					 s->num_view_modes, s->speed);
 		if (!port->closing)
@@ -355,7 +378,8 @@ static void ev3_uart_event(struct ev3_uart_port *port,
 		port->stats.data_msgs++;
 		if (trace_ev3_uart_rx_enabled())
 			trace_ev3_uart_rx(port->tty->name, EV3_UART_TRACE_DATA,
-					  ev->mode, ev->len,
+					  ev3_uart_data_hdr(ev->mode, ev->len),
+					  ev->mode, 0, ev->len,
 					  ev3_uart_accepted_by(port, ev->mode, ev->len),
 					  ev->mode_changed);
 		if (!sd)
@@ -402,6 +426,8 @@ static void ev3_uart_receive_buf(struct tty_struct *tty, const u8 *cp,
 	u8 from;
 
 	spin_lock(&port->lock);
+	/* The handshake's messages one by one, for ev3_uart_rx. */
+	port->parser.report_msgs = trace_ev3_uart_rx_enabled();
 	while (count > 0) {
 		from = port->parser.state;
 		if (fp && *fp != TTY_NORMAL) {
@@ -1009,6 +1035,7 @@ static int ev3_uart_counters_show(struct seq_file *m, void *unused)
 	seq_printf(m, "state %u\n", state);
 	seq_printf(m, "syncs %llu\n", st.syncs);
 	seq_printf(m, "handshakes %llu\n", st.handshakes);
+	seq_printf(m, "info_msgs %llu\n", st.info_msgs);
 	seq_printf(m, "data_msgs %llu\n", st.data_msgs);
 	seq_printf(m, "resyncs %llu\n", st.resyncs);
 	seq_printf(m, "line_errors %llu\n", st.line_errors);

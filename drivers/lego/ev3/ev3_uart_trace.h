@@ -26,6 +26,8 @@ enum ev3_uart_trace_msg {
 	EV3_UART_TRACE_SELECT,
 	EV3_UART_TRACE_WRITE,
 	EV3_UART_TRACE_DATA,
+	EV3_UART_TRACE_CMD,
+	EV3_UART_TRACE_INFO,
 };
 
 /* How a DATA message was accepted (ev3_uart_rx). */
@@ -50,6 +52,8 @@ TRACE_DEFINE_ENUM(EV3_UART_TRACE_NACK);
 TRACE_DEFINE_ENUM(EV3_UART_TRACE_SELECT);
 TRACE_DEFINE_ENUM(EV3_UART_TRACE_WRITE);
 TRACE_DEFINE_ENUM(EV3_UART_TRACE_DATA);
+TRACE_DEFINE_ENUM(EV3_UART_TRACE_CMD);
+TRACE_DEFINE_ENUM(EV3_UART_TRACE_INFO);
 TRACE_DEFINE_ENUM(EV3_UART_TRACE_NONE);
 TRACE_DEFINE_ENUM(EV3_UART_TRACE_CSUM);
 TRACE_DEFINE_ENUM(EV3_UART_TRACE_QUIRK_RGB_RAW);
@@ -59,27 +63,34 @@ TRACE_DEFINE_ENUM(EV3_UART_TRACE_CLOSED);
 TRACE_DEFINE_ENUM(EV3_UART_TRACE_FAILED);
 
 /*
- * A message the parser acted on: TYPE (a handshake starts; @arg is the
- * sensor type), ACK (the handshake is complete; @arg is the number of
- * modes) or DATA (@arg is the mode, @len the payload length).
+ * A message received: TYPE (a handshake starts; @arg is the sensor type),
+ * CMD (@arg: the command), INFO (@arg: the mode, @info the INFO type), ACK
+ * (the handshake is complete; @arg is the number of modes) or DATA (@arg is
+ * the mode). @hdr: its header; @len: the whole message's length (DATA: the
+ * payload's). CMD and INFO are traced only while this event is enabled
+ * (the parser reports them then only).
  */
 TRACE_EVENT(ev3_uart_rx,
-	    TP_PROTO(const char *tty, u8 msg, u8 arg, u8 len, u8 accept,
-		     bool mode_changed),
-	    TP_ARGS(tty, msg, arg, len, accept, mode_changed),
+	    TP_PROTO(const char *tty, u8 msg, u8 hdr, u8 arg, u8 info, u8 len,
+		     u8 accept, bool mode_changed),
+	    TP_ARGS(tty, msg, hdr, arg, info, len, accept, mode_changed),
 	    TP_STRUCT__entry(__string(tty, tty)
 			     __field(u8, msg)
+			     __field(u8, hdr)
 			     __field(u8, arg)
+			     __field(u8, info)
 			     __field(u8, len)
 			     __field(u8, accept)
 			     __field(bool, mode_changed)),
 	    TP_fast_assign(lego_assign_str(tty, tty);
 			   __entry->msg = msg;
+			   __entry->hdr = hdr;
 			   __entry->arg = arg;
+			   __entry->info = info;
 			   __entry->len = len;
 			   __entry->accept = accept;
 			   __entry->mode_changed = mode_changed;),
-	    TP_printk("tty=%s msg=%s arg=%u len=%u accept=%s mode_changed=%d",
+	    TP_printk("tty=%s msg=%s hdr=0x%02x arg=%u info=0x%02x len=%u accept=%s mode_changed=%d",
 		      __get_str(tty),
 		      __print_symbolic(__entry->msg,
 				       { EV3_UART_TRACE_TYPE, "TYPE" },
@@ -87,8 +98,10 @@ TRACE_EVENT(ev3_uart_rx,
 				       { EV3_UART_TRACE_NACK, "NACK" },
 				       { EV3_UART_TRACE_SELECT, "SELECT" },
 				       { EV3_UART_TRACE_WRITE, "WRITE" },
-				       { EV3_UART_TRACE_DATA, "DATA" }),
-		      __entry->arg, __entry->len,
+				       { EV3_UART_TRACE_DATA, "DATA" },
+				       { EV3_UART_TRACE_CMD, "CMD" },
+				       { EV3_UART_TRACE_INFO, "INFO" }),
+		      __entry->hdr, __entry->arg, __entry->info, __entry->len,
 		      __print_symbolic(__entry->accept,
 				       { EV3_UART_TRACE_NONE, "-" },
 				       { EV3_UART_TRACE_CSUM, "checksum" },
@@ -143,7 +156,9 @@ TRACE_EVENT(ev3_uart_tx,
 				       { EV3_UART_TRACE_NACK, "NACK" },
 				       { EV3_UART_TRACE_SELECT, "SELECT" },
 				       { EV3_UART_TRACE_WRITE, "WRITE" },
-				       { EV3_UART_TRACE_DATA, "DATA" }),
+				       { EV3_UART_TRACE_DATA, "DATA" },
+				       { EV3_UART_TRACE_CMD, "CMD" },
+				       { EV3_UART_TRACE_INFO, "INFO" }),
 		      __entry->hdr, __entry->arg, __entry->len, __entry->ret)
 );
 
