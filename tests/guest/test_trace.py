@@ -10,6 +10,7 @@ import os
 import re
 import shlex
 import subprocess
+import time
 
 import pytest
 
@@ -21,7 +22,7 @@ N_LEGOEV3 = 29
 DEBUGFS = '/sys/kernel/debug'
 
 EV3_EVENTS = {
-    'ev3_uart_rx': {'tty', 'msg', 'arg', 'len', 'accept', 'mode_changed'},
+    'ev3_uart_rx': {'tty', 'msg', 'hdr', 'arg', 'info', 'len', 'accept', 'mode_changed'},
     'ev3_uart_handshake': {'tty', 'type', 'num_modes', 'num_view_modes', 'speed'},
     'ev3_uart_tx': {'tty', 'msg', 'hdr', 'arg', 'len', 'ret'},
     'ev3_uart_speed': {'tty', 'speed', 'ret'},
@@ -143,6 +144,14 @@ def test_ev3_handshake_mode_switch_and_loss(ev3_module):
         hs = trace.events('ev3_uart_handshake', tty=tty)
         assert hs and hs[0][1]['type'] == '29' and hs[0][1]['speed'] == '57600', hs
         assert trace.events('ev3_uart_rx', tty=tty, msg='ACK')
+        # Each message of the handshake: MODES and SPEED, then the modes'
+        # INFO, ending with mode 0's FORMAT.
+        hsmsgs = [f for _, f in trace.events('ev3_uart_rx', tty=tty)
+                  if f['msg'] in ('CMD', 'INFO')]
+        assert [(f['hdr'], f['len']) for f in hsmsgs[:2]] == [('0x49', '4'), ('0x52', '6')], hsmsgs
+        assert (hsmsgs[-1]['hdr'], hsmsgs[-1]['info']) == ('0x90', '0x80'), hsmsgs
+        names = [f for f in hsmsgs if f['msg'] == 'INFO' and f['info'] == '0x00']
+        assert len(names) == 6, names                    # the colour sensor's 6 modes
         states = [(f['from'], f['to']) for _, f in trace.events('ev3_uart_state', tty=tty)]
         for step in [('SYNC', 'INFO'), ('INFO', 'ACKED'), ('ACKED', 'DATA')]:
             assert step in states, states
@@ -180,6 +189,7 @@ def test_ev3_handshake_mode_switch_and_loss(ev3_module):
         assert c['tx_nack'] >= 1 and c['tx_errors'] == 0, c
         assert 0 < c['data_msgs'] <= emu.frames_sent, (c, emu.frames_sent)
         assert c['data_msgs'] == len(trace.events('ev3_uart_rx', tty=tty, msg='DATA'))
+        assert c['info_msgs'] == len(hsmsgs), (c, len(hsmsgs))
         assert c['tx_nack'] == len(trace.events('ev3_uart_tx', tty=tty, msg='NACK'))
     finally:
         trace.stop()
@@ -189,6 +199,49 @@ def test_ev3_handshake_mode_switch_and_loss(ev3_module):
         os.close(master)
     assert not os.path.exists('%s/lego_ev3_uart/%s' % (DEBUGFS, tty)), \
         'the port\'s debugfs directory outlived it'
+
+
+def test_lego_sensors_trace(ev3_module):
+    """lego-sensors --trace=TTY prints a handshake decoded, as it happens."""
+    import ev3
+    import fcntl
+    import signal
+    import struct
+    import termios
+    tool = os.path.join(os.environ['LEGO_BUILD'], 'tools/lego-sensors')
+    tracefs()
+    master, slave = os.openpty()
+    tty = 'pts' + os.ttyname(slave).split('/')[-1]
+    proc = subprocess.Popen([tool, '--trace=' + tty], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    emu = None
+    try:
+        assert wait_for(lambda: open(tracefs() + '/events/lego_ev3_uart/enable').read()
+                        .strip() == '1', 5.0), 'lego-sensors --trace did not enable the events'
+        fcntl.ioctl(slave, termios.TIOCSETD, struct.pack('i', N_LEGOEV3))
+        emu = ev3.ev3_sensor.EmulatedSensor(master, 'color')
+        emu.start()
+        path = ev3.find_sensor(tty, timeout=15)
+        assert path, 'no sensor at %s (%s)' % (tty, emu.events)
+        time.sleep(0.5)
+    finally:
+        proc.send_signal(signal.SIGINT)
+        out, errs = proc.communicate(timeout=10)
+        if emu:
+            emu.stop()
+        os.close(slave)
+        os.close(master)
+    assert proc.returncode == 0, errs
+    lines = [line.split(None, 2)[2] for line in out.splitlines() if line.split()[1:2] == [tty]]
+    for want in ('== SYNC -> INFO: TYPE message', '<- TYPE 29', '<- MODES (4 bytes)',
+                 '<- SPEED (6 bytes)', '<- INFO mode 0 FORMAT (7 bytes)',
+                 '<- ACK: handshake complete, 6 modes', '-> ACK', '== 57600 baud',
+                 '== sensor registered: lego-ev3-color as %s' % os.path.basename(path)):
+        assert want in lines, (want, out)
+    assert any(line.startswith('<- DATA mode 0') for line in lines), out
+    assert any(line == '-> NACK' for line in lines), out
+    with open(tracefs() + '/events/lego_ev3_uart/enable') as f:
+        assert f.read().strip() == '0', 'the events were left enabled'
 
 
 @pytest.fixture(scope='module')
