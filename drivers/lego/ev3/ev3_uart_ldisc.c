@@ -69,7 +69,7 @@
  */
 #define EV3_UART_LDISC_NUM	N_DEVELOPMENT
 
-/* lego_ev3_uart in debugfs: a directory per port (ev3_uart_debugfs_init()). */
+/* lego_ev3_uart in debugfs, with a directory per port (ev3_uart_open()). */
 static struct dentry *ev3_uart_debugfs_root;
 
 static char *port_labels[8];
@@ -526,7 +526,7 @@ static void ev3_uart_ack_work(struct work_struct *work)
 	struct ev3_uart_sensor_dev *sd;
 	struct ev3_uart_sensor desc;
 	const char *last_error, *why;
-	u8 ack;
+	u8 ack, from;
 
 	spin_lock(&port->lock);
 	if (port->closing || port->parser.state != EV3_UART_STATE_ACKED) {
@@ -564,9 +564,9 @@ static void ev3_uart_ack_work(struct work_struct *work)
 	}
 
 	spin_lock(&port->lock);
+	from = port->parser.state;
 	ev3_uart_parser_start_data(&port->parser);
-	ev3_uart_trace_state(port, EV3_UART_STATE_ACKED, NULL,
-			     "ACK answered, speed switched");
+	ev3_uart_trace_state(port, from, NULL, "ACK answered, speed switched");
 	spin_unlock(&port->lock);
 	/*
 	 * Keep the sensor alive from now on: it resets after about a second
