@@ -322,3 +322,38 @@ def test_nxt_timeout_is_traced(brick_dev):
     assert after['err_timedout'] - before['err_timedout'] == 1
     assert after['drains'] > before['drains']
     assert after['drained'] > before['drained']
+
+
+def test_nxtctl_trace(brick_dev):
+    """nxtctl trace USBDEV prints a transaction decoded, as it happens."""
+    import signal
+    brick, dev = brick_dev
+    tool = os.path.join(os.environ['LEGO_BUILD'], 'tools/nxtctl')
+    enable = tracefs() + '/events/lego_nxt_usb/enable'
+    fd = brick.open()
+    try:
+        nxt.ok(fd, 'GET_BATTERY_LEVEL')
+        proc = subprocess.Popen([tool, 'trace', dev], stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE, text=True)
+        try:
+            assert wait_for(lambda: open(enable).read().strip() == '1', 5.0), \
+                'nxtctl trace did not enable the events'
+            nxt.ok(fd, 'GET_BATTERY_LEVEL')
+            err, _ = nxt.transact(fd, b'\x01\x88')
+            assert err == 0
+            time.sleep(0.5)
+        finally:
+            proc.send_signal(signal.SIGINT)
+            out, errs = proc.communicate(timeout=10)
+    finally:
+        os.close(fd)
+    assert proc.returncode == 0, errs
+    lines = [line.split(None, 2)[2] for line in out.splitlines() if line.split()[1:2] == [dev]]
+    assert lines[:6] == ['-> GetBatteryLevel (direct, 2 bytes)',
+                         '<- GetBatteryLevel reply, 5 bytes',
+                         '== GetBatteryLevel done',
+                         '-> GetFirmwareVersion (system, 2 bytes)',
+                         '<- GetFirmwareVersion reply, 7 bytes',
+                         '== GetFirmwareVersion done'], out
+    with open(enable) as f:
+        assert f.read().strip() == '0', 'the events were left enabled'
