@@ -258,6 +258,7 @@ def test_nxt_transaction(brick_dev):
         nxt.ok(fd, 'GET_BATTERY_LEVEL')
         path = '%s/lego_nxt_usb/%s/counters' % (DEBUGFS, dev)
         before = counters(path)
+        commands = brick.emu.commands
         trace = Trace('lego_nxt_usb')
         try:
             for _ in range(3):
@@ -271,6 +272,7 @@ def test_nxt_transaction(brick_dev):
         finally:
             trace.stop()
         after = counters(path)
+        commands = brick.emu.commands - commands
     finally:
         os.close(fd)
 
@@ -286,7 +288,7 @@ def test_nxt_transaction(brick_dev):
     assert [f['len'] for _, f in rx][:3] == ['5'] * 3, rx
 
     delta = {k: after[k] - before[k] for k in after}
-    assert delta['telegrams'] == 4 and delta['replies'] == 4, delta
+    assert delta['telegrams'] == 4 == commands and delta['replies'] == 4, (delta, commands)
     assert delta['transactions'] == 4 and delta['ok'] == 4, delta
     assert not any(v for k, v in delta.items() if k.startswith('err_')), delta
 
