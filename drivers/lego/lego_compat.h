@@ -96,4 +96,15 @@ lego_hrtimer_setup(struct hrtimer *timer,
 			      "%s and %s differ", #left, #right)
 #endif
 
+/*
+ * 6.10: __assign_str() in a trace event takes the field's name only (the
+ * source is the one __string() named); before, it took the source too.
+ * lego_assign_str(field, source) works with both.
+ */
+#ifdef LEGO_HAVE_ASSIGN_STR_1
+#define lego_assign_str(dst, ...)	__assign_str(dst)
+#else
+#define lego_assign_str(dst, src)	__assign_str(dst, src)
+#endif
+
 #endif /* _LEGO_COMPAT_H */

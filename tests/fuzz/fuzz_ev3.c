@@ -285,6 +285,10 @@ static void event(struct host *h, const struct ev3_uart_event *ev, size_t rest)
 		CHECK(p->state == EV3_UART_STATE_SYNC);
 		CHECK(ev->reason && ev->reason[0]);
 		break;
+	case EV3_UART_EV_MSG:
+		CHECK(p->report_msgs && p->state == EV3_UART_STATE_INFO);
+		CHECK(ev->len >= 3 && ev->len <= EV3_UART_MAX_MSG_LEN);
+		break;
 	default:
 		CHECK(0);
 	}
@@ -307,6 +311,8 @@ static void receive(struct host *h, const u8 *buf, size_t count)
 	h->now += count * 10000000000LL / speed;
 	if (h->rng)
 		h->now += rnd(h) % 5000000;
+	/* As the driver does while ev3_uart_rx is traced: half the inputs. */
+	h->p->report_msgs = h->rng & 4;
 	while (count > 0) {
 		used = ev3_uart_parser_feed(h->p, buf, count, &ev);
 		CHECK(used <= count);

@@ -28,7 +28,7 @@ DOC = os.path.join(nxt.TOP, 'Documentation', 'lego', 'nxtctl.rst')
 COMMANDS = ['list', 'info', 'battery', 'keep-alive', 'tone', 'play', 'stop-sound', 'motor',
             'motor-state', 'reset-motor', 'sensor-type', 'sensor', 'reset-sensor', 'ultrasonic',
             'mailbox-send', 'mailbox-read', 'start', 'stop', 'current', 'name', 'raw', 'upload',
-            'download', 'ls', 'rm', 'release', 'claim', 'help']
+            'download', 'ls', 'rm', 'release', 'claim', 'trace', 'help']
 
 
 @pytest.fixture

@@ -5,11 +5,13 @@
  *
  *   lego-sensors [--json] [--watch[=SECONDS]] [SENSOR...]
  *   lego-sensors --mode=MODE [SENSOR]
+ *   lego-sensors --trace[=TTY]
  *
  * Everything comes from /sys/class/lego-sensor/sensorN (see
  * Documentation/ABI/testing/sysfs-class-lego-sensor) and from the IIO
  * device the driver registers beside each sensor: labelled with the
- * sensor's address and parented to the same tty.
+ * sensor's address and parented to the same tty. --trace prints the
+ * protocol live from the driver's trace events, in tracefs.
  */
 #define _GNU_SOURCE	/* open_memstream(), strchrnul() */
 #include <ctype.h>
@@ -19,11 +21,13 @@
 #include <getopt.h>
 #include <limits.h>
 #include <math.h>
+#include <poll.h>
 #include <signal.h>
 #include <stdbool.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/signalfd.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -33,6 +37,7 @@
 
 #define MAX_VALUES	8	/* value0 .. value7 */
 #define MAX_SELECT	32
+#define ARRAY_SIZE(a)	(sizeof(a) / sizeof((a)[0]))
 
 enum {
 	EXIT_OK = 0,
@@ -71,6 +76,7 @@ static void print_help(FILE *f)
 	fprintf(f,
 		"Usage: %s [OPTIONS] [SENSOR...]\n"
 		"       %s --mode=MODE [SENSOR]\n"
+		"       %s --trace[=TTY]\n"
 		"List the LEGO EV3 sensors of /sys/class/lego-sensor: address, driver,\n"
 		"mode, values with their units, and IIO device.\n"
 		"SENSOR is a name (sensor0), an address (ttyAMA0:in1), its tty (ttyAMA0)\n"
@@ -83,12 +89,16 @@ static void print_help(FILE *f)
 		"  -m, --mode=MODE         switch SENSOR to MODE (one of its modes), then\n"
 		"                          show it; SENSOR may be left out if there is\n"
 		"                          only one sensor\n"
+		"  -t, --trace[=TTY]       print the protocol on TTY (every tty with the\n"
+		"                          discipline if none), decoded, as it happens,\n"
+		"                          until interrupted: from the lego_ev3_uart trace\n"
+		"                          events (root; tracefs mounted)\n"
 		"  -h, --help              this help\n"
 		"  -V, --version           the version\n"
 		"\n"
 		"Exit status: 0 ok, 1 no sensors, no such sensor or mode switch failed,\n"
 		"2 usage error.\n",
-		prog, prog);
+		prog, prog, prog);
 }
 
 /* ---- sysfs ------------------------------------------------------------ */
@@ -668,6 +678,276 @@ static int watch(char **sel, int nsel, bool json, double interval)
 
 /* ---- main ------------------------------------------------------------- */
 
+/* ---- --trace ------------------------------------------------------------ */
+
+/*
+ * The protocol, live: the lego_ev3_uart trace events (see
+ * Documentation/lego/tracing.rst) read from tracefs's trace_pipe and
+ * printed one message a line. The events are enabled for the run and
+ * disabled again when it is interrupted.
+ */
+static char tracefs[PATH_MAX];
+
+/* Write `val` to the tracefs file `name`. Returns 0 or -errno. */
+static int trace_write(const char *name, const char *val)
+{
+	char path[PATH_MAX + 64];
+	ssize_t n;
+	int fd;
+
+	snprintf(path, sizeof(path), "%s/%s", tracefs, name);
+	fd = open(path, O_WRONLY | O_TRUNC | O_CLOEXEC);
+	if (fd < 0)
+		return -errno;
+	n = write(fd, val, strlen(val));
+	if (n < 0) {
+		n = -errno;
+		close(fd);
+		return n;
+	}
+	close(fd);
+	return 0;
+}
+
+/* Where tracefs is mounted with the driver's events; false if nowhere. */
+static bool find_tracefs(void)
+{
+	static const char *const where[] = {
+		"/sys/kernel/tracing", "/sys/kernel/debug/tracing",
+	};
+	char path[PATH_MAX + 64];
+	const char *dir;
+	size_t i;
+
+	/* $TRACEFS first, then the usual mounts. */
+	for (i = 0; i <= ARRAY_SIZE(where); i++) {
+		dir = i ? where[i - 1] : getenv("TRACEFS");
+
+		if (!dir || !*dir)
+			continue;
+		snprintf(path, sizeof(path), "%s/events/lego_ev3_uart", dir);
+		if (!access(path, F_OK)) {
+			snprintf(tracefs, sizeof(tracefs), "%s", dir);
+			return true;
+		}
+	}
+	return false;
+}
+
+/*
+ * The value of `key` in the fields of a trace line ("a=1 b=\"x y\""), into
+ * buf; "" if absent.
+ */
+static const char *field(const char *fields, const char *key, char *buf,
+			 size_t size)
+{
+	size_t klen = strlen(key), n = 0;
+	const char *p = fields;
+	char end = ' ';
+
+	buf[0] = '\0';
+	while ((p = strstr(p, key))) {
+		if ((p == fields || p[-1] == ' ') && p[klen] == '=')
+			break;
+		p += klen;
+	}
+	if (!p)
+		return buf;
+	p += klen + 1;
+	if (*p == '"') {
+		end = '"';
+		p++;
+	}
+	while (*p && *p != end && *p != '\n' && n + 1 < size)
+		buf[n++] = *p++;
+	buf[n] = '\0';
+	return buf;
+}
+
+static const char *cmd_name(unsigned int cmd)
+{
+	static const char *const names[] = {
+		"TYPE", "MODES", "SPEED", "SELECT", "WRITE", "CMD5", "EXT_MODE", "VERSION",
+	};
+
+	return names[cmd & 7];
+}
+
+static const char *info_name(unsigned int info)
+{
+	switch (info & ~0x20U) {
+	case 0x00: return "NAME";
+	case 0x01: return "RAW";
+	case 0x02: return "PCT";
+	case 0x03: return "SI";
+	case 0x04: return "UNITS";
+	case 0x80: return "FORMAT";
+	default: return "INFO";
+	}
+}
+
+/* One line of trace_pipe, decoded; other systems' lines are left out. */
+static void trace_line(FILE *f, const char *line)
+{
+	char ev[32], ts[32], tty[64], a[64], b[64], c[64], d[64];
+	const char *p = strstr(line, ": ev3_uart_"), *q, *fields;
+	size_t n;
+
+	if (!p)
+		return;
+	/* The timestamp ends where the event's name starts. */
+	for (q = p; q > line && q[-1] != ' '; q--)
+		;
+	n = (size_t)(p - q) < sizeof(ts) ? (size_t)(p - q) : sizeof(ts) - 1;
+	memcpy(ts, q, n);
+	ts[n] = '\0';
+	p += 2;
+	q = strchr(p, ':');
+	if (!q)
+		return;
+	n = (size_t)(q - p) < sizeof(ev) ? (size_t)(q - p) : sizeof(ev) - 1;
+	memcpy(ev, p, n);
+	ev[n] = '\0';
+	fields = q + 1;
+	while (*fields == ' ')
+		fields++;
+	field(fields, "tty", tty, sizeof(tty));
+	fprintf(f, "%s %-8s ", ts, tty);
+
+	if (!strcmp(ev, "ev3_uart_rx")) {
+		unsigned int hdr = strtoul(field(fields, "hdr", a, sizeof(a)), NULL, 16);
+		unsigned int info = strtoul(field(fields, "info", b, sizeof(b)), NULL, 16);
+
+		field(fields, "msg", a, sizeof(a));
+		field(fields, "arg", b, sizeof(b));
+		field(fields, "len", c, sizeof(c));
+		if (!strcmp(a, "TYPE"))
+			fprintf(f, "<- TYPE %s\n", b);
+		else if (!strcmp(a, "CMD"))
+			fprintf(f, "<- %s (%s bytes)\n", cmd_name(hdr), c);
+		else if (!strcmp(a, "INFO"))
+			fprintf(f, "<- INFO mode %u %s (%s bytes)\n",
+				(hdr & 7) + (info & 0x20 ? 8 : 0), info_name(info), c);
+		else if (!strcmp(a, "ACK"))
+			fprintf(f, "<- ACK: handshake complete, %s modes\n", b);
+		else
+			fprintf(f, "<- %s mode %s, %s bytes%s%s\n", a, b, c,
+				!strcmp(field(fields, "mode_changed", d, sizeof(d)), "1") ?
+				", mode switched" : "",
+				!strcmp(field(fields, "accept", d, sizeof(d)), "checksum") ?
+				"" : ", checksum not checked (quirk)");
+	} else if (!strcmp(ev, "ev3_uart_tx")) {
+		field(fields, "msg", a, sizeof(a));
+		field(fields, "arg", b, sizeof(b));
+		field(fields, "len", c, sizeof(c));
+		field(fields, "ret", d, sizeof(d));
+		if (!strcmp(a, "SELECT"))
+			fprintf(f, "-> SELECT mode %s", b);
+		else if (!strcmp(a, "WRITE"))
+			fprintf(f, "-> WRITE %s bytes", c);
+		else
+			fprintf(f, "-> %s", a);
+		fprintf(f, strcmp(d, "0") ? " (not sent: %s)\n" : "\n", d);
+	} else if (!strcmp(ev, "ev3_uart_handshake")) {
+		fprintf(f, "== sensor type %s: %s modes (%s shown), %s baud\n",
+			field(fields, "type", a, sizeof(a)),
+			field(fields, "modes", b, sizeof(b)),
+			field(fields, "view_modes", c, sizeof(c)),
+			field(fields, "speed", d, sizeof(d)));
+	} else if (!strcmp(ev, "ev3_uart_speed")) {
+		field(fields, "ret", b, sizeof(b));
+		fprintf(f, "== %s baud%s\n", field(fields, "speed", a, sizeof(a)),
+			strcmp(b, "0") ? " (not supported by the tty)" : "");
+	} else if (!strcmp(ev, "ev3_uart_state")) {
+		fprintf(f, "== %s -> %s", field(fields, "from", a, sizeof(a)),
+			field(fields, "to", b, sizeof(b)));
+		field(fields, "reason", c, sizeof(c));
+		fprintf(f, *c ? ": %s\n" : "\n", c);
+	} else if (!strcmp(ev, "ev3_uart_sensor")) {
+		field(fields, "dev", c, sizeof(c));
+		fprintf(f, "== sensor %s: %s%s%s\n", field(fields, "event", a, sizeof(a)),
+			field(fields, "driver", b, sizeof(b)), *c ? " as " : "", c);
+	} else {
+		fprintf(f, "%s %s\n", ev, fields);
+	}
+}
+
+/* --trace[=TTY]: until interrupted (SIGINT, SIGTERM) or the end of input. */
+static int trace(const char *tty)
+{
+	char filter[128], path[PATH_MAX + 64], buf[8192], *nl, *start;
+	struct pollfd pfd[2];
+	size_t len = 0;
+	sigset_t set;
+	ssize_t n;
+	int ret;
+
+	if (!find_tracefs()) {
+		err("no lego_ev3_uart events in tracefs: is lego_ev3_uart loaded, and tracefs\n"
+		    "mounted (mount -t tracefs nodev /sys/kernel/tracing)?");
+		return EXIT_FAIL;
+	}
+	if (tty && *tty) {
+		snprintf(filter, sizeof(filter), "tty == \"%s\"", tty);
+		ret = trace_write("events/lego_ev3_uart/filter", filter);
+	} else {
+		ret = trace_write("events/lego_ev3_uart/filter", "0");
+	}
+	if (!ret)
+		ret = trace_write("events/lego_ev3_uart/enable", "1");
+	if (ret) {
+		err("cannot enable the events in %s: %s (root needed)", tracefs, strerror(-ret));
+		return EXIT_FAIL;
+	}
+	/* The signals end the loop below, which then disables the events. */
+	sigemptyset(&set);
+	sigaddset(&set, SIGINT);
+	sigaddset(&set, SIGTERM);
+	sigprocmask(SIG_BLOCK, &set, NULL);
+	snprintf(path, sizeof(path), "%s/trace_pipe", tracefs);
+	pfd[0].fd = open(path, O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+	pfd[1].fd = signalfd(-1, &set, SFD_CLOEXEC);
+	if (pfd[0].fd < 0 || pfd[1].fd < 0) {
+		err("%s: %s", path, strerror(errno));
+		trace_write("events/lego_ev3_uart/enable", "0");
+		return EXIT_FAIL;
+	}
+	pfd[0].events = POLLIN;
+	pfd[1].events = POLLIN;
+	setvbuf(stdout, NULL, _IOLBF, 0);
+	for (;;) {
+		if (poll(pfd, 2, -1) < 0 && errno != EINTR)
+			break;
+		if (pfd[1].revents)
+			break;
+		if (!pfd[0].revents)
+			continue;
+		n = read(pfd[0].fd, buf + len, sizeof(buf) - 1 - len);
+		if (n < 0 && (errno == EAGAIN || errno == EINTR))
+			continue;
+		if (n <= 0)
+			break;
+		len += n;
+		buf[len] = '\0';
+		/* Whole lines; a line longer than the buffer is cut. */
+		for (start = buf; (nl = strchr(start, '\n')); start = nl + 1) {
+			*nl = '\0';
+			trace_line(stdout, start);
+		}
+		len -= start - buf;
+		memmove(buf, start, len);
+		if (len == sizeof(buf) - 1) {
+			trace_line(stdout, buf);
+			len = 0;
+		}
+	}
+	close(pfd[0].fd);
+	close(pfd[1].fd);
+	trace_write("events/lego_ev3_uart/enable", "0");
+	trace_write("events/lego_ev3_uart/filter", "0");
+	return EXIT_OK;
+}
+
 static bool parse_interval(const char *arg, double *out)
 {
 	char *end;
@@ -688,6 +968,7 @@ int main(int argc, char **argv)
 		{ "watch", optional_argument, NULL, 'w' },
 		{ "json", no_argument, NULL, 'j' },
 		{ "mode", required_argument, NULL, 'm' },
+		{ "trace", optional_argument, NULL, 't' },
 		{ "help", no_argument, NULL, 'h' },
 		{ "version", no_argument, NULL, 'V' },
 		{ NULL, 0, NULL, 0 }
@@ -702,7 +983,7 @@ int main(int argc, char **argv)
 	env = getenv("SYSFS_PATH");
 	if (env && *env)
 		sysfs = env;
-	while ((c = getopt_long(argc, argv, "s:w::jm:hV", opts, NULL)) != -1) {
+	while ((c = getopt_long(argc, argv, "s:w::jm:t::hV", opts, NULL)) != -1) {
 		switch (c) {
 		case 's':
 			if (nsel == MAX_SELECT) {
@@ -728,6 +1009,8 @@ int main(int argc, char **argv)
 			}
 			mode = optarg;
 			break;
+		case 't':
+			return trace(optarg);
 		case 'h':
 			print_help(stdout);
 			return EXIT_OK;

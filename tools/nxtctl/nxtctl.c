@@ -1306,6 +1306,11 @@ static const struct command commands[] = {
 	  "Take a released brick back: lego_nxt_usb binds to it again and\n"
 	  "/dev/nxtN comes back (printed). The brick is -d /dev/bus/usb/BBB/DDD,\n"
 	  "--serial SERIAL, or the only released NXT.\n" },
+	{ "trace", cmd_trace, "[USBDEV]",
+	  "Print the telegrams between the driver and the bricks (or the brick\n"
+	  "USBDEV, e.g. 1-1), replies, timeouts, stalls, resets and drains of\n"
+	  "stale replies, decoded, as they happen, until interrupted: from the\n"
+	  "lego_nxt_usb trace events in tracefs (root).\n" },
 	{ "help", cmd_help, "[COMMAND]",
 	  "Print the help of COMMAND, or the list of commands.\n" },
 };

@@ -57,6 +57,7 @@ int cmd_ls(int argc, char **argv);
 int cmd_rm(int argc, char **argv);
 int cmd_release(int argc, char **argv);
 int cmd_claim(int argc, char **argv);
+int cmd_trace(int argc, char **argv);
 
 /* Options of a subcommand: "--name" or "--name VALUE". */
 struct opt {

@@ -65,8 +65,52 @@
 /* "tty name:label" */
 #define EV3_UART_ADDRESS_LEN	(sizeof_field(struct tty_struct, name) + EV3_UART_LABEL_LEN)
 
+struct dentry;
 struct ev3_uart_port;
 struct ev3_uart_iio;
+
+/**
+ * struct ev3_uart_stats - a port's counters, in debugfs (since it was
+ *	attached; the parser's own counts are added when it restarts)
+ * @syncs: TYPE messages that started a handshake
+ * @handshakes: handshakes completed (the sensor's ACK)
+ * @info_msgs: handshake messages (CMD, INFO) received while ev3_uart_rx
+ *	was traced (the parser reports them only then)
+ * @data_msgs: good DATA messages
+ * @resyncs: protocol errors, each a return to 2400 baud (resync)
+ * @line_errors: bytes received with a framing, parity or overrun error
+ * @garbage: bytes dropped while hunting for a message (parser restarts)
+ * @bad_frames: DATA messages dropped: bad checksum, size or mode (parser
+ *	restarts)
+ * @speed_changes: speed switches of the tty
+ * @registered: sensors registered
+ * @lost: sensors lost (not counting a close)
+ * @tx_ack: ACKs sent (under &ev3_uart_port.tx_mutex, like the rest)
+ * @tx_nack: NACKs sent
+ * @tx_select: SELECTs sent
+ * @tx_write: WRITEs sent
+ * @tx_errors: messages the tty did not take
+ *
+ * All but the tx_ ones are under &ev3_uart_port.lock.
+ */
+struct ev3_uart_stats {
+	u64 syncs;
+	u64 handshakes;
+	u64 info_msgs;
+	u64 data_msgs;
+	u64 resyncs;
+	u64 line_errors;
+	u64 garbage;
+	u64 bad_frames;
+	u64 speed_changes;
+	u64 registered;
+	u64 lost;
+	u64 tx_ack;
+	u64 tx_nack;
+	u64 tx_select;
+	u64 tx_write;
+	u64 tx_errors;
+};
 
 /**
  * struct ev3_uart_sensor_dev - one connected sensor
@@ -136,6 +180,8 @@ struct ev3_uart_sensor_dev {
  * @tx_pos: the first byte of @tx_buf not yet sent
  * @tx_len: bytes queued from @tx_pos on
  * @tx_work: sends what is queued once the tty has room again
+ * @stats: counters, for debugfs
+ * @debugfs: the port's directory in debugfs (lego_ev3_uart/TTY)
  */
 struct ev3_uart_port {
 	struct tty_struct *tty;
@@ -164,6 +210,8 @@ struct ev3_uart_port {
 	unsigned int tx_pos;
 	unsigned int tx_len;
 	struct work_struct tx_work;
+	struct ev3_uart_stats stats;
+	struct dentry *debugfs;
 };
 
 /* ev3_uart_ldisc.c */

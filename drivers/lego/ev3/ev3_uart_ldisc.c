@@ -29,13 +29,16 @@
 #define pr_fmt(fmt) KBUILD_MODNAME ": " fmt
 
 #include <linux/capability.h>
+#include <linux/debugfs.h>
 #include <linux/hrtimer.h>
 #include <linux/jiffies.h>
+#include <linux/log2.h>
 #include <linux/lockdep.h>
 #include <linux/module.h>
 #include <linux/moduleparam.h>
 #include <linux/ratelimit.h>
 #include <linux/sched.h>
+#include <linux/seq_file.h>
 #include <linux/slab.h>
 #include <linux/string.h>
 #include <linux/sysfs.h>
@@ -47,6 +50,7 @@
 #include "lego_compat.h"
 #include "ev3_uart.h"
 #include "ev3_uart_chan.h"
+#include "ev3_uart_trace.h"
 
 #define EV3_UART_LDISC_NAME	"n_legoev3"
 #define EV3_UART_ACK_DELAY_MS	10	/* like LEGO's firmware; the sensor allows 80 */
@@ -64,6 +68,9 @@
  * free, so any other would replace a discipline in use (30 is N_CAN327).
  */
 #define EV3_UART_LDISC_NUM	N_DEVELOPMENT
+
+/* lego_ev3_uart in debugfs, with a directory per port (ev3_uart_open()). */
+static struct dentry *ev3_uart_debugfs_root;
 
 static char *port_labels[8];
 static int num_port_labels;
@@ -120,6 +127,40 @@ static int ev3_uart_tx_flush(struct ev3_uart_port *port)
 	return 0;
 }
 
+/* What a message sent starts with: ACK, NACK, SELECT or WRITE. */
+static u8 ev3_uart_tx_kind(u8 hdr)
+{
+	if (hdr == EV3_UART_SYS_ACK)
+		return EV3_UART_TRACE_ACK;
+	if (hdr == EV3_UART_SYS_NACK)
+		return EV3_UART_TRACE_NACK;
+	if (hdr == (EV3_UART_MSG_CMD | EV3_UART_CMD_SELECT))
+		return EV3_UART_TRACE_SELECT;
+	return EV3_UART_TRACE_WRITE;
+}
+
+/* Counts and traces a message sent (or not: @ret). @tx_mutex held. */
+static void ev3_uart_tx_account(struct ev3_uart_port *port, const u8 *buf,
+				size_t len, int ret)
+{
+	struct ev3_uart_stats *st = &port->stats;
+	u8 kind = ev3_uart_tx_kind(buf[0]);
+
+	lockdep_assert_held(&port->tx_mutex);
+	if (ret)
+		st->tx_errors++;
+	else if (kind == EV3_UART_TRACE_ACK)
+		st->tx_ack++;
+	else if (kind == EV3_UART_TRACE_NACK)
+		st->tx_nack++;
+	else if (kind == EV3_UART_TRACE_SELECT)
+		st->tx_select++;
+	else
+		st->tx_write++;
+	trace_ev3_uart_tx(port->tty->name, kind, buf[0], len > 1 ? buf[1] : 0,
+			  len, ret);
+}
+
 /* Queue a whole message behind what is still queued, and send. */
 static int ev3_uart_tx(struct ev3_uart_port *port, const u8 *buf, size_t len)
 {
@@ -137,6 +178,7 @@ static int ev3_uart_tx(struct ev3_uart_port *port, const u8 *buf, size_t len)
 		port->tx_len += len;
 		ret = ev3_uart_tx_flush(port);
 	}
+	ev3_uart_tx_account(port, buf, len, ret);
 	mutex_unlock(&port->tx_mutex);
 	if (ret)
 		pr_warn_ratelimited("%s: cannot send a %zu-byte message: %d\n",
@@ -190,22 +232,30 @@ static void ev3_uart_set_termios(struct tty_struct *tty, struct ktermios *t)
  *
  * Return: 0, or -%EINVAL if the tty runs at another speed than @baud.
  */
-static int ev3_uart_set_speed(struct tty_struct *tty, unsigned int baud)
+static int ev3_uart_set_speed(struct ev3_uart_port *port, unsigned int baud)
 {
+	struct tty_struct *tty = port->tty;
 	struct ktermios t;
 	speed_t got;
+	int ret;
 
 	down_read(&tty->termios_rwsem);
 	t = tty->termios;
 	up_read(&tty->termios_rwsem);
 	tty_termios_encode_baud_rate(&t, baud, baud);
 	ev3_uart_set_termios(tty, &t);
-	if (!tty->ops->set_termios)
-		return 0;
-	down_read(&tty->termios_rwsem);
-	got = tty_termios_baud_rate(&tty->termios);
-	up_read(&tty->termios_rwsem);
-	return abs((int)got - (int)baud) <= baud / 50 ? 0 : -EINVAL;
+	ret = 0;
+	if (tty->ops->set_termios) {
+		down_read(&tty->termios_rwsem);
+		got = tty_termios_baud_rate(&tty->termios);
+		up_read(&tty->termios_rwsem);
+		ret = abs((int)got - (int)baud) <= baud / 50 ? 0 : -EINVAL;
+	}
+	spin_lock(&port->lock);
+	port->stats.speed_changes++;
+	spin_unlock(&port->lock);
+	trace_ev3_uart_speed(tty->name, baud, ret);
+	return ret;
 }
 
 /* Raw 8N1 at 2400 baud, no flow control, errors reported as flags. */
@@ -234,27 +284,104 @@ static void ev3_uart_queue(struct ev3_uart_port *port, struct work_struct *work)
 }
 
 /*
+ * The parser left state @from: trace it, with @why or the reason @ev gives.
+ * @lock held.
+ */
+static void ev3_uart_trace_state(struct ev3_uart_port *port, u8 from,
+				 const struct ev3_uart_event *ev,
+				 const char *why)
+{
+	u8 to = port->parser.state;
+
+	if (from == to)
+		return;
+	if (!why && ev && ev->type == EV3_UART_EV_ERROR)
+		why = ev->reason;
+	else if (!why && ev && ev->type == EV3_UART_EV_SYNC)
+		why = "TYPE message";
+	else if (!why && ev && ev->type == EV3_UART_EV_HANDSHAKE)
+		why = "ACK from the sensor";
+	trace_ev3_uart_state(port->tty->name, from, to, why ?: "");
+}
+
+/*
+ * How a DATA message of @len bytes in @mode was accepted: all have a good
+ * checksum but the colour sensor's RGB-RAW ones, whose checksum is not
+ * checked (see ev3_uart_rgb_raw_quirk()).
+ */
+static u8 ev3_uart_accepted_by(const struct ev3_uart_port *port, u8 mode,
+			       u8 len)
+{
+	if (port->parser.sensor.type == EV3_UART_TYPE_COLOR && mode == 4 &&
+	    len == 8)
+		return EV3_UART_TRACE_QUIRK_RGB_RAW;
+	return EV3_UART_TRACE_CSUM;
+}
+
+/*
+ * The header a DATA message of @mode with @len payload bytes had (the
+ * ultrasonic sensor's US-DC-IN quirk aside: see ev3_uart_data_msg()).
+ */
+static u8 ev3_uart_data_hdr(u8 mode, u8 len)
+{
+	return EV3_UART_MSG_DATA | (ilog2(len ?: 1) << EV3_UART_MSG_SIZE_SHIFT) |
+	       (mode & EV3_UART_MSG_CMD_MASK);
+}
+
+/*
  * Called under port->lock, in the receive path (and from keepalive_work).
  * @rest: bytes received after the message that caused @ev, in the same batch.
+ * @from: the parser's state before it made @ev.
  */
 static void ev3_uart_event(struct ev3_uart_port *port,
-			   const struct ev3_uart_event *ev, size_t rest)
+			   const struct ev3_uart_event *ev, size_t rest,
+			   u8 from)
 {
 	struct ev3_uart_sensor_dev *sd = port->sensor;
+	const struct ev3_uart_sensor *s = &port->parser.sensor;
 
 	lockdep_assert_held(&port->lock);
+	if (trace_ev3_uart_state_enabled())
+		ev3_uart_trace_state(port, from, ev, NULL);
 	switch (ev->type) {
 	case EV3_UART_EV_SYNC:
 		pr_debug("%s: sensor type %u syncing\n", port->tty->name,
 			 port->parser.sensor.type);
+		port->stats.syncs++;
+		trace_ev3_uart_rx(port->tty->name, EV3_UART_TRACE_TYPE,
+				  EV3_UART_MSG_CMD | EV3_UART_CMD_TYPE, s->type, 0,
+				  3, EV3_UART_TRACE_CSUM, false);
+		break;
+	case EV3_UART_EV_MSG:
+		/* Only while ev3_uart_rx is enabled (see receive_buf()). */
+		port->stats.info_msgs++;
+		trace_ev3_uart_rx(port->tty->name,
+				  (ev->mode & EV3_UART_MSG_TYPE_MASK) == EV3_UART_MSG_INFO ?
+				  EV3_UART_TRACE_INFO : EV3_UART_TRACE_CMD,
+				  ev->mode, ev->mode & EV3_UART_MSG_CMD_MASK,
+				  port->parser.msg_info, ev->len,
+				  EV3_UART_TRACE_CSUM, false);
 		break;
 	case EV3_UART_EV_HANDSHAKE:
+		port->stats.handshakes++;
+		trace_ev3_uart_rx(port->tty->name, EV3_UART_TRACE_ACK,
+				  EV3_UART_SYS_ACK, s->num_modes, 0, 1,
+				  EV3_UART_TRACE_NONE, false);
+		trace_ev3_uart_handshake(port->tty->name, s->type, s->num_modes,
+					 s->num_view_modes, s->speed);
 		if (!port->closing)
 			hrtimer_start(&port->ack_timer,
 				      ms_to_ktime(EV3_UART_ACK_DELAY_MS),
 				      HRTIMER_MODE_REL);
 		break;
 	case EV3_UART_EV_DATA:
+		port->stats.data_msgs++;
+		if (trace_ev3_uart_rx_enabled())
+			trace_ev3_uart_rx(port->tty->name, EV3_UART_TRACE_DATA,
+					  ev3_uart_data_hdr(ev->mode, ev->len),
+					  ev->mode, 0, ev->len,
+					  ev3_uart_accepted_by(port, ev->mode, ev->len),
+					  ev->mode_changed);
 		if (!sd)
 			break;
 		/*
@@ -279,6 +406,7 @@ static void ev3_uart_event(struct ev3_uart_port *port,
 		}
 		break;
 	case EV3_UART_EV_ERROR:
+		port->stats.resyncs++;
 		port->last_error = ev->reason;
 		pr_info_ratelimited("%s: %s\n", port->tty->name, ev->reason);
 		ev3_uart_queue(port, &port->reset_work);
@@ -295,15 +423,20 @@ static void ev3_uart_receive_buf(struct tty_struct *tty, const u8 *cp,
 	struct ev3_uart_port *port = tty->disc_data;
 	struct ev3_uart_event ev;
 	size_t run, used;
+	u8 from;
 
 	spin_lock(&port->lock);
+	/* The handshake's messages one by one, for ev3_uart_rx. */
+	port->parser.report_msgs = trace_ev3_uart_rx_enabled();
 	while (count > 0) {
+		from = port->parser.state;
 		if (fp && *fp != TTY_NORMAL) {
+			port->stats.line_errors++;
 			ev3_uart_parser_line_error(&port->parser, &ev);
 			cp++;
 			fp++;
 			count--;
-			ev3_uart_event(port, &ev, count);
+			ev3_uart_event(port, &ev, count, from);
 			continue;
 		}
 		/* Feed the run of bytes received without error. */
@@ -315,7 +448,7 @@ static void ev3_uart_receive_buf(struct tty_struct *tty, const u8 *cp,
 			fp += used;
 		count -= used;
 		/* The event's message ended @count bytes before the batch did. */
-		ev3_uart_event(port, &ev, count);
+		ev3_uart_event(port, &ev, count, from);
 	}
 	spin_unlock(&port->lock);
 }
@@ -360,6 +493,31 @@ static void ev3_uart_restore_mode(struct ev3_uart_port *port,
 	mutex_unlock(&port->select_mutex);
 }
 
+/*
+ * Starts the parser again, hunting for a sensor at 2400 baud, after @why;
+ * its counts go to the port's. @lock held.
+ */
+static void ev3_uart_parser_restart(struct ev3_uart_port *port, const char *why)
+{
+	u8 from = port->parser.state;
+
+	lockdep_assert_held(&port->lock);
+	port->stats.garbage += port->parser.garbage;
+	port->stats.bad_frames += port->parser.bad_frames;
+	ev3_uart_parser_init(&port->parser);
+	ev3_uart_trace_state(port, from, NULL, why);
+}
+
+/* A sensor was registered, lost, or could not be; for the trace. */
+static void ev3_uart_trace_sensor(struct ev3_uart_port *port, u8 what,
+				  const struct ev3_uart_sensor *desc,
+				  struct ev3_uart_sensor_dev *sd)
+{
+	trace_ev3_uart_sensor(port->tty->name, what, desc->type,
+			      sd ? sd->driver_name : "",
+			      sd ? dev_name(&sd->dev) : "", desc->speed);
+}
+
 static void ev3_uart_ack_work(struct work_struct *work)
 {
 	struct ev3_uart_port *port = container_of(work, struct ev3_uart_port,
@@ -367,8 +525,8 @@ static void ev3_uart_ack_work(struct work_struct *work)
 	struct tty_struct *tty = port->tty;
 	struct ev3_uart_sensor_dev *sd;
 	struct ev3_uart_sensor desc;
-	const char *last_error;
-	u8 ack;
+	const char *last_error, *why;
+	u8 ack, from;
 
 	spin_lock(&port->lock);
 	if (port->closing || port->parser.state != EV3_UART_STATE_ACKED) {
@@ -382,14 +540,16 @@ static void ev3_uart_ack_work(struct work_struct *work)
 	if (desc.speed == port->bad_speed) {
 		pr_debug("%s: sensor type %u wants %u baud again; not answered\n",
 			 tty->name, desc.type, desc.speed);
+		why = "speed not supported by the tty";
 		goto restart;
 	}
 
+	why = "ACK not sent";
 	if (ev3_uart_tx(port, &ack, ev3_uart_build_ack(&ack)))
 		goto fail;
 	/* The sensor switches speed once it has our ACK: so do we. */
 	tty_wait_until_sent(tty, msecs_to_jiffies(50));
-	if (ev3_uart_set_speed(tty, desc.speed)) {
+	if (ev3_uart_set_speed(port, desc.speed)) {
 		/*
 		 * The UART cannot run at the sensor's speed, or its speed is
 		 * locked (TIOCSLCKTRMIOS): the sensor would be lost and come
@@ -399,11 +559,14 @@ static void ev3_uart_ack_work(struct work_struct *work)
 		pr_err("%s: cannot set %u baud for sensor type %u: not connecting it\n",
 		       tty->name, desc.speed, desc.type);
 		port->bad_speed = desc.speed;
+		why = "speed not supported by the tty";
 		goto fail;
 	}
 
 	spin_lock(&port->lock);
+	from = port->parser.state;
 	ev3_uart_parser_start_data(&port->parser);
+	ev3_uart_trace_state(port, from, NULL, "ACK answered, speed switched");
 	spin_unlock(&port->lock);
 	/*
 	 * Keep the sensor alive from now on: it resets after about a second
@@ -418,14 +581,18 @@ static void ev3_uart_ack_work(struct work_struct *work)
 	if (IS_ERR(sd)) {
 		pr_err_ratelimited("%s: cannot register sensor: %ld\n",
 				   tty->name, PTR_ERR(sd));
+		ev3_uart_trace_sensor(port, EV3_UART_TRACE_FAILED, &desc, NULL);
+		why = "sensor not registered";
 		goto fail;
 	}
 
 	spin_lock(&port->lock);
 	port->sensor = sd;
+	port->stats.registered++;
 	last_error = port->last_error;
 	port->last_error = NULL;
 	spin_unlock(&port->lock);
+	ev3_uart_trace_sensor(port, EV3_UART_TRACE_REGISTERED, &desc, sd);
 
 	pr_info("%s: %s connected as %s at %u baud\n", tty->name,
 		sd->driver_name, dev_name(&sd->dev), desc.speed);
@@ -436,10 +603,10 @@ static void ev3_uart_ack_work(struct work_struct *work)
 	return;
 
 fail:
-	ev3_uart_set_speed(tty, EV3_UART_SPEED_MIN);
+	ev3_uart_set_speed(port, EV3_UART_SPEED_MIN);
 restart:
 	spin_lock(&port->lock);
-	ev3_uart_parser_init(&port->parser);
+	ev3_uart_parser_restart(port, why);
 	spin_unlock(&port->lock);
 }
 
@@ -449,12 +616,13 @@ static void ev3_uart_keepalive_work(struct work_struct *work)
 						  struct ev3_uart_port,
 						  keepalive_work);
 	struct ev3_uart_event ev;
-	u8 nack, select[3], restore;
+	u8 nack, select[3], restore, from;
 	bool alive;
 
 	spin_lock(&port->lock);
+	from = port->parser.state;
 	if (ev3_uart_parser_tick(&port->parser, &ev))
-		ev3_uart_event(port, &ev, 0);
+		ev3_uart_event(port, &ev, 0, from);
 	alive = port->parser.state == EV3_UART_STATE_DATA;
 	/*
 	 * The SELECT restoring the user's mode after a reconnect can arrive
@@ -506,8 +674,10 @@ static void ev3_uart_reset_work(struct work_struct *work)
 	spin_lock(&port->lock);
 	sd = port->sensor;
 	port->sensor = NULL;
-	if (sd)
+	if (sd) {
 		WRITE_ONCE(sd->gone, true);
+		port->stats.lost++;
+	}
 	/* A sensor lost right after a restored mode does not get it again. */
 	if (port->restored_at &&
 	    time_before(jiffies, port->restored_at + EV3_UART_RESTORE_GRACE))
@@ -518,10 +688,11 @@ static void ev3_uart_reset_work(struct work_struct *work)
 	complete_all(&port->select_done);
 	spin_unlock(&port->lock);
 
-	ev3_uart_set_speed(port->tty, EV3_UART_SPEED_MIN);
+	ev3_uart_set_speed(port, EV3_UART_SPEED_MIN);
 	if (sd) {
 		pr_info("%s: %s disconnected\n", port->tty->name,
 			sd->driver_name);
+		ev3_uart_trace_sensor(port, EV3_UART_TRACE_LOST, &sd->desc, sd);
 		ev3_uart_sensor_destroy(sd);
 	}
 }
@@ -837,6 +1008,51 @@ static int ev3_uart_check_port_labels(void)
 	return 0;
 }
 
+/*
+ * debugfs lego_ev3_uart/TTY/counters: the port's counters (struct
+ * ev3_uart_stats), one "name value" a line.
+ */
+static int ev3_uart_counters_show(struct seq_file *m, void *unused)
+{
+	struct ev3_uart_port *port = m->private;
+	struct ev3_uart_stats st;
+	u8 state;
+
+	spin_lock(&port->lock);
+	st = port->stats;
+	st.garbage += port->parser.garbage;
+	st.bad_frames += port->parser.bad_frames;
+	state = port->parser.state;
+	spin_unlock(&port->lock);
+	mutex_lock(&port->tx_mutex);
+	st.tx_ack = port->stats.tx_ack;
+	st.tx_nack = port->stats.tx_nack;
+	st.tx_select = port->stats.tx_select;
+	st.tx_write = port->stats.tx_write;
+	st.tx_errors = port->stats.tx_errors;
+	mutex_unlock(&port->tx_mutex);
+
+	seq_printf(m, "state %u\n", state);
+	seq_printf(m, "syncs %llu\n", st.syncs);
+	seq_printf(m, "handshakes %llu\n", st.handshakes);
+	seq_printf(m, "info_msgs %llu\n", st.info_msgs);
+	seq_printf(m, "data_msgs %llu\n", st.data_msgs);
+	seq_printf(m, "resyncs %llu\n", st.resyncs);
+	seq_printf(m, "line_errors %llu\n", st.line_errors);
+	seq_printf(m, "garbage %llu\n", st.garbage);
+	seq_printf(m, "bad_frames %llu\n", st.bad_frames);
+	seq_printf(m, "speed_changes %llu\n", st.speed_changes);
+	seq_printf(m, "registered %llu\n", st.registered);
+	seq_printf(m, "lost %llu\n", st.lost);
+	seq_printf(m, "tx_ack %llu\n", st.tx_ack);
+	seq_printf(m, "tx_nack %llu\n", st.tx_nack);
+	seq_printf(m, "tx_select %llu\n", st.tx_select);
+	seq_printf(m, "tx_write %llu\n", st.tx_write);
+	seq_printf(m, "tx_errors %llu\n", st.tx_errors);
+	return 0;
+}
+DEFINE_SHOW_ATTRIBUTE(ev3_uart_counters);
+
 static int ev3_uart_ioctl(struct tty_struct *tty, unsigned int cmd,
 			  unsigned long arg)
 {
@@ -912,6 +1128,9 @@ static int ev3_uart_open(struct tty_struct *tty)
 	ev3_uart_find_label(port);
 
 	ev3_uart_setup_tty(tty);
+	port->debugfs = debugfs_create_dir(tty->name, ev3_uart_debugfs_root);
+	debugfs_create_file("counters", 0400, port->debugfs, port,
+			    &ev3_uart_counters_fops);
 	tty->disc_data = port;
 	tty->receive_room = 65536;
 	tty_driver_flush_buffer(tty);
@@ -949,8 +1168,11 @@ static void ev3_uart_close(struct tty_struct *tty)
 	if (sd)
 		WRITE_ONCE(sd->gone, true);
 	spin_unlock(&port->lock);
-	if (sd)
+	if (sd) {
+		ev3_uart_trace_sensor(port, EV3_UART_TRACE_CLOSED, &sd->desc, sd);
 		ev3_uart_sensor_destroy(sd);
+	}
+	debugfs_remove_recursive(port->debugfs);
 
 	/* No work writes any more: stop the wakeups, then their work. */
 	clear_bit(TTY_DO_WRITE_WAKEUP, &tty->flags);
@@ -981,10 +1203,12 @@ static int __init ev3_uart_init(void)
 	if (ret)
 		return ret;
 
+	ev3_uart_debugfs_root = debugfs_create_dir(KBUILD_MODNAME, NULL);
 	ret = tty_register_ldisc(&ev3_uart_ldisc);
 	if (ret) {
 		pr_err("cannot register line discipline %d: %d\n",
 		       EV3_UART_LDISC_NUM, ret);
+		debugfs_remove_recursive(ev3_uart_debugfs_root);
 		ev3_uart_class_exit();
 	}
 	return ret;
@@ -994,6 +1218,7 @@ module_init(ev3_uart_init);
 static void __exit ev3_uart_exit(void)
 {
 	tty_unregister_ldisc(&ev3_uart_ldisc);
+	debugfs_remove_recursive(ev3_uart_debugfs_root);
 	ev3_uart_class_exit();
 }
 module_exit(ev3_uart_exit);

@@ -816,8 +816,15 @@ static void ev3_uart_info_msg(struct ev3_uart_parser *p, const u8 *msg,
 		ev3_uart_info(p, msg, len - 3, ev);
 		break;
 	default:
-		ev3_uart_error(p, ev, "DATA before ACK");
-		break;
+		return ev3_uart_error(p, ev, "DATA before ACK");
+	}
+	/* Reported for tracing only: the handshake, never the data phase. */
+	if (p->report_msgs && ev->type == EV3_UART_EV_NONE) {
+		ev->type = EV3_UART_EV_MSG;
+		ev->mode = msg[0];
+		ev->len = len;
+		p->msg_info = (msg[0] & EV3_UART_MSG_TYPE_MASK) == EV3_UART_MSG_INFO ?
+			      msg[1] : 0;
 	}
 }
 

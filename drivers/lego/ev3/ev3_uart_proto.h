@@ -173,6 +173,8 @@ enum ev3_uart_state {
  *	&ev3_uart_parser.data
  * @EV3_UART_EV_ERROR: a protocol error; the parser is back in SYNC state and
  *	the caller must go back to 2400 baud
+ * @EV3_UART_EV_MSG: a handshake message (CMD or INFO) was taken; only with
+ *	&ev3_uart_parser.report_msgs set (for tracing): nothing to act on
  */
 enum ev3_uart_event_type {
 	EV3_UART_EV_NONE,
@@ -180,14 +182,17 @@ enum ev3_uart_event_type {
 	EV3_UART_EV_HANDSHAKE,
 	EV3_UART_EV_DATA,
 	EV3_UART_EV_ERROR,
+	EV3_UART_EV_MSG,
 };
 
 /**
  * struct ev3_uart_event - one event returned by ev3_uart_parser_feed()
  * @type: what happened
- * @mode: for %EV3_UART_EV_DATA, the mode the values belong to
+ * @mode: for %EV3_UART_EV_DATA, the mode the values belong to; for
+ *	%EV3_UART_EV_MSG, the message's header
  * @mode_changed: for %EV3_UART_EV_DATA, this DATA confirmed a SELECT
- * @len: for %EV3_UART_EV_DATA, the payload length in bytes
+ * @len: for %EV3_UART_EV_DATA, the payload length in bytes; for
+ *	%EV3_UART_EV_MSG, the whole message's
  * @reason: for %EV3_UART_EV_ERROR, a static string saying what was wrong
  */
 struct ev3_uart_event {
@@ -227,6 +232,10 @@ struct ev3_uart_event {
  * @frames: good DATA messages since the last handshake
  * @bad_frames: DATA messages dropped (checksum, size or mode)
  * @garbage: bytes dropped while hunting for a message
+ * @report_msgs: return %EV3_UART_EV_MSG for each handshake message taken
+ *	(set by the caller, for tracing; cleared by ev3_uart_parser_init())
+ * @msg_info: for %EV3_UART_EV_MSG, the INFO type of an INFO message (0 for
+ *	a CMD)
  */
 struct ev3_uart_parser {
 	enum ev3_uart_state state;
@@ -253,6 +262,8 @@ struct ev3_uart_parser {
 	unsigned long frames;
 	unsigned long bad_frames;
 	unsigned long garbage;
+	bool report_msgs;
+	u8 msg_info;
 };
 
 u8 ev3_uart_checksum(const u8 *msg, size_t len);

@@ -470,6 +470,45 @@ static void test_handshake_byte_by_byte(struct kunit *test)
 	check_sensor(test, &sensors[0], 7);
 }
 
+/*
+ * With @report_msgs (set while the driver traces ev3_uart_rx), each CMD and
+ * INFO message of a handshake is an EV3_UART_EV_MSG carrying its header
+ * and length; the handshake comes out the same.
+ */
+static void test_report_msgs(struct kunit *test)
+{
+	const struct tsensor *s;
+	unsigned int want, i, m;
+	size_t chunk, len;
+	struct ctx *c;
+
+	for (i = 0; i < ARRAY_SIZE(sensors); i++) {
+		for (chunk = 1; chunk <= BUF_SIZE; chunk += BUF_SIZE - 1) {
+			s = &sensors[i];
+			c = new_ctx(test);
+			c->p.report_msgs = true;
+			len = enc_handshake(c->buf, s);
+			feed(&c->p, c->buf, len, chunk, &c->r);
+			/* MODES and SPEED, then NAME, RAW, SI, FORMAT (and UNITS). */
+			want = 2;
+			for (m = 0; m < s->modes; m++)
+				want += 4 + !!s->mode[m].units;
+			KUNIT_EXPECT_EQ(test, count(&c->r, EV3_UART_EV_MSG), want);
+			KUNIT_EXPECT_EQ(test, count(&c->r, EV3_UART_EV_SYNC), 1U);
+			KUNIT_EXPECT_EQ(test, count(&c->r, EV3_UART_EV_ERROR), 0U);
+			KUNIT_EXPECT_EQ(test, last(&c->r)->type, EV3_UART_EV_HANDSHAKE);
+			KUNIT_EXPECT_EQ(test, c->p.sensor.num_modes, s->modes);
+			/* The second message is MODES: 0x49, 4 bytes long. */
+			KUNIT_EXPECT_EQ(test, c->r.ev[1].type, EV3_UART_EV_MSG);
+			KUNIT_EXPECT_EQ(test, c->r.ev[1].mode, 0x49);
+			KUNIT_EXPECT_EQ(test, c->r.ev[1].len, 4);
+			/* The last before ACK is mode 0's FORMAT. */
+			KUNIT_EXPECT_EQ(test, c->r.ev[c->r.n - 2].mode, 0x90);
+			KUNIT_EXPECT_EQ(test, c->p.msg_info, EV3_UART_INFO_FORMAT);
+		}
+	}
+}
+
 static void test_sync_after_garbage(struct kunit *test)
 {
 	struct ctx *c = new_ctx(test);
@@ -1599,6 +1638,7 @@ static struct kunit_case ev3_uart_proto_cases[] = {
 	KUNIT_CASE(test_handshake_gyro_old),
 	KUNIT_CASE(test_handshake_gyro_new),
 	KUNIT_CASE(test_handshake_ir_with_00ff),
+	KUNIT_CASE(test_report_msgs),
 	KUNIT_CASE(test_handshake_byte_by_byte),
 	KUNIT_CASE(test_sync_after_garbage),
 	KUNIT_CASE(test_sync_rejects_bad_types),

@@ -21,17 +21,20 @@
  *  - it never sends a zero-length packet after a full 64-byte reply, so IN
  *    transfers are exactly one packet long.
  */
+#include <linux/debugfs.h>
 #include <linux/errno.h>
 #include <linux/jiffies.h>
 #include <linux/limits.h>
 #include <linux/module.h>
 #include <linux/sched/signal.h>
+#include <linux/seq_file.h>
 #include <linux/slab.h>
 #include <linux/usb.h>
 
 #include "lego_compat.h"
 #include "nxt_proto.h"
 #include "nxt_usb.h"
+#include "nxt_usb_trace.h"
 
 #define NXT_USB_VENDOR		0x0694
 #define NXT_USB_PRODUCT		0x0002
@@ -46,6 +49,15 @@
 /* How long suspend() lets the transaction in flight finish. */
 #define NXT_SUSPEND_WAIT_MS	1000
 
+/* lego_nxt_usb in debugfs: a directory per brick (nxt_usb_probe()). */
+static struct dentry *nxt_debugfs_root;
+
+/* The brick's name in the trace events: its USB device's, e.g. "1-1". */
+static const char *nxt_name(const struct nxt_usb *nxt)
+{
+	return dev_name(&nxt->udev->dev);
+}
+
 /*
  * Drains packets for @ms from now, unless a drain already lasts longer.
  * The drain clock is 64-bit jiffies: a drain that ended weeks ago on a
@@ -59,6 +71,8 @@ static void nxt_drain_for(struct nxt_usb *nxt, unsigned int ms)
 	if (until <= nxt->drain_until)
 		return;
 	nxt->drain_until = until;
+	nxt->stats.drains++;
+	trace_nxt_usb_drain(nxt_name(nxt), ms, nxt->orphan, nxt->orphan_op);
 	/* Nothing else may happen when it ends: poll() is woken then. */
 	mod_delayed_work(system_wq, &nxt->drain_work, msecs_to_jiffies(ms) + 1);
 }
@@ -102,9 +116,9 @@ static void nxt_orphan(struct nxt_usb *nxt, struct nxt_xfer *x)
 		nxt_drain_for(nxt, NXT_DRAIN_MS);
 		return;
 	}
-	nxt_drain_for(nxt, nxt_reply_late_ms(x->tg, x->len));
 	nxt->orphan = true;
 	nxt->orphan_op = x->tg[1];
+	nxt_drain_for(nxt, nxt_reply_late_ms(x->tg, x->len));
 }
 
 /*
@@ -123,11 +137,45 @@ static void nxt_wake_next(struct nxt_usb *nxt)
 		wake_up(&next->wait);
 }
 
+/* Counts a transaction that ended with @status. @lock held. */
+static void nxt_count_end(struct nxt_stats *st, int status)
+{
+	st->transactions++;
+	switch (status) {
+	case 0:
+		st->ok++;
+		break;
+	case -ETIMEDOUT:
+		st->err_timedout++;
+		break;
+	case -EPROTO:
+		st->err_proto++;
+		break;
+	case -EPIPE:
+		st->err_pipe++;
+		break;
+	case -EIO:
+		st->err_io++;
+		break;
+	case -ENODEV:
+		st->err_nodev++;
+		break;
+	case -EINTR:
+		st->err_intr++;
+		break;
+	default:
+		st->err_other++;
+		break;
+	}
+}
+
 /* Ends the transaction @x with @status and frees the slot. @lock held. */
 static void nxt_finish(struct nxt_usb *nxt, struct nxt_xfer *x, int status)
 {
 	lockdep_assert_held(&nxt->lock);
 	x->status = status;
+	nxt_count_end(&nxt->stats, status);
+	trace_nxt_usb_done(nxt_name(nxt), x, x->tg[1], status);
 	if (nxt->cur == x) {
 		nxt->cur = NULL;
 		timer_delete(&nxt->timer);
@@ -162,13 +210,18 @@ static int nxt_urb_errno(int status, bool timed_out)
 /* A packet that came while draining: dropped; it may end the drain. @lock held. */
 static void nxt_drain_packet(struct nxt_usb *nxt, const u8 *buf, unsigned int len)
 {
+	bool end;
+
 	dev_dbg_ratelimited(&nxt->udev->dev, "dropped a stale packet (%u bytes)\n", len);
+	nxt->stats.drained++;
 	/*
 	 * Replies come in the order of their commands, and the last command
 	 * that lost its reply was sent last: once its reply is in, nothing
 	 * stale is left to come.
 	 */
-	if (nxt->orphan && len >= 2 && buf[0] == NXT_REPLY && buf[1] == nxt->orphan_op) {
+	end = nxt->orphan && len >= 2 && buf[0] == NXT_REPLY && buf[1] == nxt->orphan_op;
+	trace_nxt_usb_drop(nxt_name(nxt), NXT_USB_TRACE_DRAIN, buf, len, end);
+	if (end) {
 		nxt->orphan = false;
 		nxt->drain_until = get_jiffies_64();
 		wake_up_all(&nxt->wait);
@@ -189,6 +242,8 @@ static void nxt_take_packet(struct nxt_usb *nxt, const u8 *buf, unsigned int len
 	/* Until its telegram is sent, nothing can answer a transaction. */
 	if (!x || !x->sent || !x->want_reply || x->status != -EINPROGRESS) {
 		dev_dbg_ratelimited(&nxt->udev->dev, "dropped a stale packet (%u bytes)\n", len);
+		nxt->stats.stale++;
+		trace_nxt_usb_drop(nxt_name(nxt), NXT_USB_TRACE_STALE, buf, len, false);
 		return;
 	}
 
@@ -200,6 +255,8 @@ static void nxt_take_packet(struct nxt_usb *nxt, const u8 *buf, unsigned int len
 		 * timeout decides, with -EPROTO if it does not.
 		 */
 		x->saw_bad = true;
+		nxt->stats.mismatched++;
+		trace_nxt_usb_drop(nxt_name(nxt), NXT_USB_TRACE_MISMATCH, buf, len, false);
 		dev_dbg_ratelimited(&nxt->udev->dev,
 				    "packet %*ph... (%u bytes) does not answer opcode 0x%02x\n",
 				    min(len, 4U), buf, len, x->tg[1]);
@@ -207,6 +264,8 @@ static void nxt_take_packet(struct nxt_usb *nxt, const u8 *buf, unsigned int len
 	}
 	memcpy(x->reply, buf, len);
 	x->reply_len = len;
+	nxt->stats.replies++;
+	trace_nxt_usb_rx(nxt_name(nxt), x, buf[0], buf[1], len > 2 ? buf[2] : 0, len);
 	nxt_finish(nxt, x, 0);
 }
 
@@ -249,6 +308,8 @@ static void nxt_in_complete(struct urb *urb)
 		nxt->halted_in = true;
 		if (nxt->stalls < U8_MAX)
 			nxt->stalls++;
+		nxt->stats.stalls_in++;
+		trace_nxt_usb_stall(nxt_name(nxt), true, nxt->stalls);
 		/* A transaction not sent yet sends its telegram after recovery. */
 		if (nxt->cur && nxt->cur->sent && nxt->cur->want_reply &&
 		    nxt->cur->status == -EINPROGRESS)
@@ -311,6 +372,8 @@ static void nxt_out_complete(struct urb *urb)
 	}
 	if (urb->status == -EPIPE) {
 		nxt->halted_out = true;
+		nxt->stats.stalls_out++;
+		trace_nxt_usb_stall(nxt_name(nxt), false, nxt->stalls);
 		schedule_delayed_work(&nxt->recover_work, 0);
 	}
 	/* The last touch of @x: its owner may free it once it sees this. */
@@ -337,6 +400,8 @@ static void nxt_timer_fn(struct timer_list *t)
 			mod_timer(&nxt->timer, x->deadline);
 		} else if (!x->out_done) {
 			/* The brick did not take the telegram: cancel it. */
+			trace_nxt_usb_timeout(nxt_name(nxt), x, x->tg[1],
+					      "telegram not taken");
 			x->timed_out = true;
 			unlink = usb_get_urb(x->urb);
 		} else if (READ_ONCE(nxt->udev->state) == USB_STATE_NOTATTACHED) {
@@ -347,6 +412,9 @@ static void nxt_timer_fn(struct timer_list *t)
 			x->deadline = jiffies + msecs_to_jiffies(NXT_UNPLUG_GRACE_MS);
 			mod_timer(&nxt->timer, x->deadline);
 		} else {
+			trace_nxt_usb_timeout(nxt_name(nxt), x, x->tg[1],
+					      x->link_error ? "transfer errors, no reply" :
+					      x->saw_bad ? "malformed reply" : "no reply");
 			dev_warn_ratelimited(&nxt->udev->dev, "%s reply to opcode 0x%02x\n",
 					     x->link_error ? "transfer errors, no" :
 					     x->saw_bad ? "malformed" : "no", x->tg[1]);
@@ -637,6 +705,9 @@ static int nxt_submit(struct nxt_usb *nxt, struct nxt_xfer *x, struct urb *urb,
 		x->sent = false;
 	else if (nxt->cur == x && x->status == -EINPROGRESS)
 		mod_timer(&nxt->timer, x->deadline);
+	if (!ret)
+		nxt->stats.telegrams++;
+	trace_nxt_usb_tx(nxt_name(nxt), x, x->tg[0], x->tg[1], x->len, ret);
 	spin_unlock_irq(&nxt->lock);
 	if (ret) {
 		usb_unanchor_urb(urb);
@@ -935,6 +1006,41 @@ static bool nxt_in_flight(struct nxt_usb *nxt)
 	return busy;
 }
 
+/*
+ * debugfs lego_nxt_usb/USBDEV/counters: the brick's counters (struct
+ * nxt_stats), one "name value" a line.
+ */
+static int nxt_counters_show(struct seq_file *m, void *unused)
+{
+	struct nxt_usb *nxt = m->private;
+	struct nxt_stats st;
+
+	spin_lock_irq(&nxt->lock);
+	st = nxt->stats;
+	spin_unlock_irq(&nxt->lock);
+
+	seq_printf(m, "telegrams %llu\n", st.telegrams);
+	seq_printf(m, "replies %llu\n", st.replies);
+	seq_printf(m, "transactions %llu\n", st.transactions);
+	seq_printf(m, "ok %llu\n", st.ok);
+	seq_printf(m, "err_timedout %llu\n", st.err_timedout);
+	seq_printf(m, "err_proto %llu\n", st.err_proto);
+	seq_printf(m, "err_pipe %llu\n", st.err_pipe);
+	seq_printf(m, "err_io %llu\n", st.err_io);
+	seq_printf(m, "err_nodev %llu\n", st.err_nodev);
+	seq_printf(m, "err_intr %llu\n", st.err_intr);
+	seq_printf(m, "err_other %llu\n", st.err_other);
+	seq_printf(m, "stalls_in %llu\n", st.stalls_in);
+	seq_printf(m, "stalls_out %llu\n", st.stalls_out);
+	seq_printf(m, "drains %llu\n", st.drains);
+	seq_printf(m, "drained %llu\n", st.drained);
+	seq_printf(m, "stale %llu\n", st.stale);
+	seq_printf(m, "mismatched %llu\n", st.mismatched);
+	seq_printf(m, "resets %llu\n", st.resets);
+	return 0;
+}
+DEFINE_SHOW_ATTRIBUTE(nxt_counters);
+
 static int nxt_usb_probe(struct usb_interface *intf,
 			 const struct usb_device_id *id)
 {
@@ -990,6 +1096,10 @@ static int nxt_usb_probe(struct usb_interface *intf,
 		goto err_put;
 	}
 
+	nxt->debugfs = debugfs_create_dir(nxt_name(nxt), nxt_debugfs_root);
+	debugfs_create_file("counters", 0400, nxt->debugfs, nxt,
+			    &nxt_counters_fops);
+
 	/* Nothing is sent to the brick until someone opens it or reads sysfs. */
 	dev_info(&intf->dev, "LEGO NXT brick %s now at %s\n",
 		 nxt->udev->serial ?: "(no serial)", dev_name(intf->usb_dev));
@@ -1005,6 +1115,8 @@ static void nxt_usb_disconnect(struct usb_interface *intf)
 	struct nxt_usb *nxt = usb_get_intfdata(intf);
 	struct nxt_xfer *x;
 
+	trace_nxt_usb_reset(nxt_name(nxt), NXT_USB_TRACE_DISCONNECT);
+	debugfs_remove_recursive(nxt->debugfs);
 	/* No new opens; then no new transfers; then none in flight. */
 	usb_deregister_dev(intf, &nxt_usb_class);
 
@@ -1054,6 +1166,7 @@ static int nxt_usb_pre_reset(struct usb_interface *intf)
 {
 	struct nxt_usb *nxt = usb_get_intfdata(intf);
 
+	trace_nxt_usb_reset(nxt_name(nxt), NXT_USB_TRACE_PRE_RESET);
 	mutex_lock(&nxt->io_mutex);
 	nxt->suspended = true;
 	nxt_stop_io(nxt, -EIO);
@@ -1064,6 +1177,10 @@ static int nxt_usb_post_reset(struct usb_interface *intf)
 {
 	struct nxt_usb *nxt = usb_get_intfdata(intf);
 
+	trace_nxt_usb_reset(nxt_name(nxt), NXT_USB_TRACE_POST_RESET);
+	spin_lock_irq(&nxt->lock);
+	nxt->stats.resets++;
+	spin_unlock_irq(&nxt->lock);
 	nxt_forget_halts(nxt);
 	nxt->suspended = false;
 	nxt_info_invalidate(&nxt->info, true);
@@ -1082,6 +1199,7 @@ static int nxt_usb_suspend(struct usb_interface *intf, pm_message_t message)
 {
 	struct nxt_usb *nxt = usb_get_intfdata(intf);
 
+	trace_nxt_usb_reset(nxt_name(nxt), NXT_USB_TRACE_SUSPEND);
 	mutex_lock(&nxt->io_mutex);
 	if (PMSG_IS_AUTO(message) && (nxt_in_flight(nxt) || !nxt_slot_free(nxt))) {
 		mutex_unlock(&nxt->io_mutex);
@@ -1101,6 +1219,7 @@ static int nxt_usb_resume(struct usb_interface *intf)
 	struct nxt_usb *nxt = usb_get_intfdata(intf);
 	int ret;
 
+	trace_nxt_usb_reset(nxt_name(nxt), NXT_USB_TRACE_RESUME);
 	mutex_lock(&nxt->io_mutex);
 	nxt->suspended = false;
 	ret = nxt_reader_start_locked(nxt);
@@ -1113,6 +1232,7 @@ static int nxt_usb_reset_resume(struct usb_interface *intf)
 	struct nxt_usb *nxt = usb_get_intfdata(intf);
 
 	/* The brick was reset: its endpoints are no longer halted. */
+	trace_nxt_usb_reset(nxt_name(nxt), NXT_USB_TRACE_RESET_RESUME);
 	nxt_forget_halts(nxt);
 	nxt_info_invalidate(&nxt->info, true);
 	return nxt_usb_resume(intf);
@@ -1143,7 +1263,25 @@ struct usb_driver nxt_usb_driver = {
 	.id_table	= nxt_usb_ids,
 	.dev_groups	= nxt_groups,
 };
-module_usb_driver(nxt_usb_driver);
+
+static int __init nxt_usb_init(void)
+{
+	int ret;
+
+	nxt_debugfs_root = debugfs_create_dir(KBUILD_MODNAME, NULL);
+	ret = usb_register(&nxt_usb_driver);
+	if (ret)
+		debugfs_remove_recursive(nxt_debugfs_root);
+	return ret;
+}
+module_init(nxt_usb_init);
+
+static void __exit nxt_usb_exit(void)
+{
+	usb_deregister(&nxt_usb_driver);
+	debugfs_remove_recursive(nxt_debugfs_root);
+}
+module_exit(nxt_usb_exit);
 
 MODULE_DESCRIPTION("LEGO MINDSTORMS NXT brick USB driver");
 MODULE_LICENSE("GPL");

@@ -107,6 +107,48 @@ struct nxt_info {
 };
 
 /**
+ * struct nxt_stats - a brick's counters, in debugfs (under &nxt_usb.lock)
+ * @telegrams: telegrams submitted
+ * @replies: replies received (that answered their transaction)
+ * @transactions: transactions ended
+ * @ok: of which without an error
+ * @err_timedout: ended with -ETIMEDOUT
+ * @err_proto: with -EPROTO (only malformed replies came)
+ * @err_pipe: with -EPIPE (a stall)
+ * @err_io: with -EIO (transfer errors, a reset, a suspend)
+ * @err_nodev: with -ENODEV (unplugged)
+ * @err_intr: with -EINTR (interrupted, cancelled)
+ * @err_other: with another error
+ * @stalls_in: IN endpoint stalls
+ * @stalls_out: OUT endpoint stalls
+ * @drains: drains of stale replies started
+ * @drained: packets dropped while draining
+ * @stale: packets dropped with no reply awaited
+ * @mismatched: packets dropped that did not answer the transaction
+ * @resets: USB resets of the brick
+ */
+struct nxt_stats {
+	u64 telegrams;
+	u64 replies;
+	u64 transactions;
+	u64 ok;
+	u64 err_timedout;
+	u64 err_proto;
+	u64 err_pipe;
+	u64 err_io;
+	u64 err_nodev;
+	u64 err_intr;
+	u64 err_other;
+	u64 stalls_in;
+	u64 stalls_out;
+	u64 drains;
+	u64 drained;
+	u64 stale;
+	u64 mismatched;
+	u64 resets;
+};
+
+/**
  * struct nxt_usb - one brick
  * @kref: references: probe() and each open file
  * @udev: the USB device, referenced while this structure lives
@@ -139,6 +181,8 @@ struct nxt_info {
  * @halted_out: the OUT endpoint stalled (@lock)
  * @stalls: IN stalls in a row, with no packet in between (@lock)
  * @info: the cached brick information behind the sysfs attributes
+ * @stats: counters (@lock)
+ * @debugfs: the brick's directory in debugfs (lego_nxt_usb/USBDEV)
  */
 struct nxt_usb {
 	struct kref kref;
@@ -172,6 +216,8 @@ struct nxt_usb {
 	u8 stalls;
 
 	struct nxt_info info;
+	struct nxt_stats stats;
+	struct dentry *debugfs;
 };
 
 /**

@@ -1,0 +1,4 @@
+// SPDX-License-Identifier: GPL-2.0
+/* LEGO MINDSTORMS NXT brick: the trace events' definitions. */
+#define CREATE_TRACE_POINTS
+#include "nxt_usb_trace.h"
