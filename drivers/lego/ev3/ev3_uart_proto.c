@@ -440,7 +440,8 @@ EXPORT_SYMBOL_IF_KUNIT(ev3_uart_build_nack);
 /**
  * ev3_uart_build_select() - a SELECT message
  * @buf: at least 3 bytes
- * @mode: the mode to select, 0 to 7
+ * @mode: the mode to select, 0 to 15 (Powered Up devices take modes 8 to
+ *	15 in SELECT as they are)
  *
  * Return: the message length, 3.
  */
@@ -548,6 +549,7 @@ static void ev3_uart_start_handshake(struct ev3_uart_parser *p, u8 type,
 	p->info_mode = EV3_UART_NO_MODE;
 	p->info_seen = 0;
 	p->modes_done = 0;
+	p->ext_mode = 0;
 	p->msg_len = 0;
 	p->state = EV3_UART_STATE_INFO;
 	ev->type = EV3_UART_EV_SYNC;
@@ -608,14 +610,20 @@ static void ev3_uart_cmd(struct ev3_uart_parser *p, const u8 *msg,
 			return ev3_uart_error(p, ev, "duplicate MODES");
 		if (p->info_mode != EV3_UART_NO_MODE)
 			return ev3_uart_error(p, ev, "MODES after INFO");
-		if (payload[0] >= EV3_UART_MAX_MODES)
+		if (payload[0] >= EV3_UART_MAX_EV3_MODES)
 			return ev3_uart_error(p, ev, "number of modes out of range");
-		s->num_modes = payload[0] + 1;
 		/*
 		 * The second byte (views) is optional. Powered Up devices send
-		 * a 4-byte form whose extra counts describe modes 8 and up,
-		 * which EV3 hosts do not use.
+		 * a 4-byte form whose last two bytes count all their modes
+		 * (up to 16) and views; the first two are for EV3 hosts.
 		 */
+		if (plen >= 4) {
+			if (payload[2] >= EV3_UART_MAX_MODES)
+				return ev3_uart_error(p, ev, "number of modes out of range");
+			payload += 2;
+			s->lump = true;
+		}
+		s->num_modes = payload[0] + 1;
 		s->num_view_modes = plen >= 2 ? min_t(unsigned int, payload[1] + 1,
 						      s->num_modes)
 					      : s->num_modes;
@@ -632,9 +640,20 @@ static void ev3_uart_cmd(struct ev3_uart_parser *p, const u8 *msg,
 			return ev3_uart_error(p, ev, "speed out of range");
 		s->speed = speed;
 		break;
-	case EV3_UART_CMD_EXT_MODE:
 	case EV3_UART_CMD_VERSION:
-		/* Quirk: Powered Up devices send these; nothing to do on EV3. */
+		/* Powered Up: firmware and hardware versions, BCD. */
+		if (plen < 8)
+			return ev3_uart_error(p, ev, "short VERSION");
+		s->fw_version = get_unaligned_le32(payload);
+		s->hw_version = get_unaligned_le32(payload + 4);
+		s->lump = true;
+		break;
+	case EV3_UART_CMD_EXT_MODE:
+		/*
+		 * Powered Up: meant for the data phase (see
+		 * ev3_uart_ext_mode()); modes 8 and up are described with
+		 * the MODE_PLUS_8 flag instead.
+		 */
 		break;
 	case EV3_UART_CMD_TYPE:
 		return ev3_uart_error(p, ev, "duplicate TYPE");
@@ -707,6 +726,36 @@ static void ev3_uart_format(struct ev3_uart_parser *p, u8 mode,
 	p->modes_done |= BIT(mode);
 }
 
+/* The Powered Up INFO types 0x05 to 0x0c of mode @m: none is fatal. */
+static noinline void ev3_uart_info_lump(struct ev3_uart_sensor *s,
+					struct ev3_uart_mode *m, u8 itype,
+					const u8 *payload, unsigned int plen)
+{
+	unsigned int i;
+
+	s->lump = true;
+	switch (itype) {
+	case EV3_UART_INFO_MAPPING:
+		if (plen >= 2) {
+			m->mapping_in = payload[0];
+			m->mapping_out = payload[1];
+		}
+		break;
+	case EV3_UART_INFO_MODE_COMBOS:
+		/* Bitmaps of modes, up to the first empty one. */
+		for (i = 0; i < plen / 2 && i < EV3_UART_MAX_COMBOS; i++) {
+			s->combos[i] = get_unaligned_le16(payload + 2 * i);
+			if (!s->combos[i])
+				break;
+		}
+		s->num_combos = i;
+		break;
+	default:
+		/* Not understood (0x09 looks like motor PID parameters). */
+		break;
+	}
+}
+
 static void ev3_uart_info(struct ev3_uart_parser *p, const u8 *msg,
 			  unsigned int plen, struct ev3_uart_event *ev)
 {
@@ -714,22 +763,27 @@ static void ev3_uart_info(struct ev3_uart_parser *p, const u8 *msg,
 	const u8 *payload = msg + 2;
 	u8 mode = msg[0] & EV3_UART_MSG_CMD_MASK;
 	u8 itype = msg[1];
-	struct ev3_uart_mode *m = &s->modes[mode];
+	struct ev3_uart_mode *m;
 	const char *err;
 	unsigned int bit;
 	size_t n;
 
-	/*
-	 * Quirk: Powered Up devices describe modes 8 and up with the
-	 * MODE_PLUS_8 flag and send extra INFO types (mapping, mode
-	 * combinations...). EV3 hosts have no use for them: skip them.
-	 */
-	if (itype & EV3_UART_INFO_MODE_PLUS_8 ||
-	    (itype >= EV3_UART_INFO_PUP_FIRST && itype <= EV3_UART_INFO_PUP_LAST))
-		return;
-
+	/* Powered Up: the MODE_PLUS_8 flag describes modes 8 to 15. */
+	if (itype & EV3_UART_INFO_MODE_PLUS_8) {
+		itype &= ~EV3_UART_INFO_MODE_PLUS_8;
+		mode += EV3_UART_MAX_EV3_MODES;
+		s->lump = true;
+	}
 	if (mode >= s->num_modes)
 		return ev3_uart_error(p, ev, "INFO for a mode out of range");
+	m = &s->modes[mode];	/* mode < num_modes <= EV3_UART_MAX_MODES */
+
+	/*
+	 * Powered Up INFO types: kept where they are understood, skipped
+	 * otherwise, never fatal; they may come after FORMAT (MODE_COMBOS).
+	 */
+	if (itype >= EV3_UART_INFO_PUP_FIRST && itype <= EV3_UART_INFO_PUP_LAST)
+		return ev3_uart_info_lump(s, m, itype, payload, plen);
 
 	if (itype == EV3_UART_INFO_NAME) {
 		if (p->info_mode != EV3_UART_NO_MODE &&
@@ -745,6 +799,16 @@ static void ev3_uart_info(struct ev3_uart_parser *p, const u8 *msg,
 		memset(m, 0, sizeof(*m));
 		/* 8-character names fill their payload with no NUL after them. */
 		memcpy(m->name, payload, n);
+		/*
+		 * Powered Up: capability flags after a short name, in a
+		 * 16-byte payload.
+		 */
+		if (n <= EV3_UART_SHORT_NAME_LEN &&
+		    plen >= EV3_UART_SHORT_NAME_LEN + 1 + EV3_UART_NAME_FLAGS) {
+			memcpy(m->flags, payload + EV3_UART_SHORT_NAME_LEN + 1,
+			       EV3_UART_NAME_FLAGS);
+			s->lump = true;
+		}
 		ev3_uart_set_mode_defaults(p);
 		p->info_mode = mode;
 		p->info_seen = BIT(EV3_UART_INFO_NAME);
@@ -788,7 +852,7 @@ static void ev3_uart_info(struct ev3_uart_parser *p, const u8 *msg,
 static void ev3_uart_sys_info(struct ev3_uart_parser *p, u8 b,
 			      struct ev3_uart_event *ev)
 {
-	u8 all = GENMASK(p->sensor.num_modes - 1, 0);
+	u16 all = GENMASK(p->sensor.num_modes - 1, 0);
 
 	if (b != EV3_UART_SYS_ACK)
 		return;	/* SYNC, NACK and the reserved ESC bytes carry nothing */
@@ -883,16 +947,38 @@ static bool ev3_uart_rgb_raw_quirk(const struct ev3_uart_sensor *s, u8 hdr)
 	return s->type == EV3_UART_TYPE_COLOR && hdr == 0xdc;
 }
 
+/*
+ * Powered Up: an EXT_MODE message (3 bytes) in the data phase. The DATA
+ * messages after it are of the mode in their header plus its value, 0 or 8.
+ */
+static void ev3_uart_ext_mode(struct ev3_uart_parser *p,
+			      struct ev3_uart_event *ev)
+{
+	u8 ext = p->msg[1];
+
+	if (p->msg[2] != ev3_uart_checksum(p->msg, 2) ||
+	    (ext && ext != EV3_UART_MAX_EV3_MODES))
+		return ev3_uart_bad_frame(p, ev);
+	if (ext != p->ext_mode) {
+		p->ext_mode = ext;
+		/* The headers the fast path trusts now mean other modes. */
+		ev3_uart_fast_clear(p);
+	}
+}
+
 static void ev3_uart_data_msg(struct ev3_uart_parser *p,
 			      struct ev3_uart_event *ev)
 {
 	struct ev3_uart_sensor *s = &p->sensor;
 	unsigned int len = p->msg_len, plen = len - 2;
 	u8 hdr = p->msg[0];
-	u8 mode = hdr & EV3_UART_MSG_CMD_MASK;
+	u8 mode = (hdr & EV3_UART_MSG_CMD_MASK) + p->ext_mode;
 	bool changed = false;
 	struct ev3_uart_mode *m;
 
+	/* The one non-DATA message ev3_uart_msg_start() lets through. */
+	if (hdr == EV3_UART_EXT_MODE_HDR)
+		return ev3_uart_ext_mode(p, ev);
 	if (p->msg[len - 1] != ev3_uart_checksum(p->msg, len - 1) &&
 	    !ev3_uart_rgb_raw_quirk(s, hdr))
 		return ev3_uart_bad_frame(p, ev);
@@ -976,10 +1062,13 @@ static __always_inline void ev3_uart_copy_short(u8 *dst, const u8 *src,
 static __always_inline bool ev3_uart_data_common(const struct ev3_uart_parser *p,
 						 u8 hdr, unsigned int plen)
 {
-	u8 mode = hdr & EV3_UART_MSG_CMD_MASK;
+	/* @p->ext_mode is 0 or 8: the mode is below 16. */
+	u8 mode = (hdr & EV3_UART_MSG_CMD_MASK) | p->ext_mode;
 	const struct ev3_uart_mode *m = &p->sensor.modes[mode];
 
-	return mode == p->mode && p->pending_mode == EV3_UART_NO_MODE &&
+	/* Not an EXT_MODE: ev3_uart_data_msg() takes those. */
+	return (hdr & EV3_UART_MSG_TYPE_MASK) == EV3_UART_MSG_DATA &&
+	       mode == p->mode && p->pending_mode == EV3_UART_NO_MODE &&
 	       plen >= m->num_values * ev3_uart_data_size(m->data_type);
 }
 
@@ -1067,7 +1156,8 @@ static __always_inline bool ev3_uart_data_deliver(struct ev3_uart_parser *p,
 		p->data_err--;
 	p->data_since_tick = true;
 	ev->type = EV3_UART_EV_DATA;
-	ev->mode = msg[0] & EV3_UART_MSG_CMD_MASK;
+	/* The header passed ev3_uart_data_common(): its mode is @p->mode. */
+	ev->mode = p->mode;
 	ev->len = plen;
 	return true;
 }
@@ -1140,8 +1230,12 @@ static __always_inline void ev3_uart_msg_start(struct ev3_uart_parser *p,
 		return;
 	}
 	if (p->state == EV3_UART_STATE_DATA) {
-		/* Re-align on the next plausible DATA header. */
-		if (!ev3_uart_data_hdr_ok(b)) {
+		/*
+		 * Re-align on the next plausible DATA header, or a Powered Up
+		 * device's EXT_MODE.
+		 */
+		if (!ev3_uart_data_hdr_ok(b) &&
+		    !(b == EV3_UART_EXT_MODE_HDR && p->sensor.lump)) {
 			p->garbage++;
 			return;
 		}
@@ -1500,6 +1594,7 @@ void ev3_uart_parser_start_data(struct ev3_uart_parser *p)
 	p->state = EV3_UART_STATE_DATA;
 	p->msg_len = 0;
 	p->mode = 0;
+	p->ext_mode = 0;
 	p->pending_mode = EV3_UART_NO_MODE;
 	p->data_err = 0;
 	p->silent_ticks = 0;

@@ -564,6 +564,9 @@ static const struct bad_case bad_cases[] = {
 	{ "duplicate TYPE", { 0x40, 0x63, 0xdc }, 3 },
 	{ "SELECT from a sensor", { 0x43, 0x00, 0xbc }, 3 },
 	{ "INFO for a mode out of range", { 0x91, 0x00, 'A', 'B', 0, 0, 0x6d }, 7 },
+	{ "MODE_PLUS_8 INFO for a mode out of range", { 0x90, 0x20, 'A', 'B', 0, 0, 0x4c }, 7 },
+	{ "4-byte MODES with 17 modes", { 0x51, 0x07, 0x07, 0x10, 0x07, 0xb9 }, 6 },
+	{ "short VERSION", { 0x57, 0x00, 0x00, 0x00, 0x10, 0xb8 }, 6 },
 	{ "unknown INFO type", { 0x90, 0x0d, 0, 0, 0, 0, 0x62 }, 7 },
 	{ "FORMAT before NAME", { 0x90, 0x80, 1, 0, 2, 0, 0xec }, 7 },
 	{ "ACK with no mode described", { 0x04 }, 1 },
@@ -728,33 +731,330 @@ static void test_views_clamped(struct kunit *test)
 	KUNIT_EXPECT_EQ(test, c->p.sensor.num_view_modes, 1);
 }
 
-/* Powered Up extras are skipped, not fatal. */
-static void test_powered_up_extras_ignored(struct kunit *test)
+/* Powered Up extras in an otherwise EV3-like handshake: kept, not fatal. */
+static void test_powered_up_extras(struct kunit *test)
 {
 	static const struct tmode m = { "A", { F0, F100 }, { F0, F100 }, NULL, 1, 0, 2, 0 };
-	static const u8 name_plus8[8] = { 'C', 'A', 'L', 'I', 'B' };
 	static const u8 mapping[2] = { 0x10, 0x00 };
-	static const u8 version[8] = { 0, 0, 0, 0x10, 0, 0, 0, 0x10 };
+	static const u8 version[8] = { 0x01, 0, 0, 0x10, 0x02, 0, 0, 0x10 };
 	static const u8 format[4] = { 1, 0, 2, 0 };
-	u8 type = 99;
+	static const u8 combos[4] = { 0x01, 0x00, 0x00, 0x00 };
+	static const u8 unk[16] = { 1, 2, 3, 4 };
+	u8 type = 99, zero = 0;
 	struct ctx *c = new_ctx(test);
 	size_t len;
 
 	len = enc_cmd(c->buf, EV3_UART_CMD_TYPE, &type, 1);
 	len += enc_cmd(c->buf + len, EV3_UART_CMD_VERSION, version, 8);
-	/* NAME of mode 2 + 8, with the MODE_PLUS_8 flag. */
-	len += enc_info(c->buf + len, 2, EV3_UART_INFO_MODE_PLUS_8, name_plus8, 8);
-	len += enc_info(c->buf + len, 2, EV3_UART_INFO_FORMAT | EV3_UART_INFO_MODE_PLUS_8,
-			mapping, 2);
+	/* EXT_MODE in the handshake: meant for the data phase, skipped. */
+	len += enc_cmd(c->buf + len, EV3_UART_CMD_EXT_MODE, &zero, 1);
 	len += enc_string(c->buf + len, 0, EV3_UART_INFO_NAME, m.name);
-	len += enc_info(c->buf + len, 0, 0x05, mapping, 2);	/* MAPPING */
 	len += enc_range(c->buf + len, 0, EV3_UART_INFO_RAW, m.raw);
 	len += enc_range(c->buf + len, 0, EV3_UART_INFO_SI, m.si);
+	len += enc_info(c->buf + len, 0, EV3_UART_INFO_MAPPING, mapping, 2);
+	len += enc_info(c->buf + len, 0, 0x09, unk, 16);
 	len += enc_info(c->buf + len, 0, EV3_UART_INFO_FORMAT, format, 4);
+	/* MODE_COMBOS after mode 0's FORMAT, as real devices send it. */
+	len += enc_info(c->buf + len, 0, EV3_UART_INFO_MODE_COMBOS, combos, 4);
+	len += enc_info(c->buf + len, 0, 0x0c, unk, 1);
 	c->buf[len++] = EV3_UART_SYS_ACK;
 	feed(&c->p, c->buf, len, len, &c->r);
 	KUNIT_EXPECT_EQ(test, count(&c->r, EV3_UART_EV_ERROR), 0U);
-	KUNIT_EXPECT_EQ(test, last(&c->r)->type, EV3_UART_EV_HANDSHAKE);
+	KUNIT_ASSERT_EQ(test, last(&c->r)->type, EV3_UART_EV_HANDSHAKE);
+	KUNIT_EXPECT_TRUE(test, c->p.sensor.lump);
+	KUNIT_EXPECT_EQ(test, c->p.sensor.fw_version, 0x10000001U);
+	KUNIT_EXPECT_EQ(test, c->p.sensor.hw_version, 0x10000002U);
+	KUNIT_EXPECT_EQ(test, c->p.sensor.modes[0].mapping_in, 0x10);
+	KUNIT_EXPECT_EQ(test, c->p.sensor.modes[0].mapping_out, 0x00);
+	KUNIT_EXPECT_EQ(test, c->p.sensor.num_combos, 1);
+	KUNIT_EXPECT_EQ(test, c->p.sensor.combos[0], 0x0001);
+}
+
+/*
+ * The BOOST colour and distance sensor's handshake as a logic analyser
+ * recorded it (type 37): a 4-byte MODES with 11 modes and 8 views, SPEED
+ * 115200, VERSION, modes 10 to 8 with the MODE_PLUS_8 flag, names with
+ * spaces ("IR Tx", "RGB I", "COL O", "SPEC 1"), a 4-character name with no
+ * NUL ("AMBI"), MAPPING for every mode, MODE_COMBOS after the last FORMAT.
+ */
+static const u8 boost_cds_handshake[] = {
+	0x40, 0x25, 0x9a,
+	0x51, 0x07, 0x07, 0x0a, 0x07, 0xa3,
+	0x52, 0x00, 0xc2, 0x01, 0x00, 0x6e,
+	0x5f, 0x00, 0x00, 0x00, 0x10, 0x00, 0x00, 0x00, 0x10, 0xa0,
+	0x9a, 0x20, 0x43, 0x41, 0x4c, 0x49, 0x42, 0x00, 0x00, 0x00, 0x00,
+	0x9a, 0x21, 0x00, 0x00, 0x00, 0x00, 0x00, 0xff, 0x7f, 0x47, 0x83,
+	0x9a, 0x22, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xc8, 0x42, 0xcd,
+	0x9a, 0x23, 0x00, 0x00, 0x00, 0x00, 0x00, 0xff, 0x7f, 0x47, 0x81,
+	0x92, 0x24, 0x4e, 0x2f, 0x41, 0x00, 0x69,
+	0x8a, 0x25, 0x10, 0x00, 0x40,
+	0x92, 0xa0, 0x08, 0x01, 0x05, 0x00, 0xc1,
+	0x99, 0x20, 0x44, 0x45, 0x42, 0x55, 0x47, 0x00, 0x00, 0x00, 0x17,
+	0x99, 0x21, 0x00, 0x00, 0x00, 0x00, 0x00, 0xc0, 0x7f, 0x44, 0xbc,
+	0x99, 0x22, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xc8, 0x42, 0xce,
+	0x99, 0x23, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x20, 0x41, 0x24,
+	0x91, 0x24, 0x4e, 0x2f, 0x41, 0x00, 0x6a,
+	0x89, 0x25, 0x10, 0x00, 0x43,
+	0x91, 0xa0, 0x02, 0x01, 0x05, 0x00, 0xc8,
+	0x98, 0x20, 0x53, 0x50, 0x45, 0x43, 0x20, 0x31, 0x00, 0x00, 0x53,
+	0x98, 0x21, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x7f, 0x43, 0x7a,
+	0x98, 0x22, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xc8, 0x42, 0xcf,
+	0x98, 0x23, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x7f, 0x43, 0x78,
+	0x90, 0x24, 0x4e, 0x2f, 0x41, 0x00, 0x6b,
+	0x88, 0x25, 0x00, 0x00, 0x52,
+	0x90, 0xa0, 0x04, 0x00, 0x03, 0x00, 0xc8,
+	0x9f, 0x00, 0x49, 0x52, 0x20, 0x54, 0x78, 0x00, 0x00, 0x00, 0x77,
+	0x9f, 0x01, 0x00, 0x00, 0x00, 0x00, 0x00, 0xff, 0x7f, 0x47, 0xa6,
+	0x9f, 0x02, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xc8, 0x42, 0xe8,
+	0x9f, 0x03, 0x00, 0x00, 0x00, 0x00, 0x00, 0xff, 0x7f, 0x47, 0xa4,
+	0x97, 0x04, 0x4e, 0x2f, 0x41, 0x00, 0x4c,
+	0x8f, 0x05, 0x00, 0x04, 0x71,
+	0x97, 0x80, 0x01, 0x01, 0x05, 0x00, 0xed,
+	0x9e, 0x00, 0x52, 0x47, 0x42, 0x20, 0x49, 0x00, 0x00, 0x00, 0x5f,
+	0x9e, 0x01, 0x00, 0x00, 0x00, 0x00, 0x00, 0xc0, 0x7f, 0x44, 0x9b,
+	0x9e, 0x02, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xc8, 0x42, 0xe9,
+	0x9e, 0x03, 0x00, 0x00, 0x00, 0x00, 0x00, 0xc0, 0x7f, 0x44, 0x99,
+	0x96, 0x04, 0x52, 0x41, 0x57, 0x00, 0x29,
+	0x8e, 0x05, 0x10, 0x00, 0x64,
+	0x96, 0x80, 0x03, 0x01, 0x05, 0x00, 0xee,
+	0x9d, 0x00, 0x43, 0x4f, 0x4c, 0x20, 0x4f, 0x00, 0x00, 0x00, 0x4d,
+	0x9d, 0x01, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x20, 0x41, 0x02,
+	0x9d, 0x02, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xc8, 0x42, 0xea,
+	0x9d, 0x03, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x20, 0x41, 0x00,
+	0x95, 0x04, 0x49, 0x44, 0x58, 0x00, 0x3b,
+	0x8d, 0x05, 0x00, 0x04, 0x73,
+	0x95, 0x80, 0x01, 0x00, 0x03, 0x00, 0xe8,
+	0x94, 0x00, 0x41, 0x4d, 0x42, 0x49, 0x6c,
+	0x9c, 0x01, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xc8, 0x42, 0xe8,
+	0x9c, 0x02, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xc8, 0x42, 0xeb,
+	0x9c, 0x03, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xc8, 0x42, 0xea,
+	0x94, 0x04, 0x50, 0x43, 0x54, 0x00, 0x28,
+	0x8c, 0x05, 0x10, 0x00, 0x66,
+	0x94, 0x80, 0x01, 0x00, 0x03, 0x00, 0xe9,
+	0x9b, 0x00, 0x52, 0x45, 0x46, 0x4c, 0x54, 0x00, 0x00, 0x00, 0x2d,
+	0x9b, 0x01, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xc8, 0x42, 0xef,
+	0x9b, 0x02, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xc8, 0x42, 0xec,
+	0x9b, 0x03, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xc8, 0x42, 0xed,
+	0x93, 0x04, 0x50, 0x43, 0x54, 0x00, 0x2f,
+	0x8b, 0x05, 0x10, 0x00, 0x61,
+	0x93, 0x80, 0x01, 0x00, 0x03, 0x00, 0xee,
+	0x9a, 0x00, 0x43, 0x4f, 0x55, 0x4e, 0x54, 0x00, 0x00, 0x00, 0x26,
+	0x9a, 0x01, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xc8, 0x42, 0xee,
+	0x9a, 0x02, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xc8, 0x42, 0xed,
+	0x9a, 0x03, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xc8, 0x42, 0xec,
+	0x92, 0x04, 0x43, 0x4e, 0x54, 0x00, 0x30,
+	0x8a, 0x05, 0x08, 0x00, 0x78,
+	0x92, 0x80, 0x01, 0x02, 0x04, 0x00, 0xea,
+	0x91, 0x00, 0x50, 0x52, 0x4f, 0x58, 0x7b,
+	0x99, 0x01, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x20, 0x41, 0x06,
+	0x99, 0x02, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xc8, 0x42, 0xee,
+	0x99, 0x03, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x20, 0x41, 0x04,
+	0x91, 0x04, 0x44, 0x49, 0x53, 0x00, 0x34,
+	0x89, 0x05, 0x50, 0x00, 0x23,
+	0x91, 0x80, 0x01, 0x00, 0x03, 0x00, 0xec,
+	0x98, 0x00, 0x43, 0x4f, 0x4c, 0x4f, 0x52, 0x00, 0x00, 0x00, 0x3a,
+	0x98, 0x01, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x20, 0x41, 0x07,
+	0x98, 0x02, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xc8, 0x42, 0xef,
+	0x98, 0x03, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x20, 0x41, 0x05,
+	0x90, 0x04, 0x49, 0x44, 0x58, 0x00, 0x3e,
+	0x88, 0x05, 0xc4, 0x00, 0xb6,
+	0x90, 0x80, 0x01, 0x00, 0x03, 0x00, 0xed,
+	0x88, 0x06, 0x4f, 0x00, 0x3e,
+	0x04,
+};
+
+static void check_boost_cds(struct kunit *test, size_t chunk)
+{
+	struct ctx *c = new_ctx(test);
+	const struct ev3_uart_sensor *s = &c->p.sensor;
+
+	feed(&c->p, boost_cds_handshake, sizeof(boost_cds_handshake), chunk, &c->r);
+	KUNIT_EXPECT_EQ(test, count(&c->r, EV3_UART_EV_ERROR), 0U);
+	KUNIT_ASSERT_EQ(test, last(&c->r)->type, EV3_UART_EV_HANDSHAKE);
+	KUNIT_EXPECT_EQ(test, s->type, 37);
+	KUNIT_EXPECT_EQ(test, s->num_modes, 11);
+	KUNIT_EXPECT_EQ(test, s->num_view_modes, 8);
+	KUNIT_EXPECT_EQ(test, s->speed, 115200U);
+	KUNIT_EXPECT_TRUE(test, s->lump);
+	KUNIT_EXPECT_EQ(test, s->fw_version, 0x10000000U);
+	KUNIT_EXPECT_EQ(test, s->hw_version, 0x10000000U);
+	KUNIT_EXPECT_STREQ(test, s->modes[0].name, "COLOR");
+	KUNIT_EXPECT_STREQ(test, s->modes[0].units, "IDX");
+	KUNIT_EXPECT_EQ(test, s->modes[0].mapping_in, 0xc4);
+	KUNIT_EXPECT_STREQ(test, s->modes[4].name, "AMBI");
+	KUNIT_EXPECT_STREQ(test, s->modes[5].name, "COL O");
+	KUNIT_EXPECT_EQ(test, s->modes[5].mapping_out, 0x04);
+	KUNIT_EXPECT_STREQ(test, s->modes[6].name, "RGB I");
+	KUNIT_EXPECT_EQ(test, s->modes[6].num_values, 3);
+	KUNIT_EXPECT_EQ(test, s->modes[6].data_type, EV3_UART_DATA_S16);
+	KUNIT_EXPECT_EQ(test, s->modes[6].raw_max, 1023);
+	KUNIT_EXPECT_STREQ(test, s->modes[7].name, "IR Tx");
+	KUNIT_EXPECT_EQ(test, s->modes[7].raw_max, 65535);
+	KUNIT_EXPECT_STREQ(test, s->modes[8].name, "SPEC 1");
+	KUNIT_EXPECT_EQ(test, s->modes[8].num_values, 4);
+	KUNIT_EXPECT_EQ(test, s->modes[8].data_type, EV3_UART_DATA_S8);
+	KUNIT_EXPECT_STREQ(test, s->modes[8].units, "N/A");
+	KUNIT_EXPECT_STREQ(test, s->modes[9].name, "DEBUG");
+	KUNIT_EXPECT_EQ(test, s->modes[9].num_values, 2);
+	KUNIT_EXPECT_EQ(test, s->modes[9].raw_max, 1023);
+	KUNIT_EXPECT_STREQ(test, s->modes[10].name, "CALIB");
+	KUNIT_EXPECT_EQ(test, s->modes[10].num_values, 8);
+	KUNIT_EXPECT_EQ(test, s->modes[10].data_type, EV3_UART_DATA_S16);
+	KUNIT_EXPECT_EQ(test, s->modes[10].raw_max, 65535);
+	KUNIT_EXPECT_EQ(test, s->num_combos, 1);
+	KUNIT_EXPECT_EQ(test, s->combos[0], 0x004f);
+}
+
+static void test_handshake_boost_color_distance(struct kunit *test)
+{
+	check_boost_cds(test, sizeof(boost_cds_handshake));
+	check_boost_cds(test, 1);
+	check_boost_cds(test, 7);
+}
+
+/*
+ * The data phase of a Powered Up device: EXT_MODE before DATA gives the
+ * mode (header's + 0 or 8), and lasts until the next EXT_MODE.
+ */
+static void check_ext_mode(struct kunit *test, size_t chunk)
+{
+	/* Recorded bytes: mode 6 after EXT_MODE 0, mode 8 after EXT_MODE 8. */
+	static const u8 mode6[] = { 0x46, 0x00, 0xb9, 0xde, 0x00, 0x00, 0x00, 0x00,
+				    0x00, 0x00, 0x00, 0x00, 0x21 };
+	static const u8 mode8[] = { 0x46, 0x08, 0xb1, 0xd0, 0x00, 0x00, 0x00, 0x00, 0x2f };
+	static const u8 spec[4] = { 1, 2, 3, 0xfc };
+	static const u8 one[1] = { 5 };
+	struct ctx *c = new_ctx(test);
+	size_t len;
+	s32 v;
+
+	feed(&c->p, boost_cds_handshake, sizeof(boost_cds_handshake),
+	     sizeof(boost_cds_handshake), &c->r);
+	KUNIT_ASSERT_EQ(test, last(&c->r)->type, EV3_UART_EV_HANDSHAKE);
+	ev3_uart_parser_start_data(&c->p);
+	c->r.n = 0;
+
+	KUNIT_ASSERT_EQ(test, ev3_uart_parser_select(&c->p, 6), 0);
+	feed(&c->p, mode6, sizeof(mode6), chunk, &c->r);
+	KUNIT_ASSERT_EQ(test, c->r.n, 1U);
+	KUNIT_EXPECT_EQ(test, last(&c->r)->type, EV3_UART_EV_DATA);
+	KUNIT_EXPECT_EQ(test, last(&c->r)->mode, 6);
+	KUNIT_EXPECT_TRUE(test, last(&c->r)->mode_changed);
+
+	KUNIT_ASSERT_EQ(test, ev3_uart_parser_select(&c->p, 8), 0);
+	feed(&c->p, mode8, sizeof(mode8), chunk, &c->r);
+	KUNIT_ASSERT_EQ(test, c->r.n, 2U);
+	KUNIT_EXPECT_EQ(test, last(&c->r)->mode, 8);
+	KUNIT_EXPECT_TRUE(test, last(&c->r)->mode_changed);
+
+	/* No EXT_MODE before it: still mode 8, through the fast path too. */
+	len = enc_data(c->buf, 0, spec, 4);
+	len += enc_data(c->buf + len, 0, spec, 4);
+	feed(&c->p, c->buf, len, chunk, &c->r);
+	KUNIT_ASSERT_EQ(test, c->r.n, 4U);
+	KUNIT_EXPECT_EQ(test, last(&c->r)->mode, 8);
+	KUNIT_EXPECT_FALSE(test, last(&c->r)->mode_changed);
+	KUNIT_EXPECT_EQ(test, ev3_uart_read_value(&c->p.sensor.modes[8], c->p.data, 4, 3, &v), 0);
+	KUNIT_EXPECT_EQ(test, v, -4);
+
+	/* EXT_MODE 0 then mode 0's header: a stale mode 0 message, dropped. */
+	len = enc_cmd(c->buf, EV3_UART_CMD_EXT_MODE, (const u8 *)"\0", 1);
+	len += enc_data(c->buf + len, 0, one, 1);
+	feed(&c->p, c->buf, len, chunk, &c->r);
+	KUNIT_EXPECT_EQ(test, c->r.n, 4U);
+	KUNIT_EXPECT_EQ(test, c->p.bad_frames, 0UL);
+
+	/* An EXT_MODE other than 0 or 8, or with a bad checksum: a bad frame. */
+	len = enc_cmd(c->buf, EV3_UART_CMD_EXT_MODE, (const u8 *)"\4", 1);
+	feed(&c->p, c->buf, len, chunk, &c->r);
+	KUNIT_EXPECT_EQ(test, c->p.bad_frames, 1UL);
+	KUNIT_EXPECT_EQ(test, c->p.ext_mode, 0);
+	KUNIT_EXPECT_EQ(test, c->p.state, EV3_UART_STATE_DATA);
+
+	/* SELECT of mode 10 with EXT_MODE 8: 8 values. */
+	KUNIT_ASSERT_EQ(test, ev3_uart_parser_select(&c->p, 10), 0);
+	KUNIT_EXPECT_EQ(test, ev3_uart_parser_select(&c->p, 11), -EINVAL);
+	len = enc_cmd(c->buf, EV3_UART_CMD_EXT_MODE, (const u8 *)"\10", 1);
+	len += enc_data(c->buf + len, 2, (const u8 *)"0123456789abcdef", 16);
+	feed(&c->p, c->buf, len, chunk, &c->r);
+	KUNIT_ASSERT_EQ(test, c->r.n, 5U);
+	KUNIT_EXPECT_EQ(test, last(&c->r)->mode, 10);
+	KUNIT_EXPECT_EQ(test, ev3_uart_read_value(&c->p.sensor.modes[10], c->p.data, 16, 7, &v), 0);
+	KUNIT_EXPECT_EQ(test, v, 'e' | 'f' << 8);
+}
+
+static void test_data_ext_mode(struct kunit *test)
+{
+	check_ext_mode(test, 64);
+	check_ext_mode(test, 1);
+	check_ext_mode(test, 5);
+}
+
+/* An EV3 sensor never sends EXT_MODE: its bytes stay garbage there. */
+static void test_ext_mode_ignored_for_ev3(struct kunit *test)
+{
+	static const u8 ext8[] = { 0x46, 0x08, 0xb1 };
+	struct ctx *c = new_ctx(test);
+	unsigned long garbage;
+
+	connect(test, c, &sensors[1]);
+	garbage = c->p.garbage;
+	feed(&c->p, ext8, sizeof(ext8), 1, &c->r);
+	KUNIT_EXPECT_EQ(test, c->p.ext_mode, 0);
+	KUNIT_EXPECT_EQ(test, c->p.bad_frames, 0UL);
+	KUNIT_EXPECT_EQ(test, c->p.garbage, garbage + 3);
+}
+
+/*
+ * A Technic-motor-like device: 16 modes in the 4-byte MODES, NAME flags
+ * after a short name, a mode of 14 values (like STATS), and mode 15.
+ */
+static void test_lump_16_modes_and_flags(struct kunit *test)
+{
+	static const u8 modes[4] = { 7, 7, 15, 3 };
+	static const u8 fmt16[4] = { 14, 1, 5, 0 };
+	static const u8 fmt8[4] = { 1, 0, 3, 0 };
+	u8 name[16] = { 'P', 'O', 'S', 0, 0, 0, 0x62, 0x01, 0, 0, 0x05, 0x84 };
+	u8 type = 46, data[32] = { };
+	struct ctx *c = new_ctx(test);
+	size_t len;
+	int m;
+	s32 v;
+
+	len = enc_cmd(c->buf, EV3_UART_CMD_TYPE, &type, 1);
+	len += enc_cmd(c->buf + len, EV3_UART_CMD_MODES, modes, 4);
+	for (m = 15; m >= 0; m--) {
+		u8 plus8 = m >= 8 ? EV3_UART_INFO_MODE_PLUS_8 : 0;
+
+		name[2] = 'A' + m;
+		len += enc_info(c->buf + len, m & 7, EV3_UART_INFO_NAME | plus8, name, 16);
+		len += enc_info(c->buf + len, m & 7, EV3_UART_INFO_FORMAT | plus8,
+				m == 14 ? fmt16 : fmt8, 4);
+	}
+	c->buf[len++] = EV3_UART_SYS_ACK;
+	feed(&c->p, c->buf, len, 3, &c->r);
+	KUNIT_EXPECT_EQ(test, count(&c->r, EV3_UART_EV_ERROR), 0U);
+	KUNIT_ASSERT_EQ(test, last(&c->r)->type, EV3_UART_EV_HANDSHAKE);
+	KUNIT_EXPECT_EQ(test, c->p.sensor.num_modes, 16);
+	KUNIT_EXPECT_EQ(test, c->p.sensor.num_view_modes, 4);
+	KUNIT_EXPECT_STREQ(test, c->p.sensor.modes[15].name, "POP");
+	KUNIT_EXPECT_STREQ(test, c->p.sensor.modes[0].name, "POA");
+	KUNIT_EXPECT_EQ(test, c->p.sensor.modes[0].flags[0], 0x62);
+	KUNIT_EXPECT_EQ(test, c->p.sensor.modes[15].flags[5], 0x84);
+	KUNIT_EXPECT_EQ(test, c->p.sensor.modes[14].num_values, 14);
+
+	ev3_uart_parser_start_data(&c->p);
+	c->r.n = 0;
+	KUNIT_ASSERT_EQ(test, ev3_uart_parser_select(&c->p, 14), 0);
+	data[26] = 0xfe;
+	data[27] = 0xff;
+	len = enc_cmd(c->buf, EV3_UART_CMD_EXT_MODE, (const u8 *)"\10", 1);
+	len += enc_data(c->buf + len, 6, data, 32);
+	feed(&c->p, c->buf, len, len, &c->r);
+	KUNIT_ASSERT_EQ(test, last(&c->r)->type, EV3_UART_EV_DATA);
+	KUNIT_EXPECT_EQ(test, last(&c->r)->mode, 14);
+	KUNIT_EXPECT_EQ(test, ev3_uart_read_value(&c->p.sensor.modes[14], c->p.data, 32, 13, &v), 0);
+	KUNIT_EXPECT_EQ(test, v, -2);
 }
 
 /* ---- data phase ---- */
@@ -1608,7 +1908,11 @@ static struct kunit_case ev3_uart_proto_cases[] = {
 	KUNIT_CASE(test_format_limits),
 	KUNIT_CASE(test_incomplete_and_duplicate_modes),
 	KUNIT_CASE(test_views_clamped),
-	KUNIT_CASE(test_powered_up_extras_ignored),
+	KUNIT_CASE(test_powered_up_extras),
+	KUNIT_CASE(test_handshake_boost_color_distance),
+	KUNIT_CASE(test_data_ext_mode),
+	KUNIT_CASE(test_ext_mode_ignored_for_ev3),
+	KUNIT_CASE(test_lump_16_modes_and_flags),
 	KUNIT_CASE(test_data_decode_real_frames),
 	KUNIT_CASE(test_rgb_raw_checksum_quirk),
 	KUNIT_CASE(test_us_dc_in_mode5_tags),
