@@ -483,6 +483,31 @@ EXPORT_SYMBOL_IF_KUNIT(ev3_uart_build_write);
 
 /* ---- the parser ---- */
 
+/*
+ * memcpy() of the few bytes (@n up to %EV3_UART_MAX_MSG_LEN) of a message
+ * split between two batches, inline and without a loop for the usual ones:
+ * two moves of k bytes, overlapping if need be, copy k to 2k bytes.
+ */
+static __always_inline void ev3_uart_copy_short(u8 *dst, const u8 *src,
+						unsigned int n)
+{
+	unsigned int i;
+
+	if (n >= 8) {
+		for (i = 0; i + 8 < n; i += 8)
+			memcpy(dst + i, src + i, 8);
+		memcpy(dst + n - 8, src + n - 8, 8);
+	} else if (n >= 4) {
+		memcpy(dst, src, 4);
+		memcpy(dst + n - 4, src + n - 4, 4);
+	} else if (n >= 2) {
+		memcpy(dst, src, 2);
+		memcpy(dst + n - 2, src + n - 2, 2);
+	} else if (n) {
+		dst[0] = src[0];
+	}
+}
+
 static void ev3_uart_set_mode_defaults(struct ev3_uart_parser *p)
 {
 	p->stash[EV3_UART_STASH_RAW][0] = EV3_UART_F32_0;
@@ -540,7 +565,11 @@ static void ev3_uart_start_handshake(struct ev3_uart_parser *p, u8 type,
 {
 	struct ev3_uart_sensor *s = &p->sensor;
 
-	memset(s, 0, sizeof(*s));
+	/*
+	 * The modes are cleared one by one, by their NAME: the ACK needs
+	 * every mode below num_modes described, and nothing reads the others.
+	 */
+	memset(s, 0, offsetof(struct ev3_uart_sensor, modes));
 	s->type = type;
 	s->num_modes = 1;
 	s->num_view_modes = 1;
@@ -756,34 +785,24 @@ static noinline void ev3_uart_info_lump(struct ev3_uart_sensor *s,
 	}
 }
 
-static void ev3_uart_info(struct ev3_uart_parser *p, const u8 *msg,
-			  unsigned int plen, struct ev3_uart_event *ev)
+/*
+ * An INFO message of type @itype for mode @mode (below 16). EV3 types only,
+ * and the MODE_PLUS_8 flag already taken off (see ev3_uart_info()).
+ */
+static __always_inline void __ev3_uart_info(struct ev3_uart_parser *p, u8 mode,
+					    u8 itype, const u8 *payload,
+					    unsigned int plen,
+					    struct ev3_uart_event *ev)
 {
 	struct ev3_uart_sensor *s = &p->sensor;
-	const u8 *payload = msg + 2;
-	u8 mode = msg[0] & EV3_UART_MSG_CMD_MASK;
-	u8 itype = msg[1];
 	struct ev3_uart_mode *m;
 	const char *err;
 	unsigned int bit;
 	size_t n;
 
-	/* Powered Up: the MODE_PLUS_8 flag describes modes 8 to 15. */
-	if (itype & EV3_UART_INFO_MODE_PLUS_8) {
-		itype &= ~EV3_UART_INFO_MODE_PLUS_8;
-		mode += EV3_UART_MAX_EV3_MODES;
-		s->lump = true;
-	}
 	if (mode >= s->num_modes)
 		return ev3_uart_error(p, ev, "INFO for a mode out of range");
 	m = &s->modes[mode];	/* mode < num_modes <= EV3_UART_MAX_MODES */
-
-	/*
-	 * Powered Up INFO types: kept where they are understood, skipped
-	 * otherwise, never fatal; they may come after FORMAT (MODE_COMBOS).
-	 */
-	if (itype >= EV3_UART_INFO_PUP_FIRST && itype <= EV3_UART_INFO_PUP_LAST)
-		return ev3_uart_info_lump(s, m, itype, payload, plen);
 
 	if (itype == EV3_UART_INFO_NAME) {
 		if (p->info_mode != EV3_UART_NO_MODE &&
@@ -798,7 +817,7 @@ static void ev3_uart_info(struct ev3_uart_parser *p, const u8 *msg,
 			return ev3_uart_error(p, ev, "bad mode name");
 		memset(m, 0, sizeof(*m));
 		/* 8-character names fill their payload with no NUL after them. */
-		memcpy(m->name, payload, n);
+		ev3_uart_copy_short((u8 *)m->name, payload, n);
 		/*
 		 * Powered Up: capability flags after a short name, in a
 		 * 16-byte payload.
@@ -847,6 +866,45 @@ static void ev3_uart_info(struct ev3_uart_parser *p, const u8 *msg,
 	default:
 		return ev3_uart_error(p, ev, "unknown INFO type");
 	}
+}
+
+/*
+ * The INFO types beyond EV3's: the MODE_PLUS_8 flag (Powered Up: modes 8 to
+ * 15), the Powered Up types 0x05 to 0x0c, and unknown ones.
+ */
+static noinline void ev3_uart_info_ext(struct ev3_uart_parser *p, const u8 *msg,
+				       unsigned int plen, struct ev3_uart_event *ev)
+{
+	struct ev3_uart_sensor *s = &p->sensor;
+	u8 mode = msg[0] & EV3_UART_MSG_CMD_MASK;
+	u8 itype = msg[1];
+
+	if (itype & EV3_UART_INFO_MODE_PLUS_8) {
+		itype &= ~EV3_UART_INFO_MODE_PLUS_8;
+		mode += EV3_UART_MAX_EV3_MODES;
+		s->lump = true;
+	}
+	/*
+	 * Powered Up INFO types: kept where they are understood, skipped
+	 * otherwise, never fatal; they may come after FORMAT (MODE_COMBOS).
+	 */
+	if (itype >= EV3_UART_INFO_PUP_FIRST && itype <= EV3_UART_INFO_PUP_LAST) {
+		if (mode >= s->num_modes)
+			return ev3_uart_error(p, ev, "INFO for a mode out of range");
+		return ev3_uart_info_lump(s, &s->modes[mode], itype, msg + 2, plen);
+	}
+	__ev3_uart_info(p, mode, itype, msg + 2, plen, ev);
+}
+
+static void ev3_uart_info(struct ev3_uart_parser *p, const u8 *msg,
+			  unsigned int plen, struct ev3_uart_event *ev)
+{
+	u8 itype = msg[1];
+
+	/* EV3 sensors send NAME, RAW, PCT, SI, UNITS and FORMAT only. */
+	if (itype > EV3_UART_INFO_UNITS && itype != EV3_UART_INFO_FORMAT)
+		return ev3_uart_info_ext(p, msg, plen, ev);
+	__ev3_uart_info(p, msg[0] & EV3_UART_MSG_CMD_MASK, itype, msg + 2, plen, ev);
 }
 
 static void ev3_uart_sys_info(struct ev3_uart_parser *p, u8 b,
@@ -1022,31 +1080,6 @@ static void ev3_uart_data_msg(struct ev3_uart_parser *p,
 	ev->mode = mode;
 	ev->mode_changed = changed;
 	ev->len = plen;
-}
-
-/*
- * memcpy() of the few bytes (@n up to %EV3_UART_MAX_MSG_LEN) of a message
- * split between two batches, inline and without a loop for the usual ones:
- * two moves of k bytes, overlapping if need be, copy k to 2k bytes.
- */
-static __always_inline void ev3_uart_copy_short(u8 *dst, const u8 *src,
-						unsigned int n)
-{
-	unsigned int i;
-
-	if (n >= 8) {
-		for (i = 0; i + 8 < n; i += 8)
-			memcpy(dst + i, src + i, 8);
-		memcpy(dst + n - 8, src + n - 8, 8);
-	} else if (n >= 4) {
-		memcpy(dst, src, 4);
-		memcpy(dst + n - 4, src + n - 4, 4);
-	} else if (n >= 2) {
-		memcpy(dst, src, 2);
-		memcpy(dst + n - 2, src + n - 2, 2);
-	} else if (n) {
-		dst[0] = src[0];
-	}
 }
 
 /* ---- the data phase's fast path ---- */
