@@ -266,9 +266,9 @@ SPIKE_COLOR = SensorDef(61, 'lego-spike-color', 8, [
 ], speed=115200, lump=True, version=(0x10000000, 0x10000000), combos=(0x00e3,))
 
 SPIKE_DIST = SensorDef(62, 'lego-spike-ultrasonic', 8, [
-    _spike('DISTL', 'CM', 1, S16, (0, 250), fig=5, cadence='continuous', period=0.03),
-    _spike('DISTS', 'CM', 1, S16, (0, 32), fig=4, cadence='continuous', period=0.03),
-    _spike('SINGL', 'CM', 1, S16, (0, 250), fig=5, cadence='nack', first_reply=0.05),
+    _spike('DISTL', 'cm', 1, S16, (0, 250), fig=5, cadence='continuous', period=0.03),
+    _spike('DISTS', 'cm', 1, S16, (0, 32), fig=4, cadence='continuous', period=0.03),
+    _spike('SINGL', 'cm', 1, S16, (0, 250), fig=5, cadence='nack', first_reply=0.05),
     _spike('LISTN', 'ST', 1, S8, (0, 1), fig=1),
     _spike('TRAW', 'UC', 1, S32, (0, 14577), fig=5),
     _spike('LIGHT', 'PCT', 4, S8, writable=True),

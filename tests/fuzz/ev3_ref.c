@@ -16,6 +16,7 @@
 #define ev3_uart_read_value		ref_ev3_uart_read_value
 #define ev3_uart_scale_value		ref_ev3_uart_scale_value
 #define ev3_uart_driver_name		ref_ev3_uart_driver_name
+#define ev3_uart_lump_driver_name	ref_ev3_uart_lump_driver_name
 #define ev3_uart_build_ack		ref_ev3_uart_build_ack
 #define ev3_uart_build_nack		ref_ev3_uart_build_nack
 #define ev3_uart_build_select		ref_ev3_uart_build_select

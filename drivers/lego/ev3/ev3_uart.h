@@ -106,6 +106,8 @@ struct ev3_uart_sensor_dev {
  * @tty: the tty
  * @lock: see "Locking" above
  * @parser: protocol state
+ * @ack_desc: ev3_uart_ack_work()'s copy of the sensor description (only
+ *	that work uses it)
  * @sensor: the registered sensor, or NULL
  * @closing: close() has started; no work may be queued any more (written
  *	under @lock)
@@ -141,6 +143,7 @@ struct ev3_uart_port {
 	struct tty_struct *tty;
 	spinlock_t lock;	/* see "Locking" */
 	struct ev3_uart_parser parser;
+	struct ev3_uart_sensor ack_desc;
 	struct ev3_uart_sensor_dev *sensor;
 	bool closing;
 	struct workqueue_struct *wq;

@@ -366,7 +366,8 @@ static void ev3_uart_ack_work(struct work_struct *work)
 						  ack_work);
 	struct tty_struct *tty = port->tty;
 	struct ev3_uart_sensor_dev *sd;
-	struct ev3_uart_sensor desc;
+	/* In the port: 16 modes are too much for the stack. */
+	struct ev3_uart_sensor *desc = &port->ack_desc;
 	const char *last_error;
 	u8 ack;
 
@@ -375,13 +376,13 @@ static void ev3_uart_ack_work(struct work_struct *work)
 		spin_unlock(&port->lock);
 		return;
 	}
-	desc = port->parser.sensor;
+	*desc = port->parser.sensor;
 	spin_unlock(&port->lock);
 
 	/* Not again a speed this tty could not do (see below). */
-	if (desc.speed == port->bad_speed) {
+	if (desc->speed == port->bad_speed) {
 		pr_debug("%s: sensor type %u wants %u baud again; not answered\n",
-			 tty->name, desc.type, desc.speed);
+			 tty->name, desc->type, desc->speed);
 		goto restart;
 	}
 
@@ -389,7 +390,7 @@ static void ev3_uart_ack_work(struct work_struct *work)
 		goto fail;
 	/* The sensor switches speed once it has our ACK: so do we. */
 	tty_wait_until_sent(tty, msecs_to_jiffies(50));
-	if (ev3_uart_set_speed(tty, desc.speed)) {
+	if (ev3_uart_set_speed(tty, desc->speed)) {
 		/*
 		 * The UART cannot run at the sensor's speed, or its speed is
 		 * locked (TIOCSLCKTRMIOS): the sensor would be lost and come
@@ -397,8 +398,8 @@ static void ev3_uart_ack_work(struct work_struct *work)
 		 * unanswered from now on.
 		 */
 		pr_err("%s: cannot set %u baud for sensor type %u: not connecting it\n",
-		       tty->name, desc.speed, desc.type);
-		port->bad_speed = desc.speed;
+		       tty->name, desc->speed, desc->type);
+		port->bad_speed = desc->speed;
 		goto fail;
 	}
 
@@ -414,7 +415,7 @@ static void ev3_uart_ack_work(struct work_struct *work)
 	 */
 	queue_delayed_work(system_unbound_wq, &port->keepalive_work, 0);
 
-	sd = ev3_uart_sensor_create(port, &desc);
+	sd = ev3_uart_sensor_create(port, desc);
 	if (IS_ERR(sd)) {
 		pr_err_ratelimited("%s: cannot register sensor: %ld\n",
 				   tty->name, PTR_ERR(sd));
@@ -428,11 +429,11 @@ static void ev3_uart_ack_work(struct work_struct *work)
 	spin_unlock(&port->lock);
 
 	pr_info("%s: %s connected as %s at %u baud\n", tty->name,
-		sd->driver_name, dev_name(&sd->dev), desc.speed);
+		sd->driver_name, dev_name(&sd->dev), desc->speed);
 	if (last_error)
 		pr_info("%s: reconnected after: %s\n", tty->name, last_error);
 
-	ev3_uart_restore_mode(port, &desc);
+	ev3_uart_restore_mode(port, desc);
 	return;
 
 fail:

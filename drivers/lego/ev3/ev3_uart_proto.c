@@ -409,6 +409,51 @@ const char *ev3_uart_driver_name(u8 type)
 }
 EXPORT_SYMBOL_IF_KUNIT(ev3_uart_driver_name);
 
+/*
+ * Powered Up (LUMP) devices: their type ids overlap third-party EV3 ones
+ * (FatcatLab's 75 and 76), so they have a table of their own. The motors
+ * register as sensors (their speed, position and power modes): there is
+ * no motor control here.
+ */
+static const struct {
+	u8 type;
+	const char *name;
+} ev3_uart_lump_names[] = {
+	{ 34, "lego-wedo2-tilt" },
+	{ 35, "lego-wedo2-motion" },
+	{ 37, "lego-boost-color-dist" },
+	{ 38, "lego-boost-motor" },
+	{ 46, "lego-technic-l-motor" },
+	{ 47, "lego-technic-xl-motor" },
+	{ 48, "lego-spike-m-motor" },
+	{ 49, "lego-spike-l-motor" },
+	{ 61, "lego-spike-color" },
+	{ 62, "lego-spike-ultrasonic" },
+	{ 63, "lego-spike-force" },
+	{ 64, "lego-technic-color-matrix" },
+	{ 65, "lego-spike-s-motor" },
+	{ 75, "lego-technic-m-angular-motor" },
+	{ 76, "lego-technic-l-angular-motor" },
+};
+
+/**
+ * ev3_uart_lump_driver_name() - the driver name of a Powered Up device type
+ * @type: the device type id
+ *
+ * Return: e.g. "lego-spike-color", or NULL if the type has none; callers
+ * then use "lump-uart-<type>".
+ */
+const char *ev3_uart_lump_driver_name(u8 type)
+{
+	unsigned int i;
+
+	for (i = 0; i < ARRAY_SIZE(ev3_uart_lump_names); i++)
+		if (ev3_uart_lump_names[i].type == type)
+			return ev3_uart_lump_names[i].name;
+	return NULL;
+}
+EXPORT_SYMBOL_IF_KUNIT(ev3_uart_lump_driver_name);
+
 /* ---- message builders (host to sensor) ---- */
 
 /**

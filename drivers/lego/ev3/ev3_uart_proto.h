@@ -93,6 +93,10 @@ enum ev3_uart_msg_type {
 #define EV3_UART_TYPE_US		30
 #define EV3_UART_TYPE_GYRO		32
 #define EV3_UART_TYPE_IR		33
+/* Powered Up (LUMP) device types (&ev3_uart_sensor.lump set). */
+#define EV3_UART_TYPE_BOOST_CDS		37
+#define EV3_UART_TYPE_SPIKE_COLOR	61
+#define EV3_UART_TYPE_SPIKE_DIST	62
 
 #define EV3_UART_NO_MODE		0xff
 /* No byte has this value: &ev3_uart_parser.fast_hdr holds no header. */
@@ -323,5 +327,6 @@ static inline u64 ev3_uart_abs64(s64 v)
 int ev3_uart_mul_div(u64 a, u64 b, u64 c, bool round, u64 *q);
 s32 ev3_uart_scale_value(const struct ev3_uart_mode *mode, s32 raw);
 const char *ev3_uart_driver_name(u8 type);
+const char *ev3_uart_lump_driver_name(u8 type);
 
 #endif /* _EV3_UART_PROTO_H */

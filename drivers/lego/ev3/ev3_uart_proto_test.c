@@ -903,6 +903,10 @@ static void check_boost_cds(struct kunit *test, size_t chunk)
 	KUNIT_EXPECT_EQ(test, s->modes[10].raw_max, 65535);
 	KUNIT_EXPECT_EQ(test, s->num_combos, 1);
 	KUNIT_EXPECT_EQ(test, s->combos[0], 0x004f);
+	KUNIT_EXPECT_STREQ(test, ev3_uart_lump_driver_name(s->type), "lego-boost-color-dist");
+	KUNIT_EXPECT_STREQ(test, ev3_uart_lump_driver_name(75), "lego-technic-m-angular-motor");
+	KUNIT_EXPECT_STREQ(test, ev3_uart_driver_name(75), "fcl-ir");
+	KUNIT_EXPECT_NULL(test, ev3_uart_lump_driver_name(29));
 }
 
 static void test_handshake_boost_color_distance(struct kunit *test)
@@ -910,6 +914,50 @@ static void test_handshake_boost_color_distance(struct kunit *test)
 	check_boost_cds(test, sizeof(boost_cds_handshake));
 	check_boost_cds(test, 1);
 	check_boost_cds(test, 7);
+}
+
+/*
+ * The BOOST colour and distance sensor's IIO channels: every mode's values,
+ * modes 8 to 10 too; RGB I as red, green and blue intensities; PROX a
+ * proximity; tokens with "_" for the spaces.
+ */
+static void test_boost_cds_channels(struct kunit *test)
+{
+	struct ctx *c = new_ctx(test);
+	struct ev3_uart_chan *chans;
+	unsigned int n, i, per_mode[EV3_UART_MAX_MODES] = { };
+	char tok[EV3_UART_TOKEN_LEN + 1];
+	static const u8 rgb[] = { IIO_MOD_LIGHT_RED, IIO_MOD_LIGHT_GREEN, IIO_MOD_LIGHT_BLUE };
+
+	chans = kunit_kzalloc(test, sizeof(*chans) * (EV3_UART_MAX_CHANS + 1), GFP_KERNEL);
+	KUNIT_ASSERT_NOT_NULL(test, chans);
+	feed(&c->p, boost_cds_handshake, sizeof(boost_cds_handshake),
+	     sizeof(boost_cds_handshake), &c->r);
+	KUNIT_ASSERT_EQ(test, last(&c->r)->type, EV3_UART_EV_HANDSHAKE);
+	n = ev3_uart_chans_build(&c->p.sensor, chans, EV3_UART_MAX_CHANS);
+	/*
+	 * The values with an IIO type: PROX, COUNT, REFLT, AMBI, RGB I (3).
+	 * The others' units (IDX, N/A...) say nothing IIO has a type for.
+	 */
+	KUNIT_EXPECT_EQ(test, n, 7U);
+	for (i = 0; i < n && i < EV3_UART_MAX_CHANS; i++) {
+		per_mode[chans[i].mode]++;
+		if (chans[i].mode == 6) {
+			KUNIT_EXPECT_EQ(test, chans[i].type, IIO_INTENSITY);
+			KUNIT_EXPECT_EQ(test, chans[i].modifier, rgb[chans[i].index]);
+		}
+		if (chans[i].mode == 1)
+			KUNIT_EXPECT_EQ(test, chans[i].type, IIO_PROXIMITY);
+		if (chans[i].mode == 2)
+			KUNIT_EXPECT_EQ(test, chans[i].type, IIO_COUNT);
+	}
+	KUNIT_EXPECT_EQ(test, per_mode[6], 3U);
+	KUNIT_EXPECT_EQ(test, per_mode[10], 0U);
+	KUNIT_ASSERT_GT(test, ev3_uart_mode_token(&c->p.sensor, 5, tok, sizeof(tok)), 0);
+	KUNIT_EXPECT_STREQ(test, tok, "COL_O");
+	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(&c->p.sensor, "CALIB"), 10);
+	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(&c->p.sensor, "IR_Tx"), 7);
+	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(&c->p.sensor, "#9"), 9);
 }
 
 /*
@@ -1017,6 +1065,7 @@ static void test_lump_16_modes_and_flags(struct kunit *test)
 	u8 name[16] = { 'P', 'O', 'S', 0, 0, 0, 0x62, 0x01, 0, 0, 0x05, 0x84 };
 	u8 type = 46, data[32] = { };
 	struct ctx *c = new_ctx(test);
+	struct ev3_uart_chan chan;
 	size_t len;
 	int m;
 	s32 v;
@@ -1028,6 +1077,8 @@ static void test_lump_16_modes_and_flags(struct kunit *test)
 
 		name[2] = 'A' + m;
 		len += enc_info(c->buf + len, m & 7, EV3_UART_INFO_NAME | plus8, name, 16);
+		if (m == 15)
+			len += enc_string(c->buf + len, 7, EV3_UART_INFO_UNITS | plus8, "deg");
 		len += enc_info(c->buf + len, m & 7, EV3_UART_INFO_FORMAT | plus8,
 				m == 14 ? fmt16 : fmt8, 4);
 	}
@@ -1042,6 +1093,10 @@ static void test_lump_16_modes_and_flags(struct kunit *test)
 	KUNIT_EXPECT_EQ(test, c->p.sensor.modes[0].flags[0], 0x62);
 	KUNIT_EXPECT_EQ(test, c->p.sensor.modes[15].flags[5], 0x84);
 	KUNIT_EXPECT_EQ(test, c->p.sensor.modes[14].num_values, 14);
+	/* Mode 15's value is an IIO channel like any other. */
+	KUNIT_ASSERT_EQ(test, ev3_uart_chans_build(&c->p.sensor, &chan, 1), 1U);
+	KUNIT_EXPECT_EQ(test, chan.mode, 15);
+	KUNIT_EXPECT_EQ(test, chan.type, IIO_ANGL);
 
 	ev3_uart_parser_start_data(&c->p);
 	c->r.n = 0;
@@ -1053,7 +1108,8 @@ static void test_lump_16_modes_and_flags(struct kunit *test)
 	feed(&c->p, c->buf, len, len, &c->r);
 	KUNIT_ASSERT_EQ(test, last(&c->r)->type, EV3_UART_EV_DATA);
 	KUNIT_EXPECT_EQ(test, last(&c->r)->mode, 14);
-	KUNIT_EXPECT_EQ(test, ev3_uart_read_value(&c->p.sensor.modes[14], c->p.data, 32, 13, &v), 0);
+	KUNIT_EXPECT_EQ(test, ev3_uart_read_value(&c->p.sensor.modes[14], c->p.data, 32, 13,
+						  &v), 0);
 	KUNIT_EXPECT_EQ(test, v, -2);
 }
 
@@ -1786,8 +1842,11 @@ static void test_chan_scale_floats(struct kunit *test)
 	};
 	struct ev3_uart_chan c;
 	u8 data[4] = { 0x00, 0x00, 0x34, 0x43 };	/* 180.0 */
-	struct ev3_uart_sensor s = { .num_modes = 1 };
+	struct ev3_uart_sensor *s = kunit_kzalloc(test, sizeof(*s), GFP_KERNEL);
 	s32 v;
+
+	KUNIT_ASSERT_NOT_NULL(test, s);
+	s->num_modes = 1;
 
 	/* Degrees with 9 decimals would be 1.7e-11 rad: keep 4 decimals. */
 	KUNIT_ASSERT_EQ(test, ev3_uart_chan_scale(&m, 17453293, &c), 0);
@@ -1795,10 +1854,10 @@ static void test_chan_scale_floats(struct kunit *test)
 	KUNIT_EXPECT_EQ(test, c.scale_val, 0);
 	KUNIT_EXPECT_EQ(test, c.scale_val2, 1745);
 	KUNIT_EXPECT_EQ(test, c.offset_val, 0);
-	s.modes[0] = m;
+	s->modes[0] = m;
 	c.mode = 0;
 	c.index = 0;
-	KUNIT_ASSERT_EQ(test, ev3_uart_chan_read(&s, &c, data, 4, &v), 0);
+	KUNIT_ASSERT_EQ(test, ev3_uart_chan_read(s, &c, data, 4, &v), 0);
 	KUNIT_EXPECT_EQ(test, v, 1800000);
 	/* In m°C nine decimals keep their precision. */
 	KUNIT_ASSERT_EQ(test, ev3_uart_chan_scale(&m, 1000000000000ULL, &c), 0);
@@ -1910,6 +1969,7 @@ static struct kunit_case ev3_uart_proto_cases[] = {
 	KUNIT_CASE(test_views_clamped),
 	KUNIT_CASE(test_powered_up_extras),
 	KUNIT_CASE(test_handshake_boost_color_distance),
+	KUNIT_CASE(test_boost_cds_channels),
 	KUNIT_CASE(test_data_ext_mode),
 	KUNIT_CASE(test_ext_mode_ignored_for_ev3),
 	KUNIT_CASE(test_lump_16_modes_and_flags),
