@@ -50,7 +50,9 @@ import ev3_sensor as es  # noqa: E402
 
 # ---- the driver's limits (drivers/lego/ev3/ev3_uart_proto.h) ----
 MAX_PAYLOAD = 32
-MAX_MODES = 8
+MAX_EV3_MODES = 8
+MAX_MODES = 16          # Powered Up devices
+SHORT_NAME_LEN = 5      # a Powered Up NAME this short may carry 6 flag bytes
 NAME_LEN = 11
 UNITS_LEN = 4
 TYPE_MIN, TYPE_MAX = 1, 101
@@ -66,6 +68,15 @@ FORMATS = {es.S8: 's8', es.S16: 's16', es.S32: 's32', es.FLOAT: 'float'}
 DRIVER_NAMES = {29: 'lego-ev3-color', 30: 'lego-ev3-us', 32: 'lego-ev3-gyro',
                 33: 'lego-ev3-ir', 71: 'fcl-adc', 72: 'fcl-gesture', 73: 'fcl-light',
                 74: 'fcl-altitude', 75: 'fcl-ir', 76: 'fcl-9dof', 77: 'fcl-humidity'}
+# Powered Up devices (a handshake that used an extension): a table of their own.
+LUMP_DRIVER_NAMES = {34: 'lego-wedo2-tilt', 35: 'lego-wedo2-motion',
+                     37: 'lego-boost-color-dist', 38: 'lego-boost-motor',
+                     46: 'lego-technic-l-motor', 47: 'lego-technic-xl-motor',
+                     48: 'lego-spike-m-motor', 49: 'lego-spike-l-motor',
+                     61: 'lego-spike-color', 62: 'lego-spike-ultrasonic',
+                     63: 'lego-spike-force', 64: 'lego-technic-color-matrix',
+                     65: 'lego-spike-s-motor', 75: 'lego-technic-m-angular-motor',
+                     76: 'lego-technic-l-angular-motor'}
 
 # The IIO unit table of ev3_uart_iio.c: unit -> (IIO type name, nano)
 IIO_UNITS = {'deg': ('angl', 17453293), 'd/s': ('anglvel', 17453293),
@@ -79,7 +90,12 @@ IIO_MODES = {(29, 'COL-REFLECT'): 10 ** 9, (29, 'COL-AMBIENT'): 10 ** 9,
              (29, 'REF-RAW'): 10 ** 9, (29, 'RGB-RAW'): 10 ** 9,
              (32, 'GYRO-FAS'): 17453293, (32, 'GYRO-G&A'): 17453293,
              (33, 'IR-PROX'): 10 ** 9}
-IIO_MAX_CHANNELS = MAX_MODES * 8          # plus the timestamp: arrays of 65
+# The same for Powered Up devices: (type, name) -> nano
+IIO_LUMP_MODES = {(37, 'REFLT'): 10 ** 9, (37, 'AMBI'): 10 ** 9, (37, 'RGB I'): 10 ** 9,
+                  (37, 'PROX'): 10 ** 9, (37, 'COUNT'): 10 ** 9,
+                  (61, 'REFLT'): 10 ** 9, (61, 'AMBI'): 10 ** 9, (61, 'RREFL'): 10 ** 9,
+                  (61, 'RGB I'): 10 ** 9}
+IIO_MAX_CHANNELS = MAX_EV3_MODES * 8      # plus the timestamp: arrays of 65
 LEGO_UNITS = ['pct', 'col', 'btn', 'F', '%', 'V', 'A', 'm', 's', 'ms', 'kPa', 'N', 'rpm',
               'Hz', 'mA', 'rot', 'ppm', 'lux', 'K', 'us']
 
@@ -152,10 +168,13 @@ class Desc:
         self.num_modes = 1
         self.views = 1
         self.speed = SPEED_MIN
+        self.lump = False       # a Powered Up extension was used
         self.modes = [Mode() for _ in range(MAX_MODES)]
 
     @property
     def driver(self):
+        if self.lump:
+            return LUMP_DRIVER_NAMES.get(self.type, 'lump-uart-%d' % self.type)
         return DRIVER_NAMES.get(self.type, 'ev3-uart-%d' % self.type)
 
     def __repr__(self):
@@ -265,8 +284,14 @@ class Parser:
                 return self.error('duplicate MODES')
             if self.info_mode is not None:
                 return self.error('MODES after INFO')
-            if p[0] >= MAX_MODES:
+            if p[0] >= MAX_EV3_MODES:
                 return self.error('number of modes out of range')
+            if len(p) >= 4:
+                # Powered Up: the last two bytes count all modes and views.
+                if p[2] >= MAX_MODES:
+                    return self.error('number of modes out of range')
+                p = p[2:]
+                d.lump = True
             d.num_modes = p[0] + 1
             d.views = min(p[1] + 1, d.num_modes) if len(p) >= 2 else d.num_modes
         elif cmd == es.CMD_SPEED:
@@ -280,7 +305,11 @@ class Parser:
             if not SPEED_MIN <= speed <= SPEED_MAX:
                 return self.error('speed out of range')
             d.speed = speed
-        elif cmd in (CMD_EXT_MODE, CMD_VERSION):
+        elif cmd == CMD_VERSION:
+            if len(p) < 8:
+                return self.error('short VERSION')
+            d.lump = True
+        elif cmd == CMD_EXT_MODE:
             pass
         elif cmd == es.CMD_TYPE:
             return self.error('duplicate TYPE')
@@ -290,10 +319,15 @@ class Parser:
 
     def info(self, mode, itype, p):
         d = self.desc
-        if itype & INFO_MODE_PLUS_8 or INFO_PUP_FIRST <= itype <= INFO_PUP_LAST:
-            return
+        if itype & INFO_MODE_PLUS_8:
+            itype &= ~INFO_MODE_PLUS_8
+            mode += 8
+            d.lump = True
         if mode >= d.num_modes:
             return self.error('INFO for a mode out of range')
+        if INFO_PUP_FIRST <= itype <= INFO_PUP_LAST:
+            d.lump = True       # kept or skipped, never fatal
+            return
         m = d.modes[mode]
         if itype == es.INFO_NAME:
             if self.info_mode is not None and not self.modes_done & (1 << self.info_mode):
@@ -307,6 +341,8 @@ class Parser:
                 return self.error('bad mode name')
             d.modes[mode] = m = Mode()
             m.name = _cstr(p).decode('ascii')
+            if len(m.name) <= SHORT_NAME_LEN and len(p) >= SHORT_NAME_LEN + 1 + 6:
+                d.lump = True   # capability flags after a short name
             self.stash = {es.INFO_RAW: (0, fbits(1023.0)), es.INFO_PCT: (0, fbits(100.0)),
                           es.INFO_SI: (0, fbits(1.0))}
             self.info_mode = mode
@@ -396,8 +432,9 @@ def iio_nano(desc, mode):
     """The IIO unit factor the driver gives a mode's values, or None if the
     mode has no IIO channels (ev3_iio_chan_type())."""
     m = desc.modes[mode]
-    if (desc.type, m.name) in IIO_MODES:
-        return IIO_MODES[(desc.type, m.name)]
+    table = IIO_LUMP_MODES if desc.lump else IIO_MODES
+    if (desc.type, m.name) in table:
+        return table[(desc.type, m.name)]
     if m.units in IIO_UNITS:
         return IIO_UNITS[m.units][1]
     return None
