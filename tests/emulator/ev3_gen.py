@@ -4,7 +4,8 @@ extreme.
 Every case comes from one integer seed (case(seed)), so a failure is
 replayed from the seed alone. A case is either
 
-- generated: every type id, 1 to 8 modes, every value count and data type a
+- generated: every type id, 1 to 8 modes (9 to 16 for a Powered Up device:
+  4-byte MODES, MODE_PLUS_8, NAME flags, MAPPING, MODE_COMBOS), every value count and data type a
   32-byte payload allows, figures and decimals at their limits, every unit
   of the driver's IIO table, LEGO's own units and unknown ones, RAW/PCT/SI
   ranges that are zero, inverted, huge, tiny, NaN or infinite (or left out),
@@ -667,6 +668,11 @@ def gen_sensor(rng, transport='pty', bad_prob=0.0):
     maximal = rng.random() < 0.05
     if maximal:
         num_modes = 8
+    # A Powered Up device with more than 8 modes: the 4-byte MODES, modes 8
+    # and up described with the MODE_PLUS_8 flag, NAME flags now and then.
+    many = not maximal and rng.random() < 0.15
+    if many:
+        num_modes = rng.choice([9, 16, rng.randint(9, 16)])
     units = rng.choice(sorted(IIO_UNITS)) if maximal and rng.random() < 0.5 else None
     modes = [GenMode(rng, type_id, bad_prob, maximal, units) for _ in range(num_modes)]
     out = b''
@@ -676,7 +682,10 @@ def gen_sensor(rng, transport='pty', bad_prob=0.0):
     out += _cmd(es.CMD_TYPE, bytes([type_id]))
     form = rng.random()
     views = rng.choice([num_modes, 1, rng.randint(1, num_modes), 8, 255])
-    if num_modes == 1 and form < 0.3:
+    if many:
+        out += _cmd(es.CMD_MODES, bytes([7, min(views, 8) - 1 & 0xff, num_modes - 1,
+                                         views - 1 & 0xff]))
+    elif num_modes == 1 and form < 0.3:
         pass                                                     # MODES left out
     elif form < 0.45:
         out += _cmd(es.CMD_MODES, bytes([num_modes - 1]))        # no views byte
@@ -692,7 +701,7 @@ def gen_sensor(rng, transport='pty', bad_prob=0.0):
         else:
             speed = rng.choice(sorted(es.BAUD))
         out += _cmd(es.CMD_SPEED, struct.pack('<I', speed))
-    if rng.random() < 0.1:
+    if rng.random() < (0.8 if many else 0.1):
         out += _cmd(CMD_VERSION, bytes(rng.randrange(256) for _ in range(8)))
     order = list(reversed(range(num_modes)))
     if rng.random() < 0.1:
@@ -700,23 +709,37 @@ def gen_sensor(rng, transport='pty', bad_prob=0.0):
     filler = rng.random() < 0.1
     for i in order:
         m = modes[i]
+        # Modes 8 and up: the header holds the low 3 bits, the flag the rest.
+        low, p8 = i & 7, INFO_MODE_PLUS_8 if i >= 8 else 0
         if rng.random() < 0.03:
             out += _cmd(CMD_EXT_MODE, bytes([rng.choice([0, 8])]))
-        out += _info(i, es.INFO_NAME, _str_payload(m.name, m.name_size, rng, m.junk_after_name))
+        name = _str_payload(m.name, m.name_size, rng, m.junk_after_name)
+        if many and len(m.name) <= SHORT_NAME_LEN and rng.random() < 0.5:
+            # Powered Up capability flags after a short name.
+            name = _str_payload(m.name, 6) + bytes(rng.randrange(256) for _ in range(6)) + \
+                bytes(4)
+        out += _info(low, es.INFO_NAME | p8, name)
         for what in m.order:
             if what == 'units':
                 if m.units is not None:
-                    out += _info(i, es.INFO_UNITS, _str_payload(m.units, m.units_size))
+                    out += _info(low, es.INFO_UNITS | p8, _str_payload(m.units, m.units_size))
             elif m.ranges[what] is not None:
                 lo, hi = m.ranges[what]
                 itype = {'raw': es.INFO_RAW, 'pct': es.INFO_PCT, 'si': es.INFO_SI}[what]
-                out += _info(i, itype, struct.pack('<II', lo, hi) + bytes(m.range_size - 8))
+                out += _info(low, itype | p8,
+                             struct.pack('<II', lo, hi) + bytes(m.range_size - 8))
             if filler and rng.random() < 0.3:
                 out += rng.choice([b'\x00', b'\x02', b'\xff', b'\x00\xff'])
         for itype, payload in m.pup:
-            out += _info(i, itype, payload)
-        out += _info(i, es.INFO_FORMAT, bytes([m.n, m.t, m.fig, m.dec]) +
+            if itype & INFO_MODE_PLUS_8 and (i & 7) + 8 >= num_modes and rng.random() < 0.8:
+                continue        # mostly not for a mode it lacks: that is fatal
+            out += _info(low, itype, payload)
+        if many and rng.random() < 0.5:
+            out += _info(low, 0x05 | p8, bytes(rng.randrange(256) for _ in range(2)))
+        out += _info(low, es.INFO_FORMAT | p8, bytes([m.n, m.t, m.fig, m.dec]) +
                      bytes(m.format_size - 4))
+    if many and rng.random() < 0.5:
+        out += _info(0, 0x06, bytes(rng.randrange(256) for _ in range(rng.choice([2, 4, 8]))))
     return out + bytes([es.SYS_ACK])
 
 
