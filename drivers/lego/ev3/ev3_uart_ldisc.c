@@ -74,11 +74,24 @@ MODULE_PARM_DESC(port_labels,
 /*
  * How long a new mode's first values may be stale: the infrared sensor
  * returns leftovers for about 1.1 s after a switch (LEGO's firmware ignores
- * its data for 1100 ms); the colour sensor for a few ms.
+ * its data for 1100 ms); the colour sensor for a few ms. Powered Up: the
+ * colour sensors 30 ms, the SPIKE distance sensor 50 ms (what Pybricks
+ * waits).
  */
-static unsigned int ev3_uart_settle_ms(u8 type)
+static unsigned int ev3_uart_settle_ms(const struct ev3_uart_sensor *desc)
 {
-	switch (type) {
+	if (desc->lump) {
+		switch (desc->type) {
+		case EV3_UART_TYPE_BOOST_CDS:
+		case EV3_UART_TYPE_SPIKE_COLOR:
+			return 30;
+		case EV3_UART_TYPE_SPIKE_DIST:
+			return 50;
+		default:
+			return 0;
+		}
+	}
+	switch (desc->type) {
 	case EV3_UART_TYPE_IR:
 		return 1100;
 	case EV3_UART_TYPE_COLOR:
@@ -265,7 +278,7 @@ static void ev3_uart_event(struct ev3_uart_port *port,
 		if (ev->mode != sd->mode) {
 			sd->mode = ev->mode;
 			sd->settle_until = jiffies +
-				msecs_to_jiffies(ev3_uart_settle_ms(sd->desc.type));
+				msecs_to_jiffies(ev3_uart_settle_ms(&sd->desc));
 			ev3_uart_queue(port, &sd->mode_work);
 		}
 		memcpy(sd->data, port->parser.data, ev->len);
