@@ -1113,6 +1113,68 @@ static void test_lump_16_modes_and_flags(struct kunit *test)
 	KUNIT_EXPECT_EQ(test, v, -2);
 }
 
+/*
+ * The same header means mode 0 or mode 8 by the last EXT_MODE: the header
+ * the fast path trusts is forgotten when EXT_MODE changes.
+ */
+static void test_ext_mode_and_fast_path(struct kunit *test)
+{
+	static const u8 modes[4] = { 7, 7, 8, 3 };
+	static const u8 fmt8[4] = { 1, 0, 3, 0 };
+	static const u8 ext0[] = { 0x46, 0x00, 0xb9 }, ext8[] = { 0x46, 0x08, 0xb1 };
+	u8 type = 63, name[8] = { 'M', 0 }, v1 = 1;
+	struct ctx *c = new_ctx(test);
+	size_t len;
+	int m, i;
+
+	len = enc_cmd(c->buf, EV3_UART_CMD_TYPE, &type, 1);
+	len += enc_cmd(c->buf + len, EV3_UART_CMD_MODES, modes, 4);
+	for (m = 8; m >= 0; m--) {
+		u8 plus8 = m >= 8 ? EV3_UART_INFO_MODE_PLUS_8 : 0;
+
+		len += enc_info(c->buf + len, m & 7, EV3_UART_INFO_NAME | plus8, name, 8);
+		len += enc_info(c->buf + len, m & 7, EV3_UART_INFO_FORMAT | plus8, fmt8, 4);
+		name[0]++;
+	}
+	c->buf[len++] = EV3_UART_SYS_ACK;
+	feed(&c->p, c->buf, len, len, &c->r);
+	KUNIT_ASSERT_EQ(test, last(&c->r)->type, EV3_UART_EV_HANDSHAKE);
+	ev3_uart_parser_start_data(&c->p);
+	c->r.n = 0;
+
+	/* Mode 0, header c0: the fast path takes it from the second on. */
+	len = enc_data(c->buf, 0, &v1, 1);
+	for (i = 0; i < 3; i++)
+		feed(&c->p, c->buf, len, len, &c->r);
+	KUNIT_ASSERT_EQ(test, c->r.n, 3U);
+	KUNIT_EXPECT_EQ(test, c->p.fast_hdr, 0xc0);
+
+	/* EXT_MODE 8 without a SELECT: c0 is mode 8 now, old news, dropped. */
+	feed(&c->p, ext8, sizeof(ext8), sizeof(ext8), &c->r);
+	KUNIT_EXPECT_EQ(test, c->p.fast_hdr, EV3_UART_NO_HDR);
+	feed(&c->p, c->buf, len, len, &c->r);
+	KUNIT_EXPECT_EQ(test, c->r.n, 3U);
+
+	/* SELECT 8: c0 after EXT_MODE 8 confirms it, then takes the fast path. */
+	KUNIT_ASSERT_EQ(test, ev3_uart_parser_select(&c->p, 8), 0);
+	for (i = 0; i < 3; i++)
+		feed(&c->p, c->buf, len, len, &c->r);
+	KUNIT_ASSERT_EQ(test, c->r.n, 6U);
+	KUNIT_EXPECT_EQ(test, c->r.ev[3].mode, 8);
+	KUNIT_EXPECT_TRUE(test, c->r.ev[3].mode_changed);
+	KUNIT_EXPECT_EQ(test, last(&c->r)->mode, 8);
+	KUNIT_EXPECT_EQ(test, c->p.fast_hdr, 0xc0);
+
+	/* EXT_MODE 0 in the same batch as c0: mode 0, not delivered as 8. */
+	memcpy(c->buf + len, ext0, sizeof(ext0));
+	memmove(c->buf + sizeof(ext0), c->buf, len);
+	memcpy(c->buf, ext0, sizeof(ext0));
+	feed(&c->p, c->buf, len + sizeof(ext0), len + sizeof(ext0), &c->r);
+	KUNIT_EXPECT_EQ(test, c->r.n, 6U);
+	KUNIT_EXPECT_EQ(test, c->p.mode, 8);
+	KUNIT_EXPECT_EQ(test, c->p.ext_mode, 0);
+}
+
 /* ---- data phase ---- */
 
 static void test_data_decode_real_frames(struct kunit *test)
@@ -1973,6 +2035,7 @@ static struct kunit_case ev3_uart_proto_cases[] = {
 	KUNIT_CASE(test_data_ext_mode),
 	KUNIT_CASE(test_ext_mode_ignored_for_ev3),
 	KUNIT_CASE(test_lump_16_modes_and_flags),
+	KUNIT_CASE(test_ext_mode_and_fast_path),
 	KUNIT_CASE(test_data_decode_real_frames),
 	KUNIT_CASE(test_rgb_raw_checksum_quirk),
 	KUNIT_CASE(test_us_dc_in_mode5_tags),
