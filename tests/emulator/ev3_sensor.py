@@ -419,6 +419,7 @@ class EmulatedSensor(threading.Thread):
         self.handshakes = 0
         self.frames_sent = 0
         self.writes = []
+        self.lump_writes = []       # (mode, payload) a Powered Up host sent
         self.changed = True
         self.stale_until = 0.0
         self.fd = None
@@ -617,6 +618,7 @@ class EmulatedSensor(threading.Thread):
         buf = b''
         quiet = False
         looked = False
+        host_ext = 0                # the host's last EXT_MODE (Powered Up)
         self.changed = True
         while not self.stopping.is_set():
             now = time.monotonic()
@@ -679,7 +681,17 @@ class EmulatedSensor(threading.Thread):
                 elif b == 0x46:             # EXT_MODE (Powered Up host)
                     if len(buf) < 3:
                         break
+                    if checksum(buf[:2]) == buf[2]:
+                        host_ext = buf[1] & 8
                     buf = buf[3:]
+                elif b & 0xc0 == 0xc0 and getattr(self.sdef, 'lump', False):
+                    # Powered Up: values for a mode (after EXT_MODE).
+                    size = 1 << ((b >> 3) & 7)
+                    if len(buf) < size + 2:
+                        break
+                    if checksum(buf[:size + 1]) == buf[size + 1]:
+                        self.lump_writes.append(((b & 7) + host_ext, bytes(buf[1:size + 1])))
+                    buf = buf[size + 2:]
                 elif b & 0xc7 == 0x44:      # WRITE
                     size = 1 << ((b >> 3) & 7)
                     if len(buf) < size + 2:

@@ -333,7 +333,7 @@ static void host_actions(struct host *h)
 {
 	struct ev3_uart_parser *p = h->p;
 	struct ev3_uart_event ev;
-	u8 msg[EV3_UART_MAX_PAYLOAD + 2], data[EV3_UART_MAX_PAYLOAD + 1];
+	u8 msg[EV3_UART_MAX_PAYLOAD + 5], data[EV3_UART_MAX_PAYLOAD + 1];
 	u8 mode;
 	size_t len;
 	int ret;
@@ -360,6 +360,22 @@ static void host_actions(struct host *h)
 			CHECK(ret >= (int)len + 2 && ret <= EV3_UART_MAX_PAYLOAD + 2);
 			CHECK(ret == (int)ev3_uart_msg_len(msg[0]));
 			CHECK(msg[ret - 1] == ev3_uart_checksum(msg, ret - 1));
+		}
+	}
+	if (rnd(h) % 16 == 0) {
+		/* Powered Up values: EXT_MODE, then DATA. */
+		len = rnd(h) % (EV3_UART_MAX_PAYLOAD + 2);
+		mode = rnd(h) % (EV3_UART_MAX_MODES + 1);
+		ret = ev3_uart_build_lump_data(msg, mode, data, len);
+		if (!len || len > EV3_UART_MAX_PAYLOAD || mode >= EV3_UART_MAX_MODES) {
+			CHECK(ret == -EINVAL);
+		} else {
+			CHECK(ret >= (int)len + 5 && ret <= EV3_UART_MAX_PAYLOAD + 5);
+			CHECK(msg[0] == EV3_UART_EXT_MODE_HDR && msg[1] == (mode & 8));
+			CHECK(msg[2] == ev3_uart_checksum(msg, 2));
+			CHECK(ret - 3 == (int)ev3_uart_msg_len(msg[3]));
+			CHECK(((msg[3] & EV3_UART_MSG_CMD_MASK) | msg[1]) == mode);
+			CHECK(msg[ret - 1] == ev3_uart_checksum(msg + 3, ret - 4));
 		}
 	}
 	if (rnd(h) % 4 == 0) {

@@ -526,6 +526,42 @@ int ev3_uart_build_write(u8 *buf, const u8 *data, size_t len)
 }
 EXPORT_SYMBOL_IF_KUNIT(ev3_uart_build_write);
 
+/**
+ * ev3_uart_build_lump_data() - values for a Powered Up device's mode
+ * @buf: at least %EV3_UART_MAX_PAYLOAD + 5 bytes
+ * @mode: the mode, 0 to 15 (one whose MAPPING has output flags)
+ * @data: the values, as the mode's FORMAT lays them out
+ * @len: their size in bytes, 1 to %EV3_UART_MAX_PAYLOAD
+ *
+ * Powered Up devices take values (a light's brightness, an infrared
+ * command) as a DATA message from the host, after an EXT_MODE message that
+ * gives the part of the mode above the header's 3 bits.
+ *
+ * Return: the length of the two messages, or -%EINVAL if @mode or @len is
+ * out of range.
+ */
+int ev3_uart_build_lump_data(u8 *buf, u8 mode, const u8 *data, size_t len)
+{
+	unsigned int size = 1, code = 0;
+
+	if (mode >= EV3_UART_MAX_MODES || !len || len > EV3_UART_MAX_PAYLOAD)
+		return -EINVAL;
+	while (size < len) {
+		size <<= 1;
+		code++;
+	}
+	buf[0] = EV3_UART_EXT_MODE_HDR;
+	buf[1] = mode & EV3_UART_MAX_EV3_MODES;
+	buf[2] = ev3_uart_checksum(buf, 2);
+	buf[3] = EV3_UART_MSG_DATA | code << EV3_UART_MSG_SIZE_SHIFT |
+		 (mode & EV3_UART_MSG_CMD_MASK);
+	memcpy(buf + 4, data, len);
+	memset(buf + 4 + len, 0, size - len);
+	buf[size + 4] = ev3_uart_checksum(buf + 3, size + 1);
+	return size + 5;
+}
+EXPORT_SYMBOL_IF_KUNIT(ev3_uart_build_lump_data);
+
 /* ---- the parser ---- */
 
 /*

@@ -314,6 +314,7 @@ size_t ev3_uart_build_ack(u8 *buf);
 size_t ev3_uart_build_nack(u8 *buf);
 size_t ev3_uart_build_select(u8 *buf, u8 mode);
 int ev3_uart_build_write(u8 *buf, const u8 *data, size_t len);
+int ev3_uart_build_lump_data(u8 *buf, u8 mode, const u8 *data, size_t len);
 
 int ev3_uart_f32_to_fixed(u32 bits, unsigned int decimals, s32 *out);
 int ev3_uart_read_value(const struct ev3_uart_mode *mode, const u8 *data,

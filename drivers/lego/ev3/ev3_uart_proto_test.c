@@ -1031,6 +1031,27 @@ static void check_ext_mode(struct kunit *test, size_t chunk)
 	KUNIT_EXPECT_EQ(test, v, 'e' | 'f' << 8);
 }
 
+/* Values for a Powered Up mode: EXT_MODE, then DATA; as Pybricks sends them. */
+static void test_build_lump_data(struct kunit *test)
+{
+	/* Recorded form: EXT_MODE 0, then a 1-byte DATA of mode 5 (COL O). */
+	static const u8 col_o[] = { 0x46, 0x00, 0xb9, 0xc5, 0x00, 0x3a };
+	u8 buf[EV3_UART_MAX_PAYLOAD + 5], v = 0, three[3] = { 1, 2, 3 };
+
+	KUNIT_ASSERT_EQ(test, ev3_uart_build_lump_data(buf, 5, &v, 1), 6);
+	KUNIT_EXPECT_MEMEQ(test, buf, col_o, sizeof(col_o));
+	/* Mode 9: EXT_MODE 8, header mode 1; 3 bytes padded to 4. */
+	KUNIT_ASSERT_EQ(test, ev3_uart_build_lump_data(buf, 9, three, 3), 9);
+	KUNIT_EXPECT_EQ(test, buf[1], 8);
+	KUNIT_EXPECT_EQ(test, buf[2], ev3_uart_checksum(buf, 2));
+	KUNIT_EXPECT_EQ(test, buf[3], 0xd1);
+	KUNIT_EXPECT_EQ(test, buf[7], 0);
+	KUNIT_EXPECT_EQ(test, buf[8], ev3_uart_checksum(buf + 3, 5));
+	KUNIT_EXPECT_EQ(test, ev3_uart_build_lump_data(buf, 16, three, 3), -EINVAL);
+	KUNIT_EXPECT_EQ(test, ev3_uart_build_lump_data(buf, 0, three, 0), -EINVAL);
+	KUNIT_EXPECT_EQ(test, ev3_uart_build_lump_data(buf, 0, buf, 33), -EINVAL);
+}
+
 static void test_data_ext_mode(struct kunit *test)
 {
 	check_ext_mode(test, 64);
@@ -2033,6 +2054,7 @@ static struct kunit_case ev3_uart_proto_cases[] = {
 	KUNIT_CASE(test_handshake_boost_color_distance),
 	KUNIT_CASE(test_boost_cds_channels),
 	KUNIT_CASE(test_data_ext_mode),
+	KUNIT_CASE(test_build_lump_data),
 	KUNIT_CASE(test_ext_mode_ignored_for_ev3),
 	KUNIT_CASE(test_lump_16_modes_and_flags),
 	KUNIT_CASE(test_ext_mode_and_fast_path),
