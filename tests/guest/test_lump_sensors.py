@@ -96,3 +96,14 @@ def test_ev3_sensor_after_lump_unplugged(line):
     write_attr(again, 'mode', 'COL-AMBIENT')
     emu2.set_values(1, [17])
     assert wait_value(again, 0, 17) == 17
+
+
+def test_lump_iio_distance(line):
+    """The SPIKE distance sensor's cm modes are IIO distances in metres."""
+    emu, path = connect(line, 'spike-dist')
+    dev = iio_device('lego-spike-ultrasonic')
+    assert dev
+    emu.set_values(0, [123])                        # 123 cm
+    assert wait_attr_int(dev, 'in_distance0_raw', 123) == 123
+    assert float(read_attr(dev, 'in_distance0_scale')) == pytest.approx(0.01)
+    assert read_attr(dev, 'mode') == 'DISTL'
