@@ -324,11 +324,11 @@ class Parser:
             itype &= ~INFO_MODE_PLUS_8
             mode += 8
             d.lump = True
+        if INFO_PUP_FIRST <= itype <= INFO_PUP_LAST:
+            d.lump = True       # kept or skipped (any mode), never fatal
+            return
         if mode >= d.num_modes:
             return self.error('INFO for a mode out of range')
-        if INFO_PUP_FIRST <= itype <= INFO_PUP_LAST:
-            d.lump = True       # kept or skipped, never fatal
-            return
         m = d.modes[mode]
         if itype == es.INFO_NAME:
             if self.info_mode is not None and not self.modes_done & (1 << self.info_mode):
@@ -732,7 +732,7 @@ def gen_sensor(rng, transport='pty', bad_prob=0.0):
                 out += rng.choice([b'\x00', b'\x02', b'\xff', b'\x00\xff'])
         for itype, payload in m.pup:
             if itype & INFO_MODE_PLUS_8 and (i & 7) + 8 >= num_modes and rng.random() < 0.8:
-                continue        # mostly not for a mode it lacks: that is fatal
+                continue        # mostly not for a mode it lacks (fatal but for 5-12)
             out += _info(low, itype, payload)
         if many and rng.random() < 0.5:
             out += _info(low, 0x05 | p8, bytes(rng.randrange(256) for _ in range(2)))

@@ -843,7 +843,6 @@ static noinline void ev3_uart_info_lump(struct ev3_uart_sensor *s,
 {
 	unsigned int i;
 
-	s->lump = true;
 	switch (itype) {
 	case EV3_UART_INFO_MAPPING:
 		if (plen >= 2) {
@@ -967,12 +966,14 @@ static noinline void ev3_uart_info_ext(struct ev3_uart_parser *p, const u8 *msg,
 	}
 	/*
 	 * Powered Up INFO types: kept where they are understood, skipped
-	 * otherwise, never fatal; they may come after FORMAT (MODE_COMBOS).
+	 * otherwise (for a mode the device does not have too), never fatal;
+	 * they may come after FORMAT (MODE_COMBOS).
 	 */
 	if (itype >= EV3_UART_INFO_PUP_FIRST && itype <= EV3_UART_INFO_PUP_LAST) {
-		if (mode >= s->num_modes)
-			return ev3_uart_error(p, ev, "INFO for a mode out of range");
-		return ev3_uart_info_lump(s, &s->modes[mode], itype, msg + 2, plen);
+		s->lump = true;
+		if (mode < s->num_modes)
+			ev3_uart_info_lump(s, &s->modes[mode], itype, msg + 2, plen);
+		return;
 	}
 	__ev3_uart_info(p, mode, itype, msg + 2, plen, ev);
 }

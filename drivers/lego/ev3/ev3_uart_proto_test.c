@@ -757,6 +757,10 @@ static void test_powered_up_extras(struct kunit *test)
 	/* MODE_COMBOS after mode 0's FORMAT, as real devices send it. */
 	len += enc_info(c->buf + len, 0, EV3_UART_INFO_MODE_COMBOS, combos, 4);
 	len += enc_info(c->buf + len, 0, 0x0c, unk, 1);
+	/* For modes the device lacks (3, and 3 + 8): skipped, not fatal. */
+	len += enc_info(c->buf + len, 3, EV3_UART_INFO_MAPPING, mapping, 2);
+	len += enc_info(c->buf + len, 3, EV3_UART_INFO_MAPPING | EV3_UART_INFO_MODE_PLUS_8,
+			mapping, 2);
 	c->buf[len++] = EV3_UART_SYS_ACK;
 	feed(&c->p, c->buf, len, len, &c->r);
 	KUNIT_EXPECT_EQ(test, count(&c->r, EV3_UART_EV_ERROR), 0U);
