@@ -123,6 +123,8 @@ struct ev3_uart_sensor_dev {
  * @select_done: completed by the first DATA of @select_mode, or on loss
  * @tx_mutex: see "Locking"
  * @requested_type: sensor type the user chose @requested_mode for
+ * @requested_lump: that sensor was a Powered Up device (whose type ids
+ *	overlap third-party EV3 ones)
  * @requested_mode: mode restored after a reconnect, or %EV3_UART_NO_MODE
  * @restored_at: jiffies of the last restore (a sensor lost right after
  *	one, as calibration modes do, does not get it again)
@@ -156,6 +158,7 @@ struct ev3_uart_port {
 	struct completion select_done;
 	struct mutex tx_mutex;		/* one writer to the tty at a time */
 	u8 requested_type;
+	bool requested_lump;
 	u8 requested_mode;
 	unsigned long restored_at;
 	u8 restore_mode;

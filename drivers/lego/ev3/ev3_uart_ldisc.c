@@ -360,6 +360,7 @@ static void ev3_uart_restore_mode(struct ev3_uart_port *port,
 	spin_lock(&port->lock);
 	if (port->requested_mode != EV3_UART_NO_MODE &&
 	    port->requested_type == desc->type &&
+	    port->requested_lump == desc->lump &&
 	    port->requested_mode < desc->num_modes &&
 	    !ev3_uart_parser_select(&port->parser, port->requested_mode)) {
 		mode = port->requested_mode;
@@ -658,6 +659,7 @@ int ev3_uart_set_mode(struct ev3_uart_sensor_dev *sd, u8 mode)
 		 * older choice must not come after it (see restore_mode()).
 		 */
 		port->requested_type = sd->desc.type;
+		port->requested_lump = sd->desc.lump;
 		port->requested_mode = mode;
 		port->restore_mode = EV3_UART_NO_MODE;
 		ret = 1;
@@ -698,6 +700,7 @@ int ev3_uart_set_mode(struct ev3_uart_sensor_dev *sd, u8 mode)
 		ret = -ENODEV;
 	} else if (left > 0 && !ret) {
 		port->requested_type = sd->desc.type;
+		port->requested_lump = sd->desc.lump;
 		port->requested_mode = mode;
 		settle = sd->settle_until;
 	} else if (!ret) {
