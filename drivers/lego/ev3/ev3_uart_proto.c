@@ -1551,6 +1551,30 @@ static noinline size_t ev3_uart_data_rest(struct ev3_uart_parser *p,
 }
 
 /*
+ * Powered Up devices send an EXT_MODE message before every DATA message;
+ * one that changes nothing (the value in force, a right checksum), whole
+ * at the start of @buf in the data phase, is only skipped: what
+ * ev3_uart_data_msg() would do with it. Then the rest of @buf as usual
+ * (it starts with no such message: no deeper recursion).
+ */
+static noinline size_t ev3_uart_feed_ext(struct ev3_uart_parser *p,
+					 const u8 *buf, size_t len,
+					 struct ev3_uart_event *ev)
+{
+	u8 csum = 0xff ^ EV3_UART_EXT_MODE_HDR ^ p->ext_mode;
+	size_t used = 0;
+
+	if (!p->sensor.lump)
+		return ev3_uart_feed_bytes(p, buf, len, ev);
+	while (len - used >= 3 && buf[used] == EV3_UART_EXT_MODE_HDR &&
+	       buf[used + 1] == p->ext_mode && buf[used + 2] == csum)
+		used += 3;
+	if (!used)
+		return ev3_uart_feed_bytes(p, buf, len, ev);
+	return used + ev3_uart_parser_feed(p, buf + used, len - used, ev);
+}
+
+/*
  * ev3_uart_parser_feed() but for a whole message with the header in
  * @p->fast_hdr: in the data phase, a whole DATA message at the start of
  * @buf for ev3_uart_data_fast(), taken where it is; the parts of a message
@@ -1572,8 +1596,11 @@ static noinline size_t ev3_uart_feed(struct ev3_uart_parser *p, const u8 *buf,
 	if (p->msg_len)
 		return ev3_uart_data_rest(p, buf, len, ev);
 	hdr = buf[0];
-	if (!ev3_uart_data_hdr_ok(hdr))
+	if (!ev3_uart_data_hdr_ok(hdr)) {
+		if (hdr == EV3_UART_EXT_MODE_HDR)
+			return ev3_uart_feed_ext(p, buf, len, ev);
 		return ev3_uart_feed_bytes(p, buf, len, ev);
+	}
 	plen = ev3_uart_data_plen(hdr);
 	if (len < plen + 2)
 		return ev3_uart_data_head(p, buf, len);
