@@ -4,7 +4,8 @@ extreme.
 Every case comes from one integer seed (case(seed)), so a failure is
 replayed from the seed alone. A case is either
 
-- generated: every type id, 1 to 8 modes, every value count and data type a
+- generated: every type id, 1 to 8 modes (9 to 16 for a Powered Up device:
+  4-byte MODES, MODE_PLUS_8, NAME flags, MAPPING, MODE_COMBOS), every value count and data type a
   32-byte payload allows, figures and decimals at their limits, every unit
   of the driver's IIO table, LEGO's own units and unknown ones, RAW/PCT/SI
   ranges that are zero, inverted, huge, tiny, NaN or infinite (or left out),
@@ -50,7 +51,9 @@ import ev3_sensor as es  # noqa: E402
 
 # ---- the driver's limits (drivers/lego/ev3/ev3_uart_proto.h) ----
 MAX_PAYLOAD = 32
-MAX_MODES = 8
+MAX_EV3_MODES = 8
+MAX_MODES = 16          # Powered Up devices
+SHORT_NAME_LEN = 5      # a Powered Up NAME this short may carry 6 flag bytes
 NAME_LEN = 11
 UNITS_LEN = 4
 TYPE_MIN, TYPE_MAX = 1, 101
@@ -66,6 +69,15 @@ FORMATS = {es.S8: 's8', es.S16: 's16', es.S32: 's32', es.FLOAT: 'float'}
 DRIVER_NAMES = {29: 'lego-ev3-color', 30: 'lego-ev3-us', 32: 'lego-ev3-gyro',
                 33: 'lego-ev3-ir', 71: 'fcl-adc', 72: 'fcl-gesture', 73: 'fcl-light',
                 74: 'fcl-altitude', 75: 'fcl-ir', 76: 'fcl-9dof', 77: 'fcl-humidity'}
+# Powered Up devices (a handshake that used an extension): a table of their own.
+LUMP_DRIVER_NAMES = {34: 'lego-wedo2-tilt', 35: 'lego-wedo2-motion',
+                     37: 'lego-boost-color-dist', 38: 'lego-boost-motor',
+                     46: 'lego-technic-l-motor', 47: 'lego-technic-xl-motor',
+                     48: 'lego-spike-m-motor', 49: 'lego-spike-l-motor',
+                     61: 'lego-spike-color', 62: 'lego-spike-ultrasonic',
+                     63: 'lego-spike-force', 64: 'lego-technic-color-matrix',
+                     65: 'lego-spike-s-motor', 75: 'lego-technic-m-angular-motor',
+                     76: 'lego-technic-l-angular-motor'}
 
 # The IIO unit table of ev3_uart_iio.c: unit -> (IIO type name, nano)
 IIO_UNITS = {'deg': ('angl', 17453293), 'd/s': ('anglvel', 17453293),
@@ -79,7 +91,12 @@ IIO_MODES = {(29, 'COL-REFLECT'): 10 ** 9, (29, 'COL-AMBIENT'): 10 ** 9,
              (29, 'REF-RAW'): 10 ** 9, (29, 'RGB-RAW'): 10 ** 9,
              (32, 'GYRO-FAS'): 17453293, (32, 'GYRO-G&A'): 17453293,
              (33, 'IR-PROX'): 10 ** 9}
-IIO_MAX_CHANNELS = MAX_MODES * 8          # plus the timestamp: arrays of 65
+# The same for Powered Up devices: (type, name) -> nano
+IIO_LUMP_MODES = {(37, 'REFLT'): 10 ** 9, (37, 'AMBI'): 10 ** 9, (37, 'RGB I'): 10 ** 9,
+                  (37, 'PROX'): 10 ** 9, (37, 'COUNT'): 10 ** 9,
+                  (61, 'REFLT'): 10 ** 9, (61, 'AMBI'): 10 ** 9, (61, 'RREFL'): 10 ** 9,
+                  (61, 'RGB I'): 10 ** 9}
+IIO_MAX_CHANNELS = MAX_EV3_MODES * 8      # plus the timestamp: arrays of 65
 LEGO_UNITS = ['pct', 'col', 'btn', 'F', '%', 'V', 'A', 'm', 's', 'ms', 'kPa', 'N', 'rpm',
               'Hz', 'mA', 'rot', 'ppm', 'lux', 'K', 'us']
 
@@ -152,10 +169,13 @@ class Desc:
         self.num_modes = 1
         self.views = 1
         self.speed = SPEED_MIN
+        self.lump = False       # a Powered Up extension was used
         self.modes = [Mode() for _ in range(MAX_MODES)]
 
     @property
     def driver(self):
+        if self.lump:
+            return LUMP_DRIVER_NAMES.get(self.type, 'lump-uart-%d' % self.type)
         return DRIVER_NAMES.get(self.type, 'ev3-uart-%d' % self.type)
 
     def __repr__(self):
@@ -265,8 +285,14 @@ class Parser:
                 return self.error('duplicate MODES')
             if self.info_mode is not None:
                 return self.error('MODES after INFO')
-            if p[0] >= MAX_MODES:
+            if p[0] >= MAX_EV3_MODES:
                 return self.error('number of modes out of range')
+            if len(p) >= 4:
+                # Powered Up: the last two bytes count all modes and views.
+                if p[2] >= MAX_MODES:
+                    return self.error('number of modes out of range')
+                p = p[2:]
+                d.lump = True
             d.num_modes = p[0] + 1
             d.views = min(p[1] + 1, d.num_modes) if len(p) >= 2 else d.num_modes
         elif cmd == es.CMD_SPEED:
@@ -280,7 +306,11 @@ class Parser:
             if not SPEED_MIN <= speed <= SPEED_MAX:
                 return self.error('speed out of range')
             d.speed = speed
-        elif cmd in (CMD_EXT_MODE, CMD_VERSION):
+        elif cmd == CMD_VERSION:
+            if len(p) < 8:
+                return self.error('short VERSION')
+            d.lump = True
+        elif cmd == CMD_EXT_MODE:
             pass
         elif cmd == es.CMD_TYPE:
             return self.error('duplicate TYPE')
@@ -290,7 +320,12 @@ class Parser:
 
     def info(self, mode, itype, p):
         d = self.desc
-        if itype & INFO_MODE_PLUS_8 or INFO_PUP_FIRST <= itype <= INFO_PUP_LAST:
+        if itype & INFO_MODE_PLUS_8:
+            itype &= ~INFO_MODE_PLUS_8
+            mode += 8
+            d.lump = True
+        if INFO_PUP_FIRST <= itype <= INFO_PUP_LAST:
+            d.lump = True       # kept or skipped (any mode), never fatal
             return
         if mode >= d.num_modes:
             return self.error('INFO for a mode out of range')
@@ -307,6 +342,8 @@ class Parser:
                 return self.error('bad mode name')
             d.modes[mode] = m = Mode()
             m.name = _cstr(p).decode('ascii')
+            if len(m.name) <= SHORT_NAME_LEN and len(p) >= SHORT_NAME_LEN + 1 + 6:
+                d.lump = True   # capability flags after a short name
             self.stash = {es.INFO_RAW: (0, fbits(1023.0)), es.INFO_PCT: (0, fbits(100.0)),
                           es.INFO_SI: (0, fbits(1.0))}
             self.info_mode = mode
@@ -396,8 +433,9 @@ def iio_nano(desc, mode):
     """The IIO unit factor the driver gives a mode's values, or None if the
     mode has no IIO channels (ev3_iio_chan_type())."""
     m = desc.modes[mode]
-    if (desc.type, m.name) in IIO_MODES:
-        return IIO_MODES[(desc.type, m.name)]
+    table = IIO_LUMP_MODES if desc.lump else IIO_MODES
+    if (desc.type, m.name) in table:
+        return table[(desc.type, m.name)]
     if m.units in IIO_UNITS:
         return IIO_UNITS[m.units][1]
     return None
@@ -630,6 +668,11 @@ def gen_sensor(rng, transport='pty', bad_prob=0.0):
     maximal = rng.random() < 0.05
     if maximal:
         num_modes = 8
+    # A Powered Up device with more than 8 modes: the 4-byte MODES, modes 8
+    # and up described with the MODE_PLUS_8 flag, NAME flags now and then.
+    many = not maximal and rng.random() < 0.15
+    if many:
+        num_modes = rng.choice([9, 16, rng.randint(9, 16)])
     units = rng.choice(sorted(IIO_UNITS)) if maximal and rng.random() < 0.5 else None
     modes = [GenMode(rng, type_id, bad_prob, maximal, units) for _ in range(num_modes)]
     out = b''
@@ -639,7 +682,10 @@ def gen_sensor(rng, transport='pty', bad_prob=0.0):
     out += _cmd(es.CMD_TYPE, bytes([type_id]))
     form = rng.random()
     views = rng.choice([num_modes, 1, rng.randint(1, num_modes), 8, 255])
-    if num_modes == 1 and form < 0.3:
+    if many:
+        out += _cmd(es.CMD_MODES, bytes([7, min(views, 8) - 1 & 0xff, num_modes - 1,
+                                         views - 1 & 0xff]))
+    elif num_modes == 1 and form < 0.3:
         pass                                                     # MODES left out
     elif form < 0.45:
         out += _cmd(es.CMD_MODES, bytes([num_modes - 1]))        # no views byte
@@ -655,7 +701,7 @@ def gen_sensor(rng, transport='pty', bad_prob=0.0):
         else:
             speed = rng.choice(sorted(es.BAUD))
         out += _cmd(es.CMD_SPEED, struct.pack('<I', speed))
-    if rng.random() < 0.1:
+    if rng.random() < (0.8 if many else 0.1):
         out += _cmd(CMD_VERSION, bytes(rng.randrange(256) for _ in range(8)))
     order = list(reversed(range(num_modes)))
     if rng.random() < 0.1:
@@ -663,23 +709,37 @@ def gen_sensor(rng, transport='pty', bad_prob=0.0):
     filler = rng.random() < 0.1
     for i in order:
         m = modes[i]
+        # Modes 8 and up: the header holds the low 3 bits, the flag the rest.
+        low, p8 = i & 7, INFO_MODE_PLUS_8 if i >= 8 else 0
         if rng.random() < 0.03:
             out += _cmd(CMD_EXT_MODE, bytes([rng.choice([0, 8])]))
-        out += _info(i, es.INFO_NAME, _str_payload(m.name, m.name_size, rng, m.junk_after_name))
+        name = _str_payload(m.name, m.name_size, rng, m.junk_after_name)
+        if many and len(m.name) <= SHORT_NAME_LEN and rng.random() < 0.5:
+            # Powered Up capability flags after a short name.
+            name = _str_payload(m.name, 6) + bytes(rng.randrange(256) for _ in range(6)) + \
+                bytes(4)
+        out += _info(low, es.INFO_NAME | p8, name)
         for what in m.order:
             if what == 'units':
                 if m.units is not None:
-                    out += _info(i, es.INFO_UNITS, _str_payload(m.units, m.units_size))
+                    out += _info(low, es.INFO_UNITS | p8, _str_payload(m.units, m.units_size))
             elif m.ranges[what] is not None:
                 lo, hi = m.ranges[what]
                 itype = {'raw': es.INFO_RAW, 'pct': es.INFO_PCT, 'si': es.INFO_SI}[what]
-                out += _info(i, itype, struct.pack('<II', lo, hi) + bytes(m.range_size - 8))
+                out += _info(low, itype | p8,
+                             struct.pack('<II', lo, hi) + bytes(m.range_size - 8))
             if filler and rng.random() < 0.3:
                 out += rng.choice([b'\x00', b'\x02', b'\xff', b'\x00\xff'])
         for itype, payload in m.pup:
-            out += _info(i, itype, payload)
-        out += _info(i, es.INFO_FORMAT, bytes([m.n, m.t, m.fig, m.dec]) +
+            if itype & INFO_MODE_PLUS_8 and (i & 7) + 8 >= num_modes and rng.random() < 0.8:
+                continue        # mostly not for a mode it lacks (fatal but for 5-12)
+            out += _info(low, itype, payload)
+        if many and rng.random() < 0.5:
+            out += _info(low, 0x05 | p8, bytes(rng.randrange(256) for _ in range(2)))
+        out += _info(low, es.INFO_FORMAT | p8, bytes([m.n, m.t, m.fig, m.dec]) +
                      bytes(m.format_size - 4))
+    if many and rng.random() < 0.5:
+        out += _info(0, 0x06, bytes(rng.randrange(256) for _ in range(rng.choice([2, 4, 8]))))
     return out + bytes([es.SYS_ACK])
 
 

@@ -50,7 +50,9 @@ import time
 
 SYS_SYNC, SYS_NACK, SYS_ACK = 0x00, 0x02, 0x04
 CMD_TYPE, CMD_MODES, CMD_SPEED, CMD_SELECT, CMD_WRITE = 0, 1, 2, 3, 4
+CMD_EXT_MODE, CMD_VERSION = 6, 7                       # Powered Up only
 INFO_NAME, INFO_RAW, INFO_PCT, INFO_SI, INFO_UNITS, INFO_FORMAT = 0, 1, 2, 3, 4, 0x80
+INFO_MAPPING, INFO_MODE_COMBOS, INFO_MODE_PLUS_8 = 0x05, 0x06, 0x20  # Powered Up only
 S8, S16, S32, FLOAT = 0, 1, 2, 3
 
 BAUD = {2400: termios.B2400, 9600: termios.B9600, 19200: termios.B19200,
@@ -97,6 +99,16 @@ def data_msg(mode, payload, bad_checksum=False):
     return m + bytes([c ^ 0x5a if bad_checksum else c])
 
 
+def data_frame(sdef, mode, payload, bad_checksum=False):
+    """A DATA message of `mode` as the device sends it: a Powered Up device
+    puts an EXT_MODE message (0 or 8) before every one, and the header
+    carries the mode's low 3 bits."""
+    ext = b''
+    if getattr(sdef, 'lump', False):
+        ext = cmd_msg(CMD_EXT_MODE, [mode & 8])
+    return ext + data_msg(mode & 7, payload, bad_checksum)
+
+
 def f32(x):
     return struct.pack('<f', x)
 
@@ -105,8 +117,14 @@ class Mode:
     """One mode: what the sensor says about it and how it sends data."""
 
     def __init__(self, name, raw, si, units, n, t, fig, dec, cadence='change',
-                 period=0.1, first_reply=0.002, deaf=False):
+                 period=0.1, first_reply=0.002, deaf=False, pct=None, mapping=None,
+                 flags=None):
+        """Powered Up modes only: pct, the PCT range sent (else none);
+        mapping, the (in, out) flags of the MAPPING INFO (out non-zero: the
+        host may write values); flags, the 6 capability bytes sent after a
+        short NAME."""
         self.name, self.raw, self.si, self.units = name, raw, si, units
+        self.pct, self.mapping, self.flags = pct, mapping, flags
         self.n, self.t, self.fig, self.dec = n, t, fig, dec
         self.cadence = cadence          # 'change', 'continuous' or 'nack'
         self.period = period            # seconds between spontaneous frames
@@ -120,10 +138,15 @@ class SensorDef:
     quirks=False: none of the real sensors' quirks in the data phase."""
 
     def __init__(self, type_id, driver, views, modes, speed=57600, raw_handshake=None,
-                 quirks=True):
+                 quirks=True, lump=False, version=None, combos=()):
+        """lump: a Powered Up device (LUMP): the handshake in its form
+        (see handshake()), and an EXT_MODE message before every DATA
+        message; version: (firmware, hardware) for the VERSION message;
+        combos: the MODE_COMBOS bitmaps sent after mode 0's FORMAT."""
         self.type, self.driver, self.views = type_id, driver, views
         self.modes, self.speed = modes, speed
         self.raw_handshake, self.quirks = raw_handshake, quirks
+        self.lump, self.version, self.combos = lump, version, combos
 
 
 COLOR = SensorDef(29, 'lego-ev3-color', 3, [
@@ -191,8 +214,72 @@ FCL_HUMIDITY = SensorDef(77, 'fcl-humidity', 3, [
     Mode('HUMIDITY', (0, 1000), (0, 100), '%RH', 1, S16, 4, 1),
 ], speed=9600)
 
+# Powered Up (LUMP) devices. The BOOST colour and distance sensor is
+# byte for byte the handshake a logic analyser recorded (Pybricks'
+# lib/pbio/test/src/test_lump.c; research/uart-peers.md): handshake(BOOST_CDS)
+# gives exactly those bytes (tests/emulator/test_lump_defs.py checks it).
+# The SPIKE colour and distance sensors: mode numbers, names, value counts
+# and types, and which modes take values (MAPPING out) as Pybricks'
+# lib/lego/lego/device.h gives them; their ranges, units, figures, version
+# and capability flags are not recorded anywhere we know of and are ours.
+_RW = (0x00, 0x04)      # MAPPING of a mode the host writes to (BOOST: COL O, IR Tx)
+
+BOOST_CDS = SensorDef(37, 'lego-boost-color-dist', 8, [
+    Mode('COLOR', (0, 10), (0, 10), 'IDX', 1, S8, 3, 0, pct=(0, 100), mapping=(0xc4, 0)),
+    Mode('PROX', (0, 10), (0, 10), 'DIS', 1, S8, 3, 0, pct=(0, 100), mapping=(0x50, 0)),
+    Mode('COUNT', (0, 100), (0, 100), 'CNT', 1, S32, 4, 0, pct=(0, 100), mapping=(0x08, 0)),
+    Mode('REFLT', (0, 100), (0, 100), 'PCT', 1, S8, 3, 0, pct=(0, 100), mapping=(0x10, 0)),
+    Mode('AMBI', (0, 100), (0, 100), 'PCT', 1, S8, 3, 0, pct=(0, 100), mapping=(0x10, 0)),
+    Mode('COL O', (0, 10), (0, 10), 'IDX', 1, S8, 3, 0, pct=(0, 100), mapping=_RW),
+    Mode('RGB I', (0, 1023), (0, 1023), 'RAW', 3, S16, 5, 0, pct=(0, 100), mapping=(0x10, 0),
+         cadence='continuous', period=0.01, first_reply=0.03),
+    Mode('IR Tx', (0, 65535), (0, 65535), 'N/A', 1, S16, 5, 0, pct=(0, 100), mapping=_RW),
+    Mode('SPEC 1', (0, 255), (0, 255), 'N/A', 4, S8, 3, 0, pct=(0, 100), mapping=(0, 0),
+         first_reply=0.03),
+    Mode('DEBUG', (0, 1023), (0, 10), 'N/A', 2, S16, 5, 0, pct=(0, 100), mapping=(0x10, 0),
+         first_reply=0.03),
+    Mode('CALIB', (0, 65535), (0, 65535), 'N/A', 8, S16, 5, 0, pct=(0, 100),
+         mapping=(0x10, 0), cadence='nack', first_reply=0.03),
+], speed=115200, lump=True, version=(0x10000000, 0x10000000), combos=(0x004f,))
+
+_NOFLAGS = bytes(6)
+
+
+def _spike(name, units, n, t, rng=(0, 100), fig=4, writable=False, **kw):
+    flags = _NOFLAGS if len(name) <= 5 else None
+    return Mode(name, rng, rng, units, n, t, fig, 0, pct=(0, 100),
+                mapping=_RW if writable else (0x10, 0), flags=flags, **kw)
+
+
+SPIKE_COLOR = SensorDef(61, 'lego-spike-color', 8, [
+    _spike('COLOR', 'IDX', 1, S8, (-1, 10)),
+    _spike('REFLT', 'PCT', 1, S8),
+    _spike('AMBI', 'PCT', 1, S8),
+    _spike('LIGHT', 'PCT', 3, S8, writable=True),
+    _spike('RREFL', 'RAW', 2, S16, (0, 1024)),
+    _spike('RGB I', 'RAW', 4, S16, (0, 1024), cadence='continuous', period=0.01,
+           first_reply=0.03),
+    _spike('HSV', 'RAW', 3, S16, (0, 360)),
+    _spike('SHSV', 'RAW', 4, S16, (0, 360)),
+    _spike('DEBUG', 'RAW', 2, S16, (0, 1023)),
+    _spike('CALIB', 'RAW', 7, S16, (0, 65535), cadence='nack'),
+], speed=115200, lump=True, version=(0x10000000, 0x10000000), combos=(0x00e3,))
+
+SPIKE_DIST = SensorDef(62, 'lego-spike-ultrasonic', 8, [
+    _spike('DISTL', 'cm', 1, S16, (0, 250), fig=5, cadence='continuous', period=0.03),
+    _spike('DISTS', 'cm', 1, S16, (0, 32), fig=4, cadence='continuous', period=0.03),
+    _spike('SINGL', 'cm', 1, S16, (0, 250), fig=5, cadence='nack', first_reply=0.05),
+    _spike('LISTN', 'ST', 1, S8, (0, 1), fig=1),
+    _spike('TRAW', 'UC', 1, S32, (0, 14577), fig=5),
+    _spike('LIGHT', 'PCT', 4, S8, writable=True),
+    _spike('PING', 'PCT', 1, S8, (0, 1), fig=1),
+    _spike('ADRAW', 'PCT', 1, S16, (0, 1024), fig=4),
+    _spike('CALIB', 'PCT', 7, S16, (0, 65535), fig=5, cadence='nack'),
+], speed=115200, lump=True, version=(0x10000000, 0x10000000))
+
 SENSORS = {'color': COLOR, 'us': US, 'gyro': GYRO, 'gyro-old': GYRO_OLD, 'ir': IR,
-           'fcl-humidity': FCL_HUMIDITY}
+           'fcl-humidity': FCL_HUMIDITY, 'boost-cds': BOOST_CDS, 'spike-color': SPIKE_COLOR,
+           'spike-dist': SPIKE_DIST}
 
 IR_STALE_TIME = 1.1
 # The host's ACK must come within ACK_WAIT of the handshake's end; the
@@ -201,10 +288,50 @@ ACK_WAIT = 0.080
 ACK_SLICE = 0.005
 
 
+def lump_handshake(s):
+    """A Powered Up device's handshake, in the shape the BOOST colour and
+    distance sensor sends it: the 4-byte MODES when it has more than 8 modes
+    (the first two bytes for EV3 hosts), VERSION after SPEED, modes 8 and up
+    with the MODE_PLUS_8 flag, names and units padded to a power of two
+    (4 characters: no NUL), or a short name, NUL and 6 flag bytes in 16;
+    RAW, PCT, SI, UNITS, MAPPING, FORMAT per mode; MODE_COMBOS after mode
+    0's FORMAT."""
+    nm, views = len(s.modes), s.views
+    out = cmd_msg(CMD_TYPE, [s.type])
+    if nm > 8:
+        out += cmd_msg(CMD_MODES, [7, min(views, 8) - 1, nm - 1, views - 1])
+    else:
+        out += cmd_msg(CMD_MODES, [nm - 1, views - 1])
+    out += cmd_msg(CMD_SPEED, struct.pack('<I', s.speed))
+    if s.version:
+        out += cmd_msg(CMD_VERSION, struct.pack('<II', *s.version))
+    for i in reversed(range(nm)):
+        m = s.modes[i]
+        low, plus8 = i & 7, INFO_MODE_PLUS_8 if i >= 8 else 0
+        name = m.name.encode()
+        if m.flags is not None:
+            name = name.ljust(6, b'\0') + bytes(m.flags)
+        out += info_msg(low, INFO_NAME | plus8, name)
+        out += info_msg(low, INFO_RAW | plus8, f32(m.raw[0]) + f32(m.raw[1]))
+        if m.pct:
+            out += info_msg(low, INFO_PCT | plus8, f32(m.pct[0]) + f32(m.pct[1]))
+        out += info_msg(low, INFO_SI | plus8, f32(m.si[0]) + f32(m.si[1]))
+        if m.units:
+            out += info_msg(low, INFO_UNITS | plus8, m.units.encode() + b'\0')
+        if m.mapping:
+            out += info_msg(low, INFO_MAPPING | plus8, bytes(m.mapping))
+        out += info_msg(low, INFO_FORMAT | plus8, [m.n, m.t, m.fig, m.dec])
+    if s.combos:
+        out += info_msg(0, INFO_MODE_COMBOS, struct.pack('<%dH' % len(s.combos), *s.combos))
+    return out + bytes([SYS_ACK])
+
+
 def handshake(s):
     """The bytes a real sensor sends from TYPE to its ACK."""
     if getattr(s, 'raw_handshake', None) is not None:
         return s.raw_handshake
+    if getattr(s, 'lump', False):
+        return lump_handshake(s)
     out = cmd_msg(CMD_TYPE, [s.type])
     out += cmd_msg(CMD_MODES, [len(s.modes) - 1, s.views - 1])
     out += cmd_msg(CMD_SPEED, struct.pack('<I', s.speed))
@@ -292,6 +419,7 @@ class EmulatedSensor(threading.Thread):
         self.handshakes = 0
         self.frames_sent = 0
         self.writes = []
+        self.lump_writes = []       # (mode, payload) a Powered Up host sent
         self.changed = True
         self.stale_until = 0.0
         self.fd = None
@@ -319,7 +447,8 @@ class EmulatedSensor(threading.Thread):
         m = self.sdef.modes[mode]
         rest = pack_values(m, [0] * (len(self.values[mode]) - 1))
         # Built here, not in the sensor's thread, which must keep answering.
-        frames = b''.join(data_msg(mode, pack_values(m, [wrap_value(m, start + i)]) + rest)
+        frames = b''.join(data_frame(self.sdef, mode,
+                                     pack_values(m, [wrap_value(m, start + i)]) + rest)
                           for i in range(count))
         req = {'count': count, 'start': start, 'mode': mode, 'frames': frames,
                'done': threading.Event()}
@@ -478,7 +607,7 @@ class EmulatedSensor(threading.Thread):
             tag = 5
         bad = (self.sdef.type == 29 and mode == 4 and self.sdef.quirks and
                self.rng.random() < 0.99)
-        self.send(data_msg(tag, pack_values(m, values), bad_checksum=bad))
+        self.send(data_frame(self.sdef, tag, pack_values(m, values), bad_checksum=bad))
         self.frames_sent += 1
 
     def data_phase(self):
@@ -489,6 +618,7 @@ class EmulatedSensor(threading.Thread):
         buf = b''
         quiet = False
         looked = False
+        host_ext = 0                # the host's last EXT_MODE (Powered Up)
         self.changed = True
         while not self.stopping.is_set():
             now = time.monotonic()
@@ -548,6 +678,20 @@ class EmulatedSensor(threading.Thread):
                         new = buf[1]
                         pending = (time.monotonic() + self.sdef.modes[new].first_reply, new)
                     buf = buf[3:]
+                elif b == 0x46:             # EXT_MODE (Powered Up host)
+                    if len(buf) < 3:
+                        break
+                    if checksum(buf[:2]) == buf[2]:
+                        host_ext = buf[1] & 8
+                    buf = buf[3:]
+                elif b & 0xc0 == 0xc0 and getattr(self.sdef, 'lump', False):
+                    # Powered Up: values for a mode (after EXT_MODE).
+                    size = 1 << ((b >> 3) & 7)
+                    if len(buf) < size + 2:
+                        break
+                    if checksum(buf[:size + 1]) == buf[size + 1]:
+                        self.lump_writes.append(((b & 7) + host_ext, bytes(buf[1:size + 1])))
+                    buf = buf[size + 2:]
                 elif b & 0xc7 == 0x44:      # WRITE
                     size = 1 << ((b >> 3) & 7)
                     if len(buf) < size + 2:

@@ -16,10 +16,12 @@
 #define ev3_uart_read_value		ref_ev3_uart_read_value
 #define ev3_uart_scale_value		ref_ev3_uart_scale_value
 #define ev3_uart_driver_name		ref_ev3_uart_driver_name
+#define ev3_uart_lump_driver_name	ref_ev3_uart_lump_driver_name
 #define ev3_uart_build_ack		ref_ev3_uart_build_ack
 #define ev3_uart_build_nack		ref_ev3_uart_build_nack
 #define ev3_uart_build_select		ref_ev3_uart_build_select
 #define ev3_uart_build_write		ref_ev3_uart_build_write
+#define ev3_uart_build_lump_data	ref_ev3_uart_build_lump_data
 #define ev3_uart_parser_init		ref_ev3_uart_parser_init
 #define ev3_uart_parser_feed		ref_ev3_uart_parser_feed
 #define ev3_uart_parser_line_error	ref_ev3_uart_parser_line_error

@@ -77,6 +77,9 @@ static void check_parser(const struct ev3_uart_parser *p)
 	CHECK(p->replay_pos <= p->replay_len);
 	CHECK(p->replay_len <= EV3_UART_MAX_MSG_LEN);
 	CHECK(p->info_mode == EV3_UART_NO_MODE || p->info_mode < EV3_UART_MAX_MODES);
+	/* EXT_MODE (Powered Up) adds 0 or 8 to the mode of a DATA header. */
+	CHECK(p->ext_mode == 0 || p->ext_mode == EV3_UART_MAX_EV3_MODES);
+	CHECK(s->num_combos <= EV3_UART_MAX_COMBOS);
 	/*
 	 * The fast path's trusted header (ev3_uart_data_fast()): only in the
 	 * data phase, with nothing to parse again, no bad frame on the count
@@ -89,7 +92,7 @@ static void check_parser(const struct ev3_uart_parser *p)
 		CHECK(!p->data_err);
 		CHECK(p->pending_mode == EV3_UART_NO_MODE);
 		CHECK((p->fast_hdr & EV3_UART_MSG_TYPE_MASK) == EV3_UART_MSG_DATA);
-		CHECK((p->fast_hdr & EV3_UART_MSG_CMD_MASK) == p->mode);
+		CHECK(((p->fast_hdr & EV3_UART_MSG_CMD_MASK) | p->ext_mode) == p->mode);
 		CHECK(p->fast_len == ev3_uart_msg_len(p->fast_hdr));
 		CHECK(p->fast_len <= 8 + 2);
 	}
@@ -121,6 +124,10 @@ static void check_parser(const struct ev3_uart_parser *p)
 	      (1U << s->num_modes) - 1);
 	if (p->state == EV3_UART_STATE_DATA) {
 		CHECK(p->mode < s->num_modes);
+		/* Only a device that spoke the Powered Up grammar sends EXT_MODE. */
+		CHECK(!p->ext_mode || s->lump);
+		/* Modes 8 and up only with more than 8 modes, which needs it. */
+		CHECK(s->num_modes <= EV3_UART_MAX_EV3_MODES || s->lump);
 		CHECK(p->pending_mode == EV3_UART_NO_MODE ||
 		      p->pending_mode < s->num_modes);
 		CHECK(p->data_err <= EV3_UART_MAX_DATA_ERR);
@@ -332,7 +339,7 @@ static void host_actions(struct host *h)
 {
 	struct ev3_uart_parser *p = h->p;
 	struct ev3_uart_event ev;
-	u8 msg[EV3_UART_MAX_PAYLOAD + 2], data[EV3_UART_MAX_PAYLOAD + 1];
+	u8 msg[EV3_UART_MAX_PAYLOAD + 5], data[EV3_UART_MAX_PAYLOAD + 1];
 	u8 mode;
 	size_t len;
 	int ret;
@@ -359,6 +366,22 @@ static void host_actions(struct host *h)
 			CHECK(ret >= (int)len + 2 && ret <= EV3_UART_MAX_PAYLOAD + 2);
 			CHECK(ret == (int)ev3_uart_msg_len(msg[0]));
 			CHECK(msg[ret - 1] == ev3_uart_checksum(msg, ret - 1));
+		}
+	}
+	if (rnd(h) % 16 == 0) {
+		/* Powered Up values: EXT_MODE, then DATA. */
+		len = rnd(h) % (EV3_UART_MAX_PAYLOAD + 2);
+		mode = rnd(h) % (EV3_UART_MAX_MODES + 1);
+		ret = ev3_uart_build_lump_data(msg, mode, data, len);
+		if (!len || len > EV3_UART_MAX_PAYLOAD || mode >= EV3_UART_MAX_MODES) {
+			CHECK(ret == -EINVAL);
+		} else {
+			CHECK(ret >= (int)len + 5 && ret <= EV3_UART_MAX_PAYLOAD + 5);
+			CHECK(msg[0] == EV3_UART_EXT_MODE_HDR && msg[1] == (mode & 8));
+			CHECK(msg[2] == ev3_uart_checksum(msg, 2));
+			CHECK(ret - 3 == (int)ev3_uart_msg_len(msg[3]));
+			CHECK(((msg[3] & EV3_UART_MSG_CMD_MASK) | msg[1]) == mode);
+			CHECK(msg[ret - 1] == ev3_uart_checksum(msg + 3, ret - 4));
 		}
 	}
 	if (rnd(h) % 4 == 0) {
@@ -472,6 +495,7 @@ static void diff_state(const struct ev3_uart_parser *a,
 	CHECK(a->modes_done == b->modes_done);
 	CHECK(!memcmp(a->stash, b->stash, sizeof(a->stash)));
 	CHECK(a->mode == b->mode);
+	CHECK(a->ext_mode == b->ext_mode);
 	CHECK(a->pending_mode == b->pending_mode);
 	CHECK(a->data_err == b->data_err);
 	CHECK(a->silent_ticks == b->silent_ticks);

@@ -7,9 +7,9 @@ Usage: tests/fuzz/make-seeds.py [OUTDIR]   (default: tests/fuzz/corpus)
 Writes OUTDIR/ev3/* and OUTDIR/nxt/* in the input formats of fuzz_ev3.c and
 fuzz_nxt.c:
 
-- ev3: for every sensor tests/emulator/ev3_sensor.py emulates, its handshake
-  byte for byte as the emulator sends it, followed by DATA messages of every
-  mode (with the quiet host, seed 0, and with a pseudo-random host); the
+- ev3: for every sensor tests/emulator/ev3_sensor.py emulates (Powered Up
+  devices included), its handshake byte for byte as the emulator sends it,
+  followed by DATA messages of every mode (with EXT_MODE for Powered Up) (with the quiet host, seed 0, and with a pseudo-random host); the
   emulator's hostile byte sequences followed by a good handshake.
 - nxt: telegrams and the replies tests/emulator/nxt_brick.py's firmware model
   gives them, for the raw path (NXT_IOC_TRANSACT, sysfs) and for each typed
@@ -47,7 +47,7 @@ def frames(sdef, mode, count, rng):
     out = b''
     for _ in range(count):
         bad = sdef.type == 29 and mode == 4 and rng.random() < 0.9
-        out += ev3.data_msg(mode, ev3.pack_values(m, values(rng, m)), bad_checksum=bad)
+        out += ev3.data_frame(sdef, mode, ev3.pack_values(m, values(rng, m)), bad_checksum=bad)
     return out
 
 
@@ -63,8 +63,16 @@ def ev3_seeds():
     rng = random.Random(1)
     seeds = {}
     for name, sdef in sorted(ev3.SENSORS.items()):
+        if sdef.lump:
+            continue
         seeds['%s-quiet' % name] = QUIET + ev3_session(sdef, 4, rng)
         seeds['%s-busy' % name] = BUSY + ev3_session(sdef, 4, rng)
+    # Powered Up devices from a generator of their own: the EV3 seeds stay.
+    lrng = random.Random(3)
+    for name, sdef in sorted(ev3.SENSORS.items()):
+        if sdef.lump:
+            seeds['%s-quiet' % name] = QUIET + ev3_session(sdef, 4, lrng)
+            seeds['%s-busy' % name] = BUSY + ev3_session(sdef, 4, lrng)
     junk = [ev3.cmd_msg(ev3.CMD_TYPE, [29])[:2] + b'\x00',
             ev3.cmd_msg(ev3.CMD_TYPE, [29]) + bytes([0xb0, 0x00]) + bytes(70),
             ev3.cmd_msg(ev3.CMD_TYPE, [29]) + ev3.cmd_msg(ev3.CMD_MODES, [200, 200]),

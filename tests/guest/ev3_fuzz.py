@@ -269,7 +269,8 @@ class Runner:
                      for m in d.modes[:d.num_modes]]
             views, speed = d.views, d.speed
         sdef = es.SensorDef(d.type if d else 0, d.driver if d else '?', views, modes,
-                            speed=speed, raw_handshake=c.data, quirks=False)
+                            speed=speed, raw_handshake=c.data, quirks=False,
+                            lump=bool(d and d.lump))
         emu = es.EmulatedSensor(self.far, sdef, seed=c.seed, boot_delay=0.05,
                                 retry_delay=1.0)
         for i, vals in c.values.items():

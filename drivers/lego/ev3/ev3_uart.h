@@ -150,6 +150,8 @@ struct ev3_uart_sensor_dev {
  * @tty: the tty
  * @lock: see "Locking" above
  * @parser: protocol state
+ * @ack_desc: ev3_uart_ack_work()'s copy of the sensor description (only
+ *	that work uses it)
  * @sensor: the registered sensor, or NULL
  * @closing: close() has started; no work may be queued any more (written
  *	under @lock)
@@ -165,6 +167,8 @@ struct ev3_uart_sensor_dev {
  * @select_done: completed by the first DATA of @select_mode, or on loss
  * @tx_mutex: see "Locking"
  * @requested_type: sensor type the user chose @requested_mode for
+ * @requested_lump: that sensor was a Powered Up device (whose type ids
+ *	overlap third-party EV3 ones)
  * @requested_mode: mode restored after a reconnect, or %EV3_UART_NO_MODE
  * @restored_at: jiffies of the last restore (a sensor lost right after
  *	one, as calibration modes do, does not get it again)
@@ -187,6 +191,7 @@ struct ev3_uart_port {
 	struct tty_struct *tty;
 	spinlock_t lock;	/* see "Locking" */
 	struct ev3_uart_parser parser;
+	struct ev3_uart_sensor ack_desc;
 	struct ev3_uart_sensor_dev *sensor;
 	bool closing;
 	struct workqueue_struct *wq;
@@ -199,6 +204,7 @@ struct ev3_uart_port {
 	struct completion select_done;
 	struct mutex tx_mutex;		/* one writer to the tty at a time */
 	u8 requested_type;
+	bool requested_lump;
 	u8 requested_mode;
 	unsigned long restored_at;
 	u8 restore_mode;

@@ -157,21 +157,32 @@ static const struct ev3_uart_unit ev3_uart_units[] = {
 
 /*
  * The LEGO sensors' modes whose unit alone does not say what they measure.
- * A mode's values past the listed types get the last one.
+ * A mode's values past the listed types get the last one. @lump: a Powered
+ * Up device (their type ids overlap third-party EV3 ones).
  */
 static const struct {
 	u8 type;
+	bool lump;
 	const char *mode;
 	enum iio_chan_type chan[2];
 	u64 nano;
 } ev3_uart_lego_modes[] = {
-	{ EV3_UART_TYPE_COLOR, "COL-REFLECT", { IIO_INTENSITY }, 1000000000 },
-	{ EV3_UART_TYPE_COLOR, "COL-AMBIENT", { IIO_INTENSITY }, 1000000000 },
-	{ EV3_UART_TYPE_COLOR, "REF-RAW", { IIO_INTENSITY }, 1000000000 },
-	{ EV3_UART_TYPE_COLOR, "RGB-RAW", { IIO_INTENSITY }, 1000000000 },
-	{ EV3_UART_TYPE_GYRO, "GYRO-FAS", { IIO_ANGL_VEL }, 17453293 },
-	{ EV3_UART_TYPE_GYRO, "GYRO-G&A", { IIO_ANGL, IIO_ANGL_VEL }, 17453293 },
-	{ EV3_UART_TYPE_IR, "IR-PROX", { IIO_PROXIMITY }, 1000000000 },
+	{ EV3_UART_TYPE_COLOR, false, "COL-REFLECT", { IIO_INTENSITY }, 1000000000 },
+	{ EV3_UART_TYPE_COLOR, false, "COL-AMBIENT", { IIO_INTENSITY }, 1000000000 },
+	{ EV3_UART_TYPE_COLOR, false, "REF-RAW", { IIO_INTENSITY }, 1000000000 },
+	{ EV3_UART_TYPE_COLOR, false, "RGB-RAW", { IIO_INTENSITY }, 1000000000 },
+	{ EV3_UART_TYPE_GYRO, false, "GYRO-FAS", { IIO_ANGL_VEL }, 17453293 },
+	{ EV3_UART_TYPE_GYRO, false, "GYRO-G&A", { IIO_ANGL, IIO_ANGL_VEL }, 17453293 },
+	{ EV3_UART_TYPE_IR, false, "IR-PROX", { IIO_PROXIMITY }, 1000000000 },
+	{ EV3_UART_TYPE_BOOST_CDS, true, "REFLT", { IIO_INTENSITY }, 1000000000 },
+	{ EV3_UART_TYPE_BOOST_CDS, true, "AMBI", { IIO_INTENSITY }, 1000000000 },
+	{ EV3_UART_TYPE_BOOST_CDS, true, "RGB I", { IIO_INTENSITY }, 1000000000 },
+	{ EV3_UART_TYPE_BOOST_CDS, true, "PROX", { IIO_PROXIMITY }, 1000000000 },
+	{ EV3_UART_TYPE_BOOST_CDS, true, "COUNT", { IIO_COUNT }, 1000000000 },
+	{ EV3_UART_TYPE_SPIKE_COLOR, true, "REFLT", { IIO_INTENSITY }, 1000000000 },
+	{ EV3_UART_TYPE_SPIKE_COLOR, true, "AMBI", { IIO_INTENSITY }, 1000000000 },
+	{ EV3_UART_TYPE_SPIKE_COLOR, true, "RREFL", { IIO_INTENSITY }, 1000000000 },
+	{ EV3_UART_TYPE_SPIKE_COLOR, true, "RGB I", { IIO_INTENSITY }, 1000000000 },
 };
 
 static bool ev3_uart_chan_type(const struct ev3_uart_sensor *desc, u8 mode,
@@ -185,6 +196,7 @@ static bool ev3_uart_chan_type(const struct ev3_uart_sensor *desc, u8 mode,
 		const enum iio_chan_type *chan = ev3_uart_lego_modes[i].chan;
 
 		if (ev3_uart_lego_modes[i].type != desc->type ||
+		    ev3_uart_lego_modes[i].lump != desc->lump ||
 		    strcmp(ev3_uart_lego_modes[i].mode, m->name))
 			continue;
 		*type = chan[index && chan[1] ? 1 : 0];
@@ -202,15 +214,24 @@ static bool ev3_uart_chan_type(const struct ev3_uart_sensor *desc, u8 mode,
 	return false;
 }
 
-/* The colour sensor's RGB-RAW: red, green, blue, then the LED-off reading. */
+/*
+ * The colour sensor's RGB-RAW: red, green, blue, then the LED-off reading;
+ * the Powered Up colour sensors' RGB I likewise.
+ */
 static u8 ev3_uart_chan_modifier(const struct ev3_uart_sensor *desc, u8 mode,
 				 unsigned int index)
 {
 	static const u8 rgb[] = { IIO_MOD_LIGHT_RED, IIO_MOD_LIGHT_GREEN,
 				  IIO_MOD_LIGHT_BLUE };
 
-	if (desc->type == EV3_UART_TYPE_COLOR &&
-	    !strcmp(desc->modes[mode].name, "RGB-RAW") && index < ARRAY_SIZE(rgb))
+	if (index >= ARRAY_SIZE(rgb))
+		return 0;
+	if (!desc->lump && desc->type == EV3_UART_TYPE_COLOR &&
+	    !strcmp(desc->modes[mode].name, "RGB-RAW"))
+		return rgb[index];
+	if (desc->lump && (desc->type == EV3_UART_TYPE_BOOST_CDS ||
+			   desc->type == EV3_UART_TYPE_SPIKE_COLOR) &&
+	    !strcmp(desc->modes[mode].name, "RGB I"))
 		return rgb[index];
 	return 0;
 }

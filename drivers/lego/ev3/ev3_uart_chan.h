@@ -19,7 +19,7 @@
 
 /*
  * At most one channel per value, and a DATA payload holds at most 32 values
- * (32 of type s8): 256 channels, plus the timestamp.
+ * (32 of type s8): 512 channels for 16 modes, plus the timestamp.
  */
 #define EV3_UART_MAX_CHANS	(EV3_UART_MAX_MODES * EV3_UART_MAX_PAYLOAD)
 

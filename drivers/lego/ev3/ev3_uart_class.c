@@ -354,7 +354,8 @@ static void ev3_uart_sensor_mode_work(struct work_struct *work)
 struct ev3_uart_sensor_dev *ev3_uart_sensor_create(struct ev3_uart_port *port,
 						   const struct ev3_uart_sensor *desc)
 {
-	const char *name = ev3_uart_driver_name(desc->type);
+	const char *name = desc->lump ? ev3_uart_lump_driver_name(desc->type) :
+					ev3_uart_driver_name(desc->type);
 	struct ev3_uart_sensor_dev *sd;
 	int ret;
 
@@ -374,8 +375,8 @@ struct ev3_uart_sensor_dev *ev3_uart_sensor_create(struct ev3_uart_port *port,
 	if (name)
 		strscpy(sd->driver_name, name, sizeof(sd->driver_name));
 	else
-		snprintf(sd->driver_name, sizeof(sd->driver_name), "ev3-uart-%u",
-			 desc->type);
+		snprintf(sd->driver_name, sizeof(sd->driver_name), "%s-uart-%u",
+			 desc->lump ? "lump" : "ev3", desc->type);
 	spin_lock(&port->lock);
 	if (port->label[0])
 		snprintf(sd->address, sizeof(sd->address), "%s:%s",

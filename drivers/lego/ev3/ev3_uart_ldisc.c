@@ -81,11 +81,24 @@ MODULE_PARM_DESC(port_labels,
 /*
  * How long a new mode's first values may be stale: the infrared sensor
  * returns leftovers for about 1.1 s after a switch (LEGO's firmware ignores
- * its data for 1100 ms); the colour sensor for a few ms.
+ * its data for 1100 ms); the colour sensor for a few ms. Powered Up: the
+ * colour sensors 30 ms, the SPIKE distance sensor 50 ms (what Pybricks
+ * waits).
  */
-static unsigned int ev3_uart_settle_ms(u8 type)
+static unsigned int ev3_uart_settle_ms(const struct ev3_uart_sensor *desc)
 {
-	switch (type) {
+	if (desc->lump) {
+		switch (desc->type) {
+		case EV3_UART_TYPE_BOOST_CDS:
+		case EV3_UART_TYPE_SPIKE_COLOR:
+			return 30;
+		case EV3_UART_TYPE_SPIKE_DIST:
+			return 50;
+		default:
+			return 0;
+		}
+	}
+	switch (desc->type) {
 	case EV3_UART_TYPE_IR:
 		return 1100;
 	case EV3_UART_TYPE_COLOR:
@@ -392,7 +405,7 @@ static void ev3_uart_event(struct ev3_uart_port *port,
 		if (ev->mode != sd->mode) {
 			sd->mode = ev->mode;
 			sd->settle_until = jiffies +
-				msecs_to_jiffies(ev3_uart_settle_ms(sd->desc.type));
+				msecs_to_jiffies(ev3_uart_settle_ms(&sd->desc));
 			ev3_uart_queue(port, &sd->mode_work);
 		}
 		memcpy(sd->data, port->parser.data, ev->len);
@@ -480,6 +493,7 @@ static void ev3_uart_restore_mode(struct ev3_uart_port *port,
 	spin_lock(&port->lock);
 	if (port->requested_mode != EV3_UART_NO_MODE &&
 	    port->requested_type == desc->type &&
+	    port->requested_lump == desc->lump &&
 	    port->requested_mode < desc->num_modes &&
 	    !ev3_uart_parser_select(&port->parser, port->requested_mode)) {
 		mode = port->requested_mode;
@@ -524,7 +538,8 @@ static void ev3_uart_ack_work(struct work_struct *work)
 						  ack_work);
 	struct tty_struct *tty = port->tty;
 	struct ev3_uart_sensor_dev *sd;
-	struct ev3_uart_sensor desc;
+	/* In the port: 16 modes are too much for the stack. */
+	struct ev3_uart_sensor *desc = &port->ack_desc;
 	const char *last_error, *why;
 	u8 ack, from;
 
@@ -533,13 +548,13 @@ static void ev3_uart_ack_work(struct work_struct *work)
 		spin_unlock(&port->lock);
 		return;
 	}
-	desc = port->parser.sensor;
+	*desc = port->parser.sensor;
 	spin_unlock(&port->lock);
 
 	/* Not again a speed this tty could not do (see below). */
-	if (desc.speed == port->bad_speed) {
+	if (desc->speed == port->bad_speed) {
 		pr_debug("%s: sensor type %u wants %u baud again; not answered\n",
-			 tty->name, desc.type, desc.speed);
+			 tty->name, desc->type, desc->speed);
 		why = "speed not supported by the tty";
 		goto restart;
 	}
@@ -549,7 +564,7 @@ static void ev3_uart_ack_work(struct work_struct *work)
 		goto fail;
 	/* The sensor switches speed once it has our ACK: so do we. */
 	tty_wait_until_sent(tty, msecs_to_jiffies(50));
-	if (ev3_uart_set_speed(port, desc.speed)) {
+	if (ev3_uart_set_speed(port, desc->speed)) {
 		/*
 		 * The UART cannot run at the sensor's speed, or its speed is
 		 * locked (TIOCSLCKTRMIOS): the sensor would be lost and come
@@ -557,8 +572,8 @@ static void ev3_uart_ack_work(struct work_struct *work)
 		 * unanswered from now on.
 		 */
 		pr_err("%s: cannot set %u baud for sensor type %u: not connecting it\n",
-		       tty->name, desc.speed, desc.type);
-		port->bad_speed = desc.speed;
+		       tty->name, desc->speed, desc->type);
+		port->bad_speed = desc->speed;
 		why = "speed not supported by the tty";
 		goto fail;
 	}
@@ -577,11 +592,11 @@ static void ev3_uart_ack_work(struct work_struct *work)
 	 */
 	queue_delayed_work(system_unbound_wq, &port->keepalive_work, 0);
 
-	sd = ev3_uart_sensor_create(port, &desc);
+	sd = ev3_uart_sensor_create(port, desc);
 	if (IS_ERR(sd)) {
 		pr_err_ratelimited("%s: cannot register sensor: %ld\n",
 				   tty->name, PTR_ERR(sd));
-		ev3_uart_trace_sensor(port, EV3_UART_TRACE_FAILED, &desc, NULL);
+		ev3_uart_trace_sensor(port, EV3_UART_TRACE_FAILED, desc, NULL);
 		why = "sensor not registered";
 		goto fail;
 	}
@@ -592,14 +607,14 @@ static void ev3_uart_ack_work(struct work_struct *work)
 	last_error = port->last_error;
 	port->last_error = NULL;
 	spin_unlock(&port->lock);
-	ev3_uart_trace_sensor(port, EV3_UART_TRACE_REGISTERED, &desc, sd);
+	ev3_uart_trace_sensor(port, EV3_UART_TRACE_REGISTERED, desc, sd);
 
 	pr_info("%s: %s connected as %s at %u baud\n", tty->name,
-		sd->driver_name, dev_name(&sd->dev), desc.speed);
+		sd->driver_name, dev_name(&sd->dev), desc->speed);
 	if (last_error)
 		pr_info("%s: reconnected after: %s\n", tty->name, last_error);
 
-	ev3_uart_restore_mode(port, &desc);
+	ev3_uart_restore_mode(port, desc);
 	return;
 
 fail:
@@ -815,6 +830,7 @@ int ev3_uart_set_mode(struct ev3_uart_sensor_dev *sd, u8 mode)
 		 * older choice must not come after it (see restore_mode()).
 		 */
 		port->requested_type = sd->desc.type;
+		port->requested_lump = sd->desc.lump;
 		port->requested_mode = mode;
 		port->restore_mode = EV3_UART_NO_MODE;
 		ret = 1;
@@ -855,6 +871,7 @@ int ev3_uart_set_mode(struct ev3_uart_sensor_dev *sd, u8 mode)
 		ret = -ENODEV;
 	} else if (left > 0 && !ret) {
 		port->requested_type = sd->desc.type;
+		port->requested_lump = sd->desc.lump;
 		port->requested_mode = mode;
 		settle = sd->settle_until;
 	} else if (!ret) {

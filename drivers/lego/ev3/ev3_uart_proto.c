@@ -409,6 +409,51 @@ const char *ev3_uart_driver_name(u8 type)
 }
 EXPORT_SYMBOL_IF_KUNIT(ev3_uart_driver_name);
 
+/*
+ * Powered Up (LUMP) devices: their type ids overlap third-party EV3 ones
+ * (FatcatLab's 75 and 76), so they have a table of their own. The motors
+ * register as sensors (their speed, position and power modes): there is
+ * no motor control here.
+ */
+static const struct {
+	u8 type;
+	const char *name;
+} ev3_uart_lump_names[] = {
+	{ 34, "lego-wedo2-tilt" },
+	{ 35, "lego-wedo2-motion" },
+	{ 37, "lego-boost-color-dist" },
+	{ 38, "lego-boost-motor" },
+	{ 46, "lego-technic-l-motor" },
+	{ 47, "lego-technic-xl-motor" },
+	{ 48, "lego-spike-m-motor" },
+	{ 49, "lego-spike-l-motor" },
+	{ 61, "lego-spike-color" },
+	{ 62, "lego-spike-ultrasonic" },
+	{ 63, "lego-spike-force" },
+	{ 64, "lego-technic-color-matrix" },
+	{ 65, "lego-spike-s-motor" },
+	{ 75, "lego-technic-m-angular-motor" },
+	{ 76, "lego-technic-l-angular-motor" },
+};
+
+/**
+ * ev3_uart_lump_driver_name() - the driver name of a Powered Up device type
+ * @type: the device type id
+ *
+ * Return: e.g. "lego-spike-color", or NULL if the type has none; callers
+ * then use "lump-uart-<type>".
+ */
+const char *ev3_uart_lump_driver_name(u8 type)
+{
+	unsigned int i;
+
+	for (i = 0; i < ARRAY_SIZE(ev3_uart_lump_names); i++)
+		if (ev3_uart_lump_names[i].type == type)
+			return ev3_uart_lump_names[i].name;
+	return NULL;
+}
+EXPORT_SYMBOL_IF_KUNIT(ev3_uart_lump_driver_name);
+
 /* ---- message builders (host to sensor) ---- */
 
 /**
@@ -440,7 +485,8 @@ EXPORT_SYMBOL_IF_KUNIT(ev3_uart_build_nack);
 /**
  * ev3_uart_build_select() - a SELECT message
  * @buf: at least 3 bytes
- * @mode: the mode to select, 0 to 7
+ * @mode: the mode to select, 0 to 15 (Powered Up devices take modes 8 to
+ *	15 in SELECT as they are)
  *
  * Return: the message length, 3.
  */
@@ -480,7 +526,68 @@ int ev3_uart_build_write(u8 *buf, const u8 *data, size_t len)
 }
 EXPORT_SYMBOL_IF_KUNIT(ev3_uart_build_write);
 
+/**
+ * ev3_uart_build_lump_data() - values for a Powered Up device's mode
+ * @buf: at least %EV3_UART_MAX_PAYLOAD + 5 bytes
+ * @mode: the mode, 0 to 15 (one whose MAPPING has output flags)
+ * @data: the values, as the mode's FORMAT lays them out
+ * @len: their size in bytes, 1 to %EV3_UART_MAX_PAYLOAD
+ *
+ * Powered Up devices take values (a light's brightness, an infrared
+ * command) as a DATA message from the host, after an EXT_MODE message that
+ * gives the part of the mode above the header's 3 bits.
+ *
+ * Return: the length of the two messages, or -%EINVAL if @mode or @len is
+ * out of range.
+ */
+int ev3_uart_build_lump_data(u8 *buf, u8 mode, const u8 *data, size_t len)
+{
+	unsigned int size = 1, code = 0;
+
+	if (mode >= EV3_UART_MAX_MODES || !len || len > EV3_UART_MAX_PAYLOAD)
+		return -EINVAL;
+	while (size < len) {
+		size <<= 1;
+		code++;
+	}
+	buf[0] = EV3_UART_EXT_MODE_HDR;
+	buf[1] = mode & EV3_UART_MAX_EV3_MODES;
+	buf[2] = ev3_uart_checksum(buf, 2);
+	buf[3] = EV3_UART_MSG_DATA | code << EV3_UART_MSG_SIZE_SHIFT |
+		 (mode & EV3_UART_MSG_CMD_MASK);
+	memcpy(buf + 4, data, len);
+	memset(buf + 4 + len, 0, size - len);
+	buf[size + 4] = ev3_uart_checksum(buf + 3, size + 1);
+	return size + 5;
+}
+EXPORT_SYMBOL_IF_KUNIT(ev3_uart_build_lump_data);
+
 /* ---- the parser ---- */
+
+/*
+ * memcpy() of the few bytes (@n up to %EV3_UART_MAX_MSG_LEN) of a message
+ * split between two batches, inline and without a loop for the usual ones:
+ * two moves of k bytes, overlapping if need be, copy k to 2k bytes.
+ */
+static __always_inline void ev3_uart_copy_short(u8 *dst, const u8 *src,
+						unsigned int n)
+{
+	unsigned int i;
+
+	if (n >= 8) {
+		for (i = 0; i + 8 < n; i += 8)
+			memcpy(dst + i, src + i, 8);
+		memcpy(dst + n - 8, src + n - 8, 8);
+	} else if (n >= 4) {
+		memcpy(dst, src, 4);
+		memcpy(dst + n - 4, src + n - 4, 4);
+	} else if (n >= 2) {
+		memcpy(dst, src, 2);
+		memcpy(dst + n - 2, src + n - 2, 2);
+	} else if (n) {
+		dst[0] = src[0];
+	}
+}
 
 static void ev3_uart_set_mode_defaults(struct ev3_uart_parser *p)
 {
@@ -539,7 +646,11 @@ static void ev3_uart_start_handshake(struct ev3_uart_parser *p, u8 type,
 {
 	struct ev3_uart_sensor *s = &p->sensor;
 
-	memset(s, 0, sizeof(*s));
+	/*
+	 * The modes are cleared one by one, by their NAME: the ACK needs
+	 * every mode below num_modes described, and nothing reads the others.
+	 */
+	memset(s, 0, offsetof(struct ev3_uart_sensor, modes));
 	s->type = type;
 	s->num_modes = 1;
 	s->num_view_modes = 1;
@@ -548,6 +659,7 @@ static void ev3_uart_start_handshake(struct ev3_uart_parser *p, u8 type,
 	p->info_mode = EV3_UART_NO_MODE;
 	p->info_seen = 0;
 	p->modes_done = 0;
+	p->ext_mode = 0;
 	p->msg_len = 0;
 	p->state = EV3_UART_STATE_INFO;
 	ev->type = EV3_UART_EV_SYNC;
@@ -608,14 +720,20 @@ static void ev3_uart_cmd(struct ev3_uart_parser *p, const u8 *msg,
 			return ev3_uart_error(p, ev, "duplicate MODES");
 		if (p->info_mode != EV3_UART_NO_MODE)
 			return ev3_uart_error(p, ev, "MODES after INFO");
-		if (payload[0] >= EV3_UART_MAX_MODES)
+		if (payload[0] >= EV3_UART_MAX_EV3_MODES)
 			return ev3_uart_error(p, ev, "number of modes out of range");
-		s->num_modes = payload[0] + 1;
 		/*
 		 * The second byte (views) is optional. Powered Up devices send
-		 * a 4-byte form whose extra counts describe modes 8 and up,
-		 * which EV3 hosts do not use.
+		 * a 4-byte form whose last two bytes count all their modes
+		 * (up to 16) and views; the first two are for EV3 hosts.
 		 */
+		if (plen >= 4) {
+			if (payload[2] >= EV3_UART_MAX_MODES)
+				return ev3_uart_error(p, ev, "number of modes out of range");
+			payload += 2;
+			s->lump = true;
+		}
+		s->num_modes = payload[0] + 1;
 		s->num_view_modes = plen >= 2 ? min_t(unsigned int, payload[1] + 1,
 						      s->num_modes)
 					      : s->num_modes;
@@ -632,9 +750,20 @@ static void ev3_uart_cmd(struct ev3_uart_parser *p, const u8 *msg,
 			return ev3_uart_error(p, ev, "speed out of range");
 		s->speed = speed;
 		break;
-	case EV3_UART_CMD_EXT_MODE:
 	case EV3_UART_CMD_VERSION:
-		/* Quirk: Powered Up devices send these; nothing to do on EV3. */
+		/* Powered Up: firmware and hardware versions, BCD. */
+		if (plen < 8)
+			return ev3_uart_error(p, ev, "short VERSION");
+		s->fw_version = get_unaligned_le32(payload);
+		s->hw_version = get_unaligned_le32(payload + 4);
+		s->lump = true;
+		break;
+	case EV3_UART_CMD_EXT_MODE:
+		/*
+		 * Powered Up: meant for the data phase (see
+		 * ev3_uart_ext_mode()); modes 8 and up are described with
+		 * the MODE_PLUS_8 flag instead.
+		 */
 		break;
 	case EV3_UART_CMD_TYPE:
 		return ev3_uart_error(p, ev, "duplicate TYPE");
@@ -707,29 +836,53 @@ static void ev3_uart_format(struct ev3_uart_parser *p, u8 mode,
 	p->modes_done |= BIT(mode);
 }
 
-static void ev3_uart_info(struct ev3_uart_parser *p, const u8 *msg,
-			  unsigned int plen, struct ev3_uart_event *ev)
+/* The Powered Up INFO types 0x05 to 0x0c of mode @m: none is fatal. */
+static noinline void ev3_uart_info_lump(struct ev3_uart_sensor *s,
+					struct ev3_uart_mode *m, u8 itype,
+					const u8 *payload, unsigned int plen)
+{
+	unsigned int i;
+
+	switch (itype) {
+	case EV3_UART_INFO_MAPPING:
+		if (plen >= 2) {
+			m->mapping_in = payload[0];
+			m->mapping_out = payload[1];
+		}
+		break;
+	case EV3_UART_INFO_MODE_COMBOS:
+		/* Bitmaps of modes, up to the first empty one. */
+		for (i = 0; i < plen / 2 && i < EV3_UART_MAX_COMBOS; i++) {
+			s->combos[i] = get_unaligned_le16(payload + 2 * i);
+			if (!s->combos[i])
+				break;
+		}
+		s->num_combos = i;
+		break;
+	default:
+		/* Not understood (0x09 looks like motor PID parameters). */
+		break;
+	}
+}
+
+/*
+ * An INFO message of type @itype for mode @mode (below 16). EV3 types only,
+ * and the MODE_PLUS_8 flag already taken off (see ev3_uart_info()).
+ */
+static __always_inline void __ev3_uart_info(struct ev3_uart_parser *p, u8 mode,
+					    u8 itype, const u8 *payload,
+					    unsigned int plen,
+					    struct ev3_uart_event *ev)
 {
 	struct ev3_uart_sensor *s = &p->sensor;
-	const u8 *payload = msg + 2;
-	u8 mode = msg[0] & EV3_UART_MSG_CMD_MASK;
-	u8 itype = msg[1];
-	struct ev3_uart_mode *m = &s->modes[mode];
+	struct ev3_uart_mode *m;
 	const char *err;
 	unsigned int bit;
 	size_t n;
 
-	/*
-	 * Quirk: Powered Up devices describe modes 8 and up with the
-	 * MODE_PLUS_8 flag and send extra INFO types (mapping, mode
-	 * combinations...). EV3 hosts have no use for them: skip them.
-	 */
-	if (itype & EV3_UART_INFO_MODE_PLUS_8 ||
-	    (itype >= EV3_UART_INFO_PUP_FIRST && itype <= EV3_UART_INFO_PUP_LAST))
-		return;
-
 	if (mode >= s->num_modes)
 		return ev3_uart_error(p, ev, "INFO for a mode out of range");
+	m = &s->modes[mode];	/* mode < num_modes <= EV3_UART_MAX_MODES */
 
 	if (itype == EV3_UART_INFO_NAME) {
 		if (p->info_mode != EV3_UART_NO_MODE &&
@@ -744,7 +897,17 @@ static void ev3_uart_info(struct ev3_uart_parser *p, const u8 *msg,
 			return ev3_uart_error(p, ev, "bad mode name");
 		memset(m, 0, sizeof(*m));
 		/* 8-character names fill their payload with no NUL after them. */
-		memcpy(m->name, payload, n);
+		ev3_uart_copy_short((u8 *)m->name, payload, n);
+		/*
+		 * Powered Up: capability flags after a short name, in a
+		 * 16-byte payload.
+		 */
+		if (n <= EV3_UART_SHORT_NAME_LEN &&
+		    plen >= EV3_UART_SHORT_NAME_LEN + 1 + EV3_UART_NAME_FLAGS) {
+			memcpy(m->flags, payload + EV3_UART_SHORT_NAME_LEN + 1,
+			       EV3_UART_NAME_FLAGS);
+			s->lump = true;
+		}
 		ev3_uart_set_mode_defaults(p);
 		p->info_mode = mode;
 		p->info_seen = BIT(EV3_UART_INFO_NAME);
@@ -785,10 +948,51 @@ static void ev3_uart_info(struct ev3_uart_parser *p, const u8 *msg,
 	}
 }
 
+/*
+ * The INFO types beyond EV3's: the MODE_PLUS_8 flag (Powered Up: modes 8 to
+ * 15), the Powered Up types 0x05 to 0x0c, and unknown ones.
+ */
+static noinline void ev3_uart_info_ext(struct ev3_uart_parser *p, const u8 *msg,
+				       unsigned int plen, struct ev3_uart_event *ev)
+{
+	struct ev3_uart_sensor *s = &p->sensor;
+	u8 mode = msg[0] & EV3_UART_MSG_CMD_MASK;
+	u8 itype = msg[1];
+
+	if (itype & EV3_UART_INFO_MODE_PLUS_8) {
+		itype &= ~EV3_UART_INFO_MODE_PLUS_8;
+		mode += EV3_UART_MAX_EV3_MODES;
+		s->lump = true;
+	}
+	/*
+	 * Powered Up INFO types: kept where they are understood, skipped
+	 * otherwise (for a mode the device does not have too), never fatal;
+	 * they may come after FORMAT (MODE_COMBOS).
+	 */
+	if (itype >= EV3_UART_INFO_PUP_FIRST && itype <= EV3_UART_INFO_PUP_LAST) {
+		s->lump = true;
+		if (mode < s->num_modes)
+			ev3_uart_info_lump(s, &s->modes[mode], itype, msg + 2, plen);
+		return;
+	}
+	__ev3_uart_info(p, mode, itype, msg + 2, plen, ev);
+}
+
+static void ev3_uart_info(struct ev3_uart_parser *p, const u8 *msg,
+			  unsigned int plen, struct ev3_uart_event *ev)
+{
+	u8 itype = msg[1];
+
+	/* EV3 sensors send NAME, RAW, PCT, SI, UNITS and FORMAT only. */
+	if (itype > EV3_UART_INFO_UNITS && itype != EV3_UART_INFO_FORMAT)
+		return ev3_uart_info_ext(p, msg, plen, ev);
+	__ev3_uart_info(p, msg[0] & EV3_UART_MSG_CMD_MASK, itype, msg + 2, plen, ev);
+}
+
 static void ev3_uart_sys_info(struct ev3_uart_parser *p, u8 b,
 			      struct ev3_uart_event *ev)
 {
-	u8 all = GENMASK(p->sensor.num_modes - 1, 0);
+	u16 all = GENMASK(p->sensor.num_modes - 1, 0);
 
 	if (b != EV3_UART_SYS_ACK)
 		return;	/* SYNC, NACK and the reserved ESC bytes carry nothing */
@@ -890,16 +1094,38 @@ static bool ev3_uart_rgb_raw_quirk(const struct ev3_uart_sensor *s, u8 hdr)
 	return s->type == EV3_UART_TYPE_COLOR && hdr == 0xdc;
 }
 
+/*
+ * Powered Up: an EXT_MODE message (3 bytes) in the data phase. The DATA
+ * messages after it are of the mode in their header plus its value, 0 or 8.
+ */
+static void ev3_uart_ext_mode(struct ev3_uart_parser *p,
+			      struct ev3_uart_event *ev)
+{
+	u8 ext = p->msg[1];
+
+	if (p->msg[2] != ev3_uart_checksum(p->msg, 2) ||
+	    (ext && ext != EV3_UART_MAX_EV3_MODES))
+		return ev3_uart_bad_frame(p, ev);
+	if (ext != p->ext_mode) {
+		p->ext_mode = ext;
+		/* The headers the fast path trusts now mean other modes. */
+		ev3_uart_fast_clear(p);
+	}
+}
+
 static void ev3_uart_data_msg(struct ev3_uart_parser *p,
 			      struct ev3_uart_event *ev)
 {
 	struct ev3_uart_sensor *s = &p->sensor;
 	unsigned int len = p->msg_len, plen = len - 2;
 	u8 hdr = p->msg[0];
-	u8 mode = hdr & EV3_UART_MSG_CMD_MASK;
+	u8 mode = (hdr & EV3_UART_MSG_CMD_MASK) + p->ext_mode;
 	bool changed = false;
 	struct ev3_uart_mode *m;
 
+	/* The one non-DATA message ev3_uart_msg_start() lets through. */
+	if (hdr == EV3_UART_EXT_MODE_HDR)
+		return ev3_uart_ext_mode(p, ev);
 	if (p->msg[len - 1] != ev3_uart_checksum(p->msg, len - 1) &&
 	    !ev3_uart_rgb_raw_quirk(s, hdr))
 		return ev3_uart_bad_frame(p, ev);
@@ -945,31 +1171,6 @@ static void ev3_uart_data_msg(struct ev3_uart_parser *p,
 	ev->len = plen;
 }
 
-/*
- * memcpy() of the few bytes (@n up to %EV3_UART_MAX_MSG_LEN) of a message
- * split between two batches, inline and without a loop for the usual ones:
- * two moves of k bytes, overlapping if need be, copy k to 2k bytes.
- */
-static __always_inline void ev3_uart_copy_short(u8 *dst, const u8 *src,
-						unsigned int n)
-{
-	unsigned int i;
-
-	if (n >= 8) {
-		for (i = 0; i + 8 < n; i += 8)
-			memcpy(dst + i, src + i, 8);
-		memcpy(dst + n - 8, src + n - 8, 8);
-	} else if (n >= 4) {
-		memcpy(dst, src, 4);
-		memcpy(dst + n - 4, src + n - 4, 4);
-	} else if (n >= 2) {
-		memcpy(dst, src, 2);
-		memcpy(dst + n - 2, src + n - 2, 2);
-	} else if (n) {
-		dst[0] = src[0];
-	}
-}
-
 /* ---- the data phase's fast path ---- */
 
 /*
@@ -983,10 +1184,13 @@ static __always_inline void ev3_uart_copy_short(u8 *dst, const u8 *src,
 static __always_inline bool ev3_uart_data_common(const struct ev3_uart_parser *p,
 						 u8 hdr, unsigned int plen)
 {
-	u8 mode = hdr & EV3_UART_MSG_CMD_MASK;
+	/* @p->ext_mode is 0 or 8: the mode is below 16. */
+	u8 mode = (hdr & EV3_UART_MSG_CMD_MASK) | p->ext_mode;
 	const struct ev3_uart_mode *m = &p->sensor.modes[mode];
 
-	return mode == p->mode && p->pending_mode == EV3_UART_NO_MODE &&
+	/* Not an EXT_MODE: ev3_uart_data_msg() takes those. */
+	return (hdr & EV3_UART_MSG_TYPE_MASK) == EV3_UART_MSG_DATA &&
+	       mode == p->mode && p->pending_mode == EV3_UART_NO_MODE &&
 	       plen >= m->num_values * ev3_uart_data_size(m->data_type);
 }
 
@@ -1074,7 +1278,8 @@ static __always_inline bool ev3_uart_data_deliver(struct ev3_uart_parser *p,
 		p->data_err--;
 	p->data_since_tick = true;
 	ev->type = EV3_UART_EV_DATA;
-	ev->mode = msg[0] & EV3_UART_MSG_CMD_MASK;
+	/* The header passed ev3_uart_data_common(): its mode is @p->mode. */
+	ev->mode = p->mode;
 	ev->len = plen;
 	return true;
 }
@@ -1147,8 +1352,12 @@ static __always_inline void ev3_uart_msg_start(struct ev3_uart_parser *p,
 		return;
 	}
 	if (p->state == EV3_UART_STATE_DATA) {
-		/* Re-align on the next plausible DATA header. */
-		if (!ev3_uart_data_hdr_ok(b)) {
+		/*
+		 * Re-align on the next plausible DATA header, or a Powered Up
+		 * device's EXT_MODE.
+		 */
+		if (!ev3_uart_data_hdr_ok(b) &&
+		    !(b == EV3_UART_EXT_MODE_HDR && p->sensor.lump)) {
 			p->garbage++;
 			return;
 		}
@@ -1349,6 +1558,30 @@ static noinline size_t ev3_uart_data_rest(struct ev3_uart_parser *p,
 }
 
 /*
+ * Powered Up devices send an EXT_MODE message before every DATA message;
+ * one that changes nothing (the value in force, a right checksum), whole
+ * at the start of @buf in the data phase, is only skipped: what
+ * ev3_uart_data_msg() would do with it. Then the rest of @buf as usual
+ * (it starts with no such message: no deeper recursion).
+ */
+static noinline size_t ev3_uart_feed_ext(struct ev3_uart_parser *p,
+					 const u8 *buf, size_t len,
+					 struct ev3_uart_event *ev)
+{
+	u8 csum = 0xff ^ EV3_UART_EXT_MODE_HDR ^ p->ext_mode;
+	size_t used = 0;
+
+	if (!p->sensor.lump)
+		return ev3_uart_feed_bytes(p, buf, len, ev);
+	while (len - used >= 3 && buf[used] == EV3_UART_EXT_MODE_HDR &&
+	       buf[used + 1] == p->ext_mode && buf[used + 2] == csum)
+		used += 3;
+	if (!used)
+		return ev3_uart_feed_bytes(p, buf, len, ev);
+	return used + ev3_uart_parser_feed(p, buf + used, len - used, ev);
+}
+
+/*
  * ev3_uart_parser_feed() but for a whole message with the header in
  * @p->fast_hdr: in the data phase, a whole DATA message at the start of
  * @buf for ev3_uart_data_fast(), taken where it is; the parts of a message
@@ -1370,8 +1603,11 @@ static noinline size_t ev3_uart_feed(struct ev3_uart_parser *p, const u8 *buf,
 	if (p->msg_len)
 		return ev3_uart_data_rest(p, buf, len, ev);
 	hdr = buf[0];
-	if (!ev3_uart_data_hdr_ok(hdr))
+	if (!ev3_uart_data_hdr_ok(hdr)) {
+		if (hdr == EV3_UART_EXT_MODE_HDR)
+			return ev3_uart_feed_ext(p, buf, len, ev);
 		return ev3_uart_feed_bytes(p, buf, len, ev);
+	}
 	plen = ev3_uart_data_plen(hdr);
 	if (len < plen + 2)
 		return ev3_uart_data_head(p, buf, len);
@@ -1507,6 +1743,7 @@ void ev3_uart_parser_start_data(struct ev3_uart_parser *p)
 	p->state = EV3_UART_STATE_DATA;
 	p->msg_len = 0;
 	p->mode = 0;
+	p->ext_mode = 0;
 	p->pending_mode = EV3_UART_NO_MODE;
 	p->data_err = 0;
 	p->silent_ticks = 0;

@@ -53,6 +53,8 @@ enum ev3_uart_msg_type {
 #define EV3_UART_INFO_SI		0x03
 #define EV3_UART_INFO_UNITS		0x04
 #define EV3_UART_INFO_PUP_FIRST		0x05	/* 0x05..0x0c: Powered Up only */
+#define EV3_UART_INFO_MAPPING		0x05	/* in and out flags */
+#define EV3_UART_INFO_MODE_COMBOS	0x06	/* u16 bitmaps of modes */
 #define EV3_UART_INFO_PUP_LAST		0x0c
 #define EV3_UART_INFO_MODE_PLUS_8	0x20	/* flag: describes mode + 8 */
 #define EV3_UART_INFO_FORMAT		0x80
@@ -62,7 +64,16 @@ enum ev3_uart_msg_type {
 /* Header + INFO byte + payload + checksum. */
 #define EV3_UART_MAX_MSG_LEN		(EV3_UART_MAX_PAYLOAD + 3)
 
-#define EV3_UART_MAX_MODES		8
+/* Modes a header's 3-bit field can name; Powered Up devices have up to 16. */
+#define EV3_UART_MAX_EV3_MODES		8
+#define EV3_UART_MAX_MODES		16
+/* A Powered Up mode name of up to this length may be followed by flags. */
+#define EV3_UART_SHORT_NAME_LEN		5
+#define EV3_UART_NAME_FLAGS		6
+/* The mode combinations a MODE_COMBOS INFO (16 bytes at most) can hold. */
+#define EV3_UART_MAX_COMBOS		8
+/* The one EXT_MODE message a Powered Up device sends in the data phase. */
+#define EV3_UART_EXT_MODE_HDR		(EV3_UART_MSG_CMD | EV3_UART_CMD_EXT_MODE)
 #define EV3_UART_NAME_LEN		11
 #define EV3_UART_UNITS_LEN		4
 #define EV3_UART_TYPE_MIN		1
@@ -82,6 +93,10 @@ enum ev3_uart_msg_type {
 #define EV3_UART_TYPE_US		30
 #define EV3_UART_TYPE_GYRO		32
 #define EV3_UART_TYPE_IR		33
+/* Powered Up (LUMP) device types (&ev3_uart_sensor.lump set). */
+#define EV3_UART_TYPE_BOOST_CDS		37
+#define EV3_UART_TYPE_SPIKE_COLOR	61
+#define EV3_UART_TYPE_SPIKE_DIST	62
 
 #define EV3_UART_NO_MODE		0xff
 /* No byte has this value: &ev3_uart_parser.fast_hdr holds no header. */
@@ -115,6 +130,12 @@ enum ev3_uart_data_type {
  * @data_type: an &enum ev3_uart_data_type
  * @figures: digits to show, including the decimals
  * @decimals: decimals of the SI value (and of float values)
+ * @mapping_in: Powered Up MAPPING INFO, input flags (0 if none was sent)
+ * @mapping_out: Powered Up MAPPING INFO, output flags; non-zero if the mode
+ *	takes values from the host
+ * @flags: Powered Up capability flags sent after a short NAME (all 0 if
+ *	none were sent); bits 6 and 7 of @flags[0] ask for battery power on
+ *	pin 1 or 2
  */
 struct ev3_uart_mode {
 	char name[EV3_UART_NAME_LEN + 1];
@@ -129,21 +150,36 @@ struct ev3_uart_mode {
 	u8 data_type;
 	u8 figures;
 	u8 decimals;
+	u8 mapping_in;
+	u8 mapping_out;
+	u8 flags[EV3_UART_NAME_FLAGS];
 };
 
 /**
  * struct ev3_uart_sensor - what a sensor said about itself in its handshake
  * @type: the sensor type id (29 colour, 30 ultrasonic, 32 gyro, 33 infrared)
- * @num_modes: number of modes, 1 to 8
+ * @num_modes: number of modes, 1 to 8 (EV3), 1 to 16 (Powered Up)
  * @num_view_modes: number of modes meant to be shown to users
+ * @lump: the device spoke the Powered Up extensions of the protocol (a
+ *	4-byte MODES, VERSION, INFO types 0x05 to 0x0c, the mode-plus-8 flag
+ *	or NAME flags): in the data phase it may send EXT_MODE
+ * @num_combos: number of mode combinations in @combos
  * @speed: the baud rate to use after the handshake
+ * @fw_version: Powered Up firmware version (BCD), 0 if not sent
+ * @hw_version: Powered Up hardware version (BCD), 0 if not sent
+ * @combos: Powered Up MODE_COMBOS: bitmaps of modes that can be combined
  * @modes: the modes, indexed by mode number
  */
 struct ev3_uart_sensor {
 	u8 type;
 	u8 num_modes;
 	u8 num_view_modes;
+	bool lump;
+	u8 num_combos;
 	u32 speed;
+	u32 fw_version;
+	u32 hw_version;
+	u16 combos[EV3_UART_MAX_COMBOS];
 	struct ev3_uart_mode modes[EV3_UART_MAX_MODES];
 };
 
@@ -188,8 +224,8 @@ enum ev3_uart_event_type {
 /**
  * struct ev3_uart_event - one event returned by ev3_uart_parser_feed()
  * @type: what happened
- * @mode: for %EV3_UART_EV_DATA, the mode the values belong to; for
- *	%EV3_UART_EV_MSG, the message's header
+ * @mode: for %EV3_UART_EV_DATA, the mode the values belong to (0 to 15);
+ *	for %EV3_UART_EV_MSG, the message's header
  * @mode_changed: for %EV3_UART_EV_DATA, this DATA confirmed a SELECT
  * @len: for %EV3_UART_EV_DATA, the payload length in bytes; for
  *	%EV3_UART_EV_MSG, the whole message's
@@ -218,6 +254,8 @@ struct ev3_uart_event {
  * @info_mode: the mode being described (after its NAME), or %EV3_UART_NO_MODE
  * @info_seen: bitmap of the INFO types seen for @info_mode
  * @modes_done: bitmap of the modes whose FORMAT was received
+ * @ext_mode: in the data phase, what the last EXT_MODE message (Powered Up)
+ *	adds to the mode of a DATA header: 0 or 8
  * @stash: the RAW, PCT and SI ranges of @info_mode as sent (f32 bit patterns)
  * @mode: the sensor's current mode in the data phase
  * @pending_mode: the mode a SELECT asked for, or %EV3_UART_NO_MODE
@@ -249,7 +287,8 @@ struct ev3_uart_parser {
 	u8 cmd_seen;
 	u8 info_mode;
 	u8 info_seen;
-	u8 modes_done;
+	u16 modes_done;
+	u8 ext_mode;
 	u32 stash[3][2];
 	u8 mode;
 	u8 pending_mode;
@@ -286,6 +325,7 @@ size_t ev3_uart_build_ack(u8 *buf);
 size_t ev3_uart_build_nack(u8 *buf);
 size_t ev3_uart_build_select(u8 *buf, u8 mode);
 int ev3_uart_build_write(u8 *buf, const u8 *data, size_t len);
+int ev3_uart_build_lump_data(u8 *buf, u8 mode, const u8 *data, size_t len);
 
 int ev3_uart_f32_to_fixed(u32 bits, unsigned int decimals, s32 *out);
 int ev3_uart_read_value(const struct ev3_uart_mode *mode, const u8 *data,
@@ -299,5 +339,6 @@ static inline u64 ev3_uart_abs64(s64 v)
 int ev3_uart_mul_div(u64 a, u64 b, u64 c, bool round, u64 *q);
 s32 ev3_uart_scale_value(const struct ev3_uart_mode *mode, s32 raw);
 const char *ev3_uart_driver_name(u8 type);
+const char *ev3_uart_lump_driver_name(u8 type);
 
 #endif /* _EV3_UART_PROTO_H */

@@ -603,6 +603,9 @@ static const struct bad_case bad_cases[] = {
 	{ "duplicate TYPE", { 0x40, 0x63, 0xdc }, 3 },
 	{ "SELECT from a sensor", { 0x43, 0x00, 0xbc }, 3 },
 	{ "INFO for a mode out of range", { 0x91, 0x00, 'A', 'B', 0, 0, 0x6d }, 7 },
+	{ "MODE_PLUS_8 INFO for a mode out of range", { 0x90, 0x20, 'A', 'B', 0, 0, 0x4c }, 7 },
+	{ "4-byte MODES with 17 modes", { 0x51, 0x07, 0x07, 0x10, 0x07, 0xb9 }, 6 },
+	{ "short VERSION", { 0x57, 0x00, 0x00, 0x00, 0x10, 0xb8 }, 6 },
 	{ "unknown INFO type", { 0x90, 0x0d, 0, 0, 0, 0, 0x62 }, 7 },
 	{ "FORMAT before NAME", { 0x90, 0x80, 1, 0, 2, 0, 0xec }, 7 },
 	{ "ACK with no mode described", { 0x04 }, 1 },
@@ -767,33 +770,473 @@ static void test_views_clamped(struct kunit *test)
 	KUNIT_EXPECT_EQ(test, c->p.sensor.num_view_modes, 1);
 }
 
-/* Powered Up extras are skipped, not fatal. */
-static void test_powered_up_extras_ignored(struct kunit *test)
+/* Powered Up extras in an otherwise EV3-like handshake: kept, not fatal. */
+static void test_powered_up_extras(struct kunit *test)
 {
 	static const struct tmode m = { "A", { F0, F100 }, { F0, F100 }, NULL, 1, 0, 2, 0 };
-	static const u8 name_plus8[8] = { 'C', 'A', 'L', 'I', 'B' };
 	static const u8 mapping[2] = { 0x10, 0x00 };
-	static const u8 version[8] = { 0, 0, 0, 0x10, 0, 0, 0, 0x10 };
+	static const u8 version[8] = { 0x01, 0, 0, 0x10, 0x02, 0, 0, 0x10 };
 	static const u8 format[4] = { 1, 0, 2, 0 };
-	u8 type = 99;
+	static const u8 combos[4] = { 0x01, 0x00, 0x00, 0x00 };
+	static const u8 unk[16] = { 1, 2, 3, 4 };
+	u8 type = 99, zero = 0;
 	struct ctx *c = new_ctx(test);
 	size_t len;
 
 	len = enc_cmd(c->buf, EV3_UART_CMD_TYPE, &type, 1);
 	len += enc_cmd(c->buf + len, EV3_UART_CMD_VERSION, version, 8);
-	/* NAME of mode 2 + 8, with the MODE_PLUS_8 flag. */
-	len += enc_info(c->buf + len, 2, EV3_UART_INFO_MODE_PLUS_8, name_plus8, 8);
-	len += enc_info(c->buf + len, 2, EV3_UART_INFO_FORMAT | EV3_UART_INFO_MODE_PLUS_8,
-			mapping, 2);
+	/* EXT_MODE in the handshake: meant for the data phase, skipped. */
+	len += enc_cmd(c->buf + len, EV3_UART_CMD_EXT_MODE, &zero, 1);
 	len += enc_string(c->buf + len, 0, EV3_UART_INFO_NAME, m.name);
-	len += enc_info(c->buf + len, 0, 0x05, mapping, 2);	/* MAPPING */
 	len += enc_range(c->buf + len, 0, EV3_UART_INFO_RAW, m.raw);
 	len += enc_range(c->buf + len, 0, EV3_UART_INFO_SI, m.si);
+	len += enc_info(c->buf + len, 0, EV3_UART_INFO_MAPPING, mapping, 2);
+	len += enc_info(c->buf + len, 0, 0x09, unk, 16);
 	len += enc_info(c->buf + len, 0, EV3_UART_INFO_FORMAT, format, 4);
+	/* MODE_COMBOS after mode 0's FORMAT, as real devices send it. */
+	len += enc_info(c->buf + len, 0, EV3_UART_INFO_MODE_COMBOS, combos, 4);
+	len += enc_info(c->buf + len, 0, 0x0c, unk, 1);
+	/* For modes the device lacks (3, and 3 + 8): skipped, not fatal. */
+	len += enc_info(c->buf + len, 3, EV3_UART_INFO_MAPPING, mapping, 2);
+	len += enc_info(c->buf + len, 3, EV3_UART_INFO_MAPPING | EV3_UART_INFO_MODE_PLUS_8,
+			mapping, 2);
 	c->buf[len++] = EV3_UART_SYS_ACK;
 	feed(&c->p, c->buf, len, len, &c->r);
 	KUNIT_EXPECT_EQ(test, count(&c->r, EV3_UART_EV_ERROR), 0U);
-	KUNIT_EXPECT_EQ(test, last(&c->r)->type, EV3_UART_EV_HANDSHAKE);
+	KUNIT_ASSERT_EQ(test, last(&c->r)->type, EV3_UART_EV_HANDSHAKE);
+	KUNIT_EXPECT_TRUE(test, c->p.sensor.lump);
+	KUNIT_EXPECT_EQ(test, c->p.sensor.fw_version, 0x10000001U);
+	KUNIT_EXPECT_EQ(test, c->p.sensor.hw_version, 0x10000002U);
+	KUNIT_EXPECT_EQ(test, c->p.sensor.modes[0].mapping_in, 0x10);
+	KUNIT_EXPECT_EQ(test, c->p.sensor.modes[0].mapping_out, 0x00);
+	KUNIT_EXPECT_EQ(test, c->p.sensor.num_combos, 1);
+	KUNIT_EXPECT_EQ(test, c->p.sensor.combos[0], 0x0001);
+}
+
+/*
+ * The BOOST colour and distance sensor's handshake as a logic analyser
+ * recorded it (type 37): a 4-byte MODES with 11 modes and 8 views, SPEED
+ * 115200, VERSION, modes 10 to 8 with the MODE_PLUS_8 flag, names with
+ * spaces ("IR Tx", "RGB I", "COL O", "SPEC 1"), a 4-character name with no
+ * NUL ("AMBI"), MAPPING for every mode, MODE_COMBOS after the last FORMAT.
+ */
+static const u8 boost_cds_handshake[] = {
+	0x40, 0x25, 0x9a,
+	0x51, 0x07, 0x07, 0x0a, 0x07, 0xa3,
+	0x52, 0x00, 0xc2, 0x01, 0x00, 0x6e,
+	0x5f, 0x00, 0x00, 0x00, 0x10, 0x00, 0x00, 0x00, 0x10, 0xa0,
+	0x9a, 0x20, 0x43, 0x41, 0x4c, 0x49, 0x42, 0x00, 0x00, 0x00, 0x00,
+	0x9a, 0x21, 0x00, 0x00, 0x00, 0x00, 0x00, 0xff, 0x7f, 0x47, 0x83,
+	0x9a, 0x22, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xc8, 0x42, 0xcd,
+	0x9a, 0x23, 0x00, 0x00, 0x00, 0x00, 0x00, 0xff, 0x7f, 0x47, 0x81,
+	0x92, 0x24, 0x4e, 0x2f, 0x41, 0x00, 0x69,
+	0x8a, 0x25, 0x10, 0x00, 0x40,
+	0x92, 0xa0, 0x08, 0x01, 0x05, 0x00, 0xc1,
+	0x99, 0x20, 0x44, 0x45, 0x42, 0x55, 0x47, 0x00, 0x00, 0x00, 0x17,
+	0x99, 0x21, 0x00, 0x00, 0x00, 0x00, 0x00, 0xc0, 0x7f, 0x44, 0xbc,
+	0x99, 0x22, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xc8, 0x42, 0xce,
+	0x99, 0x23, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x20, 0x41, 0x24,
+	0x91, 0x24, 0x4e, 0x2f, 0x41, 0x00, 0x6a,
+	0x89, 0x25, 0x10, 0x00, 0x43,
+	0x91, 0xa0, 0x02, 0x01, 0x05, 0x00, 0xc8,
+	0x98, 0x20, 0x53, 0x50, 0x45, 0x43, 0x20, 0x31, 0x00, 0x00, 0x53,
+	0x98, 0x21, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x7f, 0x43, 0x7a,
+	0x98, 0x22, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xc8, 0x42, 0xcf,
+	0x98, 0x23, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x7f, 0x43, 0x78,
+	0x90, 0x24, 0x4e, 0x2f, 0x41, 0x00, 0x6b,
+	0x88, 0x25, 0x00, 0x00, 0x52,
+	0x90, 0xa0, 0x04, 0x00, 0x03, 0x00, 0xc8,
+	0x9f, 0x00, 0x49, 0x52, 0x20, 0x54, 0x78, 0x00, 0x00, 0x00, 0x77,
+	0x9f, 0x01, 0x00, 0x00, 0x00, 0x00, 0x00, 0xff, 0x7f, 0x47, 0xa6,
+	0x9f, 0x02, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xc8, 0x42, 0xe8,
+	0x9f, 0x03, 0x00, 0x00, 0x00, 0x00, 0x00, 0xff, 0x7f, 0x47, 0xa4,
+	0x97, 0x04, 0x4e, 0x2f, 0x41, 0x00, 0x4c,
+	0x8f, 0x05, 0x00, 0x04, 0x71,
+	0x97, 0x80, 0x01, 0x01, 0x05, 0x00, 0xed,
+	0x9e, 0x00, 0x52, 0x47, 0x42, 0x20, 0x49, 0x00, 0x00, 0x00, 0x5f,
+	0x9e, 0x01, 0x00, 0x00, 0x00, 0x00, 0x00, 0xc0, 0x7f, 0x44, 0x9b,
+	0x9e, 0x02, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xc8, 0x42, 0xe9,
+	0x9e, 0x03, 0x00, 0x00, 0x00, 0x00, 0x00, 0xc0, 0x7f, 0x44, 0x99,
+	0x96, 0x04, 0x52, 0x41, 0x57, 0x00, 0x29,
+	0x8e, 0x05, 0x10, 0x00, 0x64,
+	0x96, 0x80, 0x03, 0x01, 0x05, 0x00, 0xee,
+	0x9d, 0x00, 0x43, 0x4f, 0x4c, 0x20, 0x4f, 0x00, 0x00, 0x00, 0x4d,
+	0x9d, 0x01, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x20, 0x41, 0x02,
+	0x9d, 0x02, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xc8, 0x42, 0xea,
+	0x9d, 0x03, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x20, 0x41, 0x00,
+	0x95, 0x04, 0x49, 0x44, 0x58, 0x00, 0x3b,
+	0x8d, 0x05, 0x00, 0x04, 0x73,
+	0x95, 0x80, 0x01, 0x00, 0x03, 0x00, 0xe8,
+	0x94, 0x00, 0x41, 0x4d, 0x42, 0x49, 0x6c,
+	0x9c, 0x01, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xc8, 0x42, 0xe8,
+	0x9c, 0x02, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xc8, 0x42, 0xeb,
+	0x9c, 0x03, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xc8, 0x42, 0xea,
+	0x94, 0x04, 0x50, 0x43, 0x54, 0x00, 0x28,
+	0x8c, 0x05, 0x10, 0x00, 0x66,
+	0x94, 0x80, 0x01, 0x00, 0x03, 0x00, 0xe9,
+	0x9b, 0x00, 0x52, 0x45, 0x46, 0x4c, 0x54, 0x00, 0x00, 0x00, 0x2d,
+	0x9b, 0x01, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xc8, 0x42, 0xef,
+	0x9b, 0x02, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xc8, 0x42, 0xec,
+	0x9b, 0x03, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xc8, 0x42, 0xed,
+	0x93, 0x04, 0x50, 0x43, 0x54, 0x00, 0x2f,
+	0x8b, 0x05, 0x10, 0x00, 0x61,
+	0x93, 0x80, 0x01, 0x00, 0x03, 0x00, 0xee,
+	0x9a, 0x00, 0x43, 0x4f, 0x55, 0x4e, 0x54, 0x00, 0x00, 0x00, 0x26,
+	0x9a, 0x01, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xc8, 0x42, 0xee,
+	0x9a, 0x02, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xc8, 0x42, 0xed,
+	0x9a, 0x03, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xc8, 0x42, 0xec,
+	0x92, 0x04, 0x43, 0x4e, 0x54, 0x00, 0x30,
+	0x8a, 0x05, 0x08, 0x00, 0x78,
+	0x92, 0x80, 0x01, 0x02, 0x04, 0x00, 0xea,
+	0x91, 0x00, 0x50, 0x52, 0x4f, 0x58, 0x7b,
+	0x99, 0x01, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x20, 0x41, 0x06,
+	0x99, 0x02, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xc8, 0x42, 0xee,
+	0x99, 0x03, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x20, 0x41, 0x04,
+	0x91, 0x04, 0x44, 0x49, 0x53, 0x00, 0x34,
+	0x89, 0x05, 0x50, 0x00, 0x23,
+	0x91, 0x80, 0x01, 0x00, 0x03, 0x00, 0xec,
+	0x98, 0x00, 0x43, 0x4f, 0x4c, 0x4f, 0x52, 0x00, 0x00, 0x00, 0x3a,
+	0x98, 0x01, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x20, 0x41, 0x07,
+	0x98, 0x02, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xc8, 0x42, 0xef,
+	0x98, 0x03, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x20, 0x41, 0x05,
+	0x90, 0x04, 0x49, 0x44, 0x58, 0x00, 0x3e,
+	0x88, 0x05, 0xc4, 0x00, 0xb6,
+	0x90, 0x80, 0x01, 0x00, 0x03, 0x00, 0xed,
+	0x88, 0x06, 0x4f, 0x00, 0x3e,
+	0x04,
+};
+
+static void check_boost_cds(struct kunit *test, size_t chunk)
+{
+	struct ctx *c = new_ctx(test);
+	const struct ev3_uart_sensor *s = &c->p.sensor;
+
+	feed(&c->p, boost_cds_handshake, sizeof(boost_cds_handshake), chunk, &c->r);
+	KUNIT_EXPECT_EQ(test, count(&c->r, EV3_UART_EV_ERROR), 0U);
+	KUNIT_ASSERT_EQ(test, last(&c->r)->type, EV3_UART_EV_HANDSHAKE);
+	KUNIT_EXPECT_EQ(test, s->type, 37);
+	KUNIT_EXPECT_EQ(test, s->num_modes, 11);
+	KUNIT_EXPECT_EQ(test, s->num_view_modes, 8);
+	KUNIT_EXPECT_EQ(test, s->speed, 115200U);
+	KUNIT_EXPECT_TRUE(test, s->lump);
+	KUNIT_EXPECT_EQ(test, s->fw_version, 0x10000000U);
+	KUNIT_EXPECT_EQ(test, s->hw_version, 0x10000000U);
+	KUNIT_EXPECT_STREQ(test, s->modes[0].name, "COLOR");
+	KUNIT_EXPECT_STREQ(test, s->modes[0].units, "IDX");
+	KUNIT_EXPECT_EQ(test, s->modes[0].mapping_in, 0xc4);
+	KUNIT_EXPECT_STREQ(test, s->modes[4].name, "AMBI");
+	KUNIT_EXPECT_STREQ(test, s->modes[5].name, "COL O");
+	KUNIT_EXPECT_EQ(test, s->modes[5].mapping_out, 0x04);
+	KUNIT_EXPECT_STREQ(test, s->modes[6].name, "RGB I");
+	KUNIT_EXPECT_EQ(test, s->modes[6].num_values, 3);
+	KUNIT_EXPECT_EQ(test, s->modes[6].data_type, EV3_UART_DATA_S16);
+	KUNIT_EXPECT_EQ(test, s->modes[6].raw_max, 1023);
+	KUNIT_EXPECT_STREQ(test, s->modes[7].name, "IR Tx");
+	KUNIT_EXPECT_EQ(test, s->modes[7].raw_max, 65535);
+	KUNIT_EXPECT_STREQ(test, s->modes[8].name, "SPEC 1");
+	KUNIT_EXPECT_EQ(test, s->modes[8].num_values, 4);
+	KUNIT_EXPECT_EQ(test, s->modes[8].data_type, EV3_UART_DATA_S8);
+	KUNIT_EXPECT_STREQ(test, s->modes[8].units, "N/A");
+	KUNIT_EXPECT_STREQ(test, s->modes[9].name, "DEBUG");
+	KUNIT_EXPECT_EQ(test, s->modes[9].num_values, 2);
+	KUNIT_EXPECT_EQ(test, s->modes[9].raw_max, 1023);
+	KUNIT_EXPECT_STREQ(test, s->modes[10].name, "CALIB");
+	KUNIT_EXPECT_EQ(test, s->modes[10].num_values, 8);
+	KUNIT_EXPECT_EQ(test, s->modes[10].data_type, EV3_UART_DATA_S16);
+	KUNIT_EXPECT_EQ(test, s->modes[10].raw_max, 65535);
+	KUNIT_EXPECT_EQ(test, s->num_combos, 1);
+	KUNIT_EXPECT_EQ(test, s->combos[0], 0x004f);
+	KUNIT_EXPECT_STREQ(test, ev3_uart_lump_driver_name(s->type), "lego-boost-color-dist");
+	KUNIT_EXPECT_STREQ(test, ev3_uart_lump_driver_name(75), "lego-technic-m-angular-motor");
+	KUNIT_EXPECT_STREQ(test, ev3_uart_driver_name(75), "fcl-ir");
+	KUNIT_EXPECT_NULL(test, ev3_uart_lump_driver_name(29));
+}
+
+static void test_handshake_boost_color_distance(struct kunit *test)
+{
+	check_boost_cds(test, sizeof(boost_cds_handshake));
+	check_boost_cds(test, 1);
+	check_boost_cds(test, 7);
+}
+
+/*
+ * The BOOST colour and distance sensor's IIO channels: every mode's values,
+ * modes 8 to 10 too; RGB I as red, green and blue intensities; PROX a
+ * proximity; tokens with "_" for the spaces.
+ */
+static void test_boost_cds_channels(struct kunit *test)
+{
+	struct ctx *c = new_ctx(test);
+	struct ev3_uart_chan *chans;
+	unsigned int n, i, per_mode[EV3_UART_MAX_MODES] = { };
+	char tok[EV3_UART_TOKEN_LEN + 1];
+	static const u8 rgb[] = { IIO_MOD_LIGHT_RED, IIO_MOD_LIGHT_GREEN, IIO_MOD_LIGHT_BLUE };
+
+	chans = kunit_kzalloc(test, sizeof(*chans) * (EV3_UART_MAX_CHANS + 1), GFP_KERNEL);
+	KUNIT_ASSERT_NOT_NULL(test, chans);
+	feed(&c->p, boost_cds_handshake, sizeof(boost_cds_handshake),
+	     sizeof(boost_cds_handshake), &c->r);
+	KUNIT_ASSERT_EQ(test, last(&c->r)->type, EV3_UART_EV_HANDSHAKE);
+	n = ev3_uart_chans_build(&c->p.sensor, chans, EV3_UART_MAX_CHANS);
+	/*
+	 * The values with an IIO type: PROX, COUNT, REFLT, AMBI, RGB I (3).
+	 * The others' units (IDX, N/A...) say nothing IIO has a type for.
+	 */
+	KUNIT_EXPECT_EQ(test, n, 7U);
+	for (i = 0; i < n && i < EV3_UART_MAX_CHANS; i++) {
+		per_mode[chans[i].mode]++;
+		if (chans[i].mode == 6) {
+			KUNIT_EXPECT_EQ(test, chans[i].type, IIO_INTENSITY);
+			KUNIT_EXPECT_EQ(test, chans[i].modifier, rgb[chans[i].index]);
+		}
+		if (chans[i].mode == 1)
+			KUNIT_EXPECT_EQ(test, chans[i].type, IIO_PROXIMITY);
+		if (chans[i].mode == 2)
+			KUNIT_EXPECT_EQ(test, chans[i].type, IIO_COUNT);
+	}
+	KUNIT_EXPECT_EQ(test, per_mode[6], 3U);
+	KUNIT_EXPECT_EQ(test, per_mode[10], 0U);
+	KUNIT_ASSERT_GT(test, ev3_uart_mode_token(&c->p.sensor, 5, tok, sizeof(tok)), 0);
+	KUNIT_EXPECT_STREQ(test, tok, "COL_O");
+	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(&c->p.sensor, "CALIB"), 10);
+	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(&c->p.sensor, "IR_Tx"), 7);
+	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(&c->p.sensor, "#9"), 9);
+}
+
+/*
+ * The data phase of a Powered Up device: EXT_MODE before DATA gives the
+ * mode (header's + 0 or 8), and lasts until the next EXT_MODE.
+ */
+static void check_ext_mode(struct kunit *test, size_t chunk)
+{
+	/* Recorded bytes: mode 6 after EXT_MODE 0, mode 8 after EXT_MODE 8. */
+	static const u8 mode6[] = { 0x46, 0x00, 0xb9, 0xde, 0x00, 0x00, 0x00, 0x00,
+				    0x00, 0x00, 0x00, 0x00, 0x21 };
+	static const u8 mode8[] = { 0x46, 0x08, 0xb1, 0xd0, 0x00, 0x00, 0x00, 0x00, 0x2f };
+	static const u8 spec[4] = { 1, 2, 3, 0xfc };
+	static const u8 one[1] = { 5 };
+	struct ctx *c = new_ctx(test);
+	size_t len;
+	s32 v;
+
+	feed(&c->p, boost_cds_handshake, sizeof(boost_cds_handshake),
+	     sizeof(boost_cds_handshake), &c->r);
+	KUNIT_ASSERT_EQ(test, last(&c->r)->type, EV3_UART_EV_HANDSHAKE);
+	ev3_uart_parser_start_data(&c->p);
+	c->r.n = 0;
+
+	KUNIT_ASSERT_EQ(test, ev3_uart_parser_select(&c->p, 6), 0);
+	feed(&c->p, mode6, sizeof(mode6), chunk, &c->r);
+	KUNIT_ASSERT_EQ(test, c->r.n, 1U);
+	KUNIT_EXPECT_EQ(test, last(&c->r)->type, EV3_UART_EV_DATA);
+	KUNIT_EXPECT_EQ(test, last(&c->r)->mode, 6);
+	KUNIT_EXPECT_TRUE(test, last(&c->r)->mode_changed);
+
+	KUNIT_ASSERT_EQ(test, ev3_uart_parser_select(&c->p, 8), 0);
+	feed(&c->p, mode8, sizeof(mode8), chunk, &c->r);
+	KUNIT_ASSERT_EQ(test, c->r.n, 2U);
+	KUNIT_EXPECT_EQ(test, last(&c->r)->mode, 8);
+	KUNIT_EXPECT_TRUE(test, last(&c->r)->mode_changed);
+
+	/* No EXT_MODE before it: still mode 8, through the fast path too. */
+	len = enc_data(c->buf, 0, spec, 4);
+	len += enc_data(c->buf + len, 0, spec, 4);
+	feed(&c->p, c->buf, len, chunk, &c->r);
+	KUNIT_ASSERT_EQ(test, c->r.n, 4U);
+	KUNIT_EXPECT_EQ(test, last(&c->r)->mode, 8);
+	KUNIT_EXPECT_FALSE(test, last(&c->r)->mode_changed);
+	KUNIT_EXPECT_EQ(test, ev3_uart_read_value(&c->p.sensor.modes[8], c->p.data, 4, 3, &v), 0);
+	KUNIT_EXPECT_EQ(test, v, -4);
+
+	/* EXT_MODE 0 then mode 0's header: a stale mode 0 message, dropped. */
+	len = enc_cmd(c->buf, EV3_UART_CMD_EXT_MODE, (const u8 *)"\0", 1);
+	len += enc_data(c->buf + len, 0, one, 1);
+	feed(&c->p, c->buf, len, chunk, &c->r);
+	KUNIT_EXPECT_EQ(test, c->r.n, 4U);
+	KUNIT_EXPECT_EQ(test, c->p.bad_frames, 0UL);
+
+	/* An EXT_MODE other than 0 or 8, or with a bad checksum: a bad frame. */
+	len = enc_cmd(c->buf, EV3_UART_CMD_EXT_MODE, (const u8 *)"\4", 1);
+	feed(&c->p, c->buf, len, chunk, &c->r);
+	KUNIT_EXPECT_EQ(test, c->p.bad_frames, 1UL);
+	KUNIT_EXPECT_EQ(test, c->p.ext_mode, 0);
+	KUNIT_EXPECT_EQ(test, c->p.state, EV3_UART_STATE_DATA);
+
+	/* SELECT of mode 10 with EXT_MODE 8: 8 values. */
+	KUNIT_ASSERT_EQ(test, ev3_uart_parser_select(&c->p, 10), 0);
+	KUNIT_EXPECT_EQ(test, ev3_uart_parser_select(&c->p, 11), -EINVAL);
+	len = enc_cmd(c->buf, EV3_UART_CMD_EXT_MODE, (const u8 *)"\10", 1);
+	len += enc_data(c->buf + len, 2, (const u8 *)"0123456789abcdef", 16);
+	feed(&c->p, c->buf, len, chunk, &c->r);
+	KUNIT_ASSERT_EQ(test, c->r.n, 5U);
+	KUNIT_EXPECT_EQ(test, last(&c->r)->mode, 10);
+	KUNIT_EXPECT_EQ(test, ev3_uart_read_value(&c->p.sensor.modes[10], c->p.data, 16, 7, &v), 0);
+	KUNIT_EXPECT_EQ(test, v, 'e' | 'f' << 8);
+}
+
+/* Values for a Powered Up mode: EXT_MODE, then DATA; as Pybricks sends them. */
+static void test_build_lump_data(struct kunit *test)
+{
+	/* Recorded form: EXT_MODE 0, then a 1-byte DATA of mode 5 (COL O). */
+	static const u8 col_o[] = { 0x46, 0x00, 0xb9, 0xc5, 0x00, 0x3a };
+	u8 buf[EV3_UART_MAX_PAYLOAD + 5], v = 0, three[3] = { 1, 2, 3 };
+
+	KUNIT_ASSERT_EQ(test, ev3_uart_build_lump_data(buf, 5, &v, 1), 6);
+	KUNIT_EXPECT_MEMEQ(test, buf, col_o, sizeof(col_o));
+	/* Mode 9: EXT_MODE 8, header mode 1; 3 bytes padded to 4. */
+	KUNIT_ASSERT_EQ(test, ev3_uart_build_lump_data(buf, 9, three, 3), 9);
+	KUNIT_EXPECT_EQ(test, buf[1], 8);
+	KUNIT_EXPECT_EQ(test, buf[2], ev3_uart_checksum(buf, 2));
+	KUNIT_EXPECT_EQ(test, buf[3], 0xd1);
+	KUNIT_EXPECT_EQ(test, buf[7], 0);
+	KUNIT_EXPECT_EQ(test, buf[8], ev3_uart_checksum(buf + 3, 5));
+	KUNIT_EXPECT_EQ(test, ev3_uart_build_lump_data(buf, 16, three, 3), -EINVAL);
+	KUNIT_EXPECT_EQ(test, ev3_uart_build_lump_data(buf, 0, three, 0), -EINVAL);
+	KUNIT_EXPECT_EQ(test, ev3_uart_build_lump_data(buf, 0, buf, 33), -EINVAL);
+}
+
+static void test_data_ext_mode(struct kunit *test)
+{
+	check_ext_mode(test, 64);
+	check_ext_mode(test, 1);
+	check_ext_mode(test, 5);
+}
+
+/* An EV3 sensor never sends EXT_MODE: its bytes stay garbage there. */
+static void test_ext_mode_ignored_for_ev3(struct kunit *test)
+{
+	static const u8 ext8[] = { 0x46, 0x08, 0xb1 };
+	struct ctx *c = new_ctx(test);
+	unsigned long garbage;
+
+	connect(test, c, &sensors[1]);
+	garbage = c->p.garbage;
+	feed(&c->p, ext8, sizeof(ext8), 1, &c->r);
+	KUNIT_EXPECT_EQ(test, c->p.ext_mode, 0);
+	KUNIT_EXPECT_EQ(test, c->p.bad_frames, 0UL);
+	KUNIT_EXPECT_EQ(test, c->p.garbage, garbage + 3);
+}
+
+/*
+ * A Technic-motor-like device: 16 modes in the 4-byte MODES, NAME flags
+ * after a short name, a mode of 14 values (like STATS), and mode 15.
+ */
+static void test_lump_16_modes_and_flags(struct kunit *test)
+{
+	static const u8 modes[4] = { 7, 7, 15, 3 };
+	static const u8 fmt16[4] = { 14, 1, 5, 0 };
+	static const u8 fmt8[4] = { 1, 0, 3, 0 };
+	u8 name[16] = { 'P', 'O', 'S', 0, 0, 0, 0x62, 0x01, 0, 0, 0x05, 0x84 };
+	u8 type = 46, data[32] = { };
+	struct ctx *c = new_ctx(test);
+	struct ev3_uart_chan chan;
+	size_t len;
+	int m;
+	s32 v;
+
+	len = enc_cmd(c->buf, EV3_UART_CMD_TYPE, &type, 1);
+	len += enc_cmd(c->buf + len, EV3_UART_CMD_MODES, modes, 4);
+	for (m = 15; m >= 0; m--) {
+		u8 plus8 = m >= 8 ? EV3_UART_INFO_MODE_PLUS_8 : 0;
+
+		name[2] = 'A' + m;
+		len += enc_info(c->buf + len, m & 7, EV3_UART_INFO_NAME | plus8, name, 16);
+		if (m == 15)
+			len += enc_string(c->buf + len, 7, EV3_UART_INFO_UNITS | plus8, "deg");
+		len += enc_info(c->buf + len, m & 7, EV3_UART_INFO_FORMAT | plus8,
+				m == 14 ? fmt16 : fmt8, 4);
+	}
+	c->buf[len++] = EV3_UART_SYS_ACK;
+	feed(&c->p, c->buf, len, 3, &c->r);
+	KUNIT_EXPECT_EQ(test, count(&c->r, EV3_UART_EV_ERROR), 0U);
+	KUNIT_ASSERT_EQ(test, last(&c->r)->type, EV3_UART_EV_HANDSHAKE);
+	KUNIT_EXPECT_EQ(test, c->p.sensor.num_modes, 16);
+	KUNIT_EXPECT_EQ(test, c->p.sensor.num_view_modes, 4);
+	KUNIT_EXPECT_STREQ(test, c->p.sensor.modes[15].name, "POP");
+	KUNIT_EXPECT_STREQ(test, c->p.sensor.modes[0].name, "POA");
+	KUNIT_EXPECT_EQ(test, c->p.sensor.modes[0].flags[0], 0x62);
+	KUNIT_EXPECT_EQ(test, c->p.sensor.modes[15].flags[5], 0x84);
+	KUNIT_EXPECT_EQ(test, c->p.sensor.modes[14].num_values, 14);
+	/* Mode 15's value is an IIO channel like any other. */
+	KUNIT_ASSERT_EQ(test, ev3_uart_chans_build(&c->p.sensor, &chan, 1), 1U);
+	KUNIT_EXPECT_EQ(test, chan.mode, 15);
+	KUNIT_EXPECT_EQ(test, chan.type, IIO_ANGL);
+
+	ev3_uart_parser_start_data(&c->p);
+	c->r.n = 0;
+	KUNIT_ASSERT_EQ(test, ev3_uart_parser_select(&c->p, 14), 0);
+	data[26] = 0xfe;
+	data[27] = 0xff;
+	len = enc_cmd(c->buf, EV3_UART_CMD_EXT_MODE, (const u8 *)"\10", 1);
+	len += enc_data(c->buf + len, 6, data, 32);
+	feed(&c->p, c->buf, len, len, &c->r);
+	KUNIT_ASSERT_EQ(test, last(&c->r)->type, EV3_UART_EV_DATA);
+	KUNIT_EXPECT_EQ(test, last(&c->r)->mode, 14);
+	KUNIT_EXPECT_EQ(test, ev3_uart_read_value(&c->p.sensor.modes[14], c->p.data, 32, 13,
+						  &v), 0);
+	KUNIT_EXPECT_EQ(test, v, -2);
+}
+
+/*
+ * The same header means mode 0 or mode 8 by the last EXT_MODE: the header
+ * the fast path trusts is forgotten when EXT_MODE changes.
+ */
+static void test_ext_mode_and_fast_path(struct kunit *test)
+{
+	static const u8 modes[4] = { 7, 7, 8, 3 };
+	static const u8 fmt8[4] = { 1, 0, 3, 0 };
+	static const u8 ext0[] = { 0x46, 0x00, 0xb9 }, ext8[] = { 0x46, 0x08, 0xb1 };
+	u8 type = 63, name[8] = { 'M', 0 }, v1 = 1;
+	struct ctx *c = new_ctx(test);
+	size_t len;
+	int m, i;
+
+	len = enc_cmd(c->buf, EV3_UART_CMD_TYPE, &type, 1);
+	len += enc_cmd(c->buf + len, EV3_UART_CMD_MODES, modes, 4);
+	for (m = 8; m >= 0; m--) {
+		u8 plus8 = m >= 8 ? EV3_UART_INFO_MODE_PLUS_8 : 0;
+
+		len += enc_info(c->buf + len, m & 7, EV3_UART_INFO_NAME | plus8, name, 8);
+		len += enc_info(c->buf + len, m & 7, EV3_UART_INFO_FORMAT | plus8, fmt8, 4);
+		name[0]++;
+	}
+	c->buf[len++] = EV3_UART_SYS_ACK;
+	feed(&c->p, c->buf, len, len, &c->r);
+	KUNIT_ASSERT_EQ(test, last(&c->r)->type, EV3_UART_EV_HANDSHAKE);
+	ev3_uart_parser_start_data(&c->p);
+	c->r.n = 0;
+
+	/* Mode 0, header c0: the fast path takes it from the second on. */
+	len = enc_data(c->buf, 0, &v1, 1);
+	for (i = 0; i < 3; i++)
+		feed(&c->p, c->buf, len, len, &c->r);
+	KUNIT_ASSERT_EQ(test, c->r.n, 3U);
+	KUNIT_EXPECT_EQ(test, c->p.fast_hdr, 0xc0);
+
+	/* EXT_MODE 8 without a SELECT: c0 is mode 8 now, old news, dropped. */
+	feed(&c->p, ext8, sizeof(ext8), sizeof(ext8), &c->r);
+	KUNIT_EXPECT_EQ(test, c->p.fast_hdr, EV3_UART_NO_HDR);
+	feed(&c->p, c->buf, len, len, &c->r);
+	KUNIT_EXPECT_EQ(test, c->r.n, 3U);
+
+	/* SELECT 8: c0 after EXT_MODE 8 confirms it, then takes the fast path. */
+	KUNIT_ASSERT_EQ(test, ev3_uart_parser_select(&c->p, 8), 0);
+	for (i = 0; i < 3; i++)
+		feed(&c->p, c->buf, len, len, &c->r);
+	KUNIT_ASSERT_EQ(test, c->r.n, 6U);
+	KUNIT_EXPECT_EQ(test, c->r.ev[3].mode, 8);
+	KUNIT_EXPECT_TRUE(test, c->r.ev[3].mode_changed);
+	KUNIT_EXPECT_EQ(test, last(&c->r)->mode, 8);
+	KUNIT_EXPECT_EQ(test, c->p.fast_hdr, 0xc0);
+
+	/* EXT_MODE 0 in the same batch as c0: mode 0, not delivered as 8. */
+	memcpy(c->buf + len, ext0, sizeof(ext0));
+	memmove(c->buf + sizeof(ext0), c->buf, len);
+	memcpy(c->buf, ext0, sizeof(ext0));
+	feed(&c->p, c->buf, len + sizeof(ext0), len + sizeof(ext0), &c->r);
+	KUNIT_EXPECT_EQ(test, c->r.n, 6U);
+	KUNIT_EXPECT_EQ(test, c->p.mode, 8);
+	KUNIT_EXPECT_EQ(test, c->p.ext_mode, 0);
 }
 
 /* ---- data phase ---- */
@@ -1525,8 +1968,11 @@ static void test_chan_scale_floats(struct kunit *test)
 	};
 	struct ev3_uart_chan c;
 	u8 data[4] = { 0x00, 0x00, 0x34, 0x43 };	/* 180.0 */
-	struct ev3_uart_sensor s = { .num_modes = 1 };
+	struct ev3_uart_sensor *s = kunit_kzalloc(test, sizeof(*s), GFP_KERNEL);
 	s32 v;
+
+	KUNIT_ASSERT_NOT_NULL(test, s);
+	s->num_modes = 1;
 
 	/* Degrees with 9 decimals would be 1.7e-11 rad: keep 4 decimals. */
 	KUNIT_ASSERT_EQ(test, ev3_uart_chan_scale(&m, 17453293, &c), 0);
@@ -1534,10 +1980,10 @@ static void test_chan_scale_floats(struct kunit *test)
 	KUNIT_EXPECT_EQ(test, c.scale_val, 0);
 	KUNIT_EXPECT_EQ(test, c.scale_val2, 1745);
 	KUNIT_EXPECT_EQ(test, c.offset_val, 0);
-	s.modes[0] = m;
+	s->modes[0] = m;
 	c.mode = 0;
 	c.index = 0;
-	KUNIT_ASSERT_EQ(test, ev3_uart_chan_read(&s, &c, data, 4, &v), 0);
+	KUNIT_ASSERT_EQ(test, ev3_uart_chan_read(s, &c, data, 4, &v), 0);
 	KUNIT_EXPECT_EQ(test, v, 1800000);
 	/* In m°C nine decimals keep their precision. */
 	KUNIT_ASSERT_EQ(test, ev3_uart_chan_scale(&m, 1000000000000ULL, &c), 0);
@@ -1648,7 +2094,14 @@ static struct kunit_case ev3_uart_proto_cases[] = {
 	KUNIT_CASE(test_format_limits),
 	KUNIT_CASE(test_incomplete_and_duplicate_modes),
 	KUNIT_CASE(test_views_clamped),
-	KUNIT_CASE(test_powered_up_extras_ignored),
+	KUNIT_CASE(test_powered_up_extras),
+	KUNIT_CASE(test_handshake_boost_color_distance),
+	KUNIT_CASE(test_boost_cds_channels),
+	KUNIT_CASE(test_data_ext_mode),
+	KUNIT_CASE(test_build_lump_data),
+	KUNIT_CASE(test_ext_mode_ignored_for_ev3),
+	KUNIT_CASE(test_lump_16_modes_and_flags),
+	KUNIT_CASE(test_ext_mode_and_fast_path),
 	KUNIT_CASE(test_data_decode_real_frames),
 	KUNIT_CASE(test_rgb_raw_checksum_quirk),
 	KUNIT_CASE(test_us_dc_in_mode5_tags),

@@ -97,15 +97,18 @@ color_ir=$(i19 color-rgb-raw color-rgb-raw --zero-before=bench_data_phase "$work
 	-r 16 -z -m 4)
 hs_ir=$(i19 gyro-old-handshake gyro-old-handshake "$work/bench_ev3" -r 16)
 gyro1_ir=$(i19 gyro-ang-1 gyro-ang --zero-before=bench_data_phase "$work/bench_ev3" -b 1 -z)
+# Issue 20: a Powered Up device's DATA, each message after an EXT_MODE.
+lump_ir=$(i19 boost-rgb-i boost-rgb-i --zero-before=bench_data_phase "$work/bench_ev3" \
+	-r 16 -z -m 6)
 
 python3 - "$outdir/proto.json" "$work" "$ev3_ir" "$nxt_ir" "$("$CC" --version | head -n 1)" \
-	"$(uname -m)" "$gyro_ir" "$color_ir" "$hs_ir" "$gyro1_ir" <<'PYEOF'
+	"$(uname -m)" "$gyro_ir" "$color_ir" "$hs_ir" "$gyro1_ir" "$lump_ir" <<'PYEOF'
 import json
 import sys
 
 out, work, ev3_ir, nxt_ir, cc, arch = sys.argv[1:7]
 ev3_ir, nxt_ir = int(ev3_ir), int(nxt_ir)
-gyro_ir, color_ir, hs_ir, gyro1_ir = (int(a) for a in sys.argv[7:11])
+gyro_ir, color_ir, hs_ir, gyro1_ir, lump_ir = (int(a) for a in sys.argv[7:12])
 
 
 def counts(name):
@@ -184,6 +187,19 @@ def i19_figures():
     ]
 
 
+def lump_figure():
+    # Issue 20: no ev3dev figure (ev3dev cannot connect such a device).
+    f = i19_figure('EV3 parser, Powered Up BOOST colour-distance RGB I DATA with EXT_MODE, '
+                   '1-16 byte batches', lump_ir, 'boost-rgb-i', 'boost-rgb-i', None, None,
+                   lambda i: '%d %s DATA messages, each after a 3-byte EXT_MODE (%d bytes a '
+                             'pair), mode %d, selected after the %s handshake (%d bytes, not '
+                             'counted)'
+                             % (i['messages'], i['mode_name'], i['message_bytes'], i['mode'],
+                                i['sensor'], i['handshake_bytes']))
+    f['reference'] = 'deterministic count, lower is better (issue 20; no ev3dev figure)'
+    return [f]
+
+
 res = {
     'section': 'Protocol-core cost (callgrind, userspace build of the driver sources)',
     'figures': [
@@ -214,7 +230,7 @@ res = {
          'reference_value': round(budget_nxt),
          'target': None, 'met': None,
          'detail': '%.3f%% of that budget' % (100 * nxt_per_reply / budget_nxt)},
-    ] + i19_figures(),
+    ] + i19_figures() + lump_figure(),
     'notes': [
         'callgrind instruction counts of %s code (%s, -O2, the kernel\'s -funsigned-char '
         '-fno-strict-aliasing), counted only inside the driver entry points '
