@@ -424,6 +424,7 @@ static void ev3_uart_event(struct ev3_uart_port *port,
 		pr_info_ratelimited("%s: %s\n", port->tty->name, ev->reason);
 		ev3_uart_queue(port, &port->reset_work);
 		break;
+	case EV3_UART_EV_FAST:	/* no probe is sent yet */
 	case EV3_UART_EV_NONE:
 		break;
 	}
