@@ -173,10 +173,14 @@ struct ev3_uart_sensor_dev {
  * @reset_work: drops a lost sensor and goes back to 2400 baud (after the
  *	fast sync probe)
  * @probe_work: the fast sync probe, when the discipline is attached and
- *	when a device resets (a break in the SYNC state)
+ *	when a device resets (a break in the SYNC or PROBE state), 100 ms
+ *	after the last at the earliest
  * @fast_work: gives up a fast sync whose handshake did not come in time
  * @probe_done: completed by the receive path when the probe is answered
  * @probed_at: jiffies of the last probe (under @lock)
+ * @break_probe: @probe_work was queued for a break (under @lock)
+ * @probe_missed: the last probe for a break went unanswered, and no
+ *	handshake started since: the next break gets none (under @lock)
  * @speed: the speed the tty was last set to, 0 if unknown
  * @no_probe: the tty cannot run at 115200 baud: no fast sync probe
  * @select_mutex: see "Locking"
@@ -216,10 +220,12 @@ struct ev3_uart_port {
 	struct work_struct ack_work;
 	struct delayed_work keepalive_work;
 	struct work_struct reset_work;
-	struct work_struct probe_work;
+	struct delayed_work probe_work;
 	struct delayed_work fast_work;
 	struct completion probe_done;
 	unsigned long probed_at;
+	bool break_probe;
+	bool probe_missed;
 	u32 speed;
 	bool no_probe;
 	struct mutex select_mutex;	/* one mode change at a time */

@@ -12,7 +12,7 @@
  *    low: a break) and when a sensor was lost, the fast sync probe first
  *    (ev3_uart_probe()): SPEED 115200 at 115200 baud; a Powered Up device
  *    that answers ACK sends its handshake at 115200, else the line goes
- *    back to 2400 baud 10 ms later;
+ *    back to 2400 baud 30 ms later;
  *  - at 2400 baud the parser hunts for a TYPE message and reads the
  *    handshake;
  *  - on the sensor's ACK, ack_timer fires 10 ms later (the sensor waits
@@ -65,7 +65,7 @@
 #define EV3_UART_RESTORE_GRACE	(2 * HZ)
 #define EV3_UART_RESTORE_EVERY	3	/* keep-alive periods between SELECTs */
 #define EV3_UART_RESTORE_TICKS	15	/* give up after that many periods */
-#define EV3_UART_PROBE_WAIT_MS	10	/* for the ACK to SPEED, once it is out */
+#define EV3_UART_PROBE_WAIT_MS	30	/* for the ACK to SPEED, once it is out */
 #define EV3_UART_FAST_SYNC_MS	500	/* from that ACK to the handshake's */
 #define EV3_UART_PROBE_HOLDOFF	(HZ / 10)	/* between probes breaks ask for */
 
@@ -376,6 +376,7 @@ static void ev3_uart_event(struct ev3_uart_port *port,
 		ev3_uart_trace_state(port, from, ev, NULL);
 	switch (ev->type) {
 	case EV3_UART_EV_SYNC:
+		port->probe_missed = false;
 		pr_debug("%s: sensor type %u syncing\n", port->tty->name,
 			 port->parser.sensor.type);
 		port->stats.syncs++;
@@ -445,6 +446,7 @@ static void ev3_uart_event(struct ev3_uart_port *port,
 	case EV3_UART_EV_FAST:
 		/* The probe's answer: ev3_uart_probe() waits for it. */
 		port->stats.fast_syncs++;
+		port->probe_missed = false;
 		complete(&port->probe_done);
 		break;
 	case EV3_UART_EV_NONE:
@@ -453,22 +455,39 @@ static void ev3_uart_event(struct ev3_uart_port *port,
 }
 
 /*
- * A break while hunting for a sensor: a device that resets holds its TX
- * low for about 500 ms, and a Powered Up device listens for the fast sync
- * probe meanwhile (Pybricks' hubs probe when they detect a device, on
- * pins a tty does not have). A UART may report a break again when its
- * speed changes: not more than one probe every 100 ms. @lock held.
+ * A break while hunting for a sensor (or probing): a device that resets
+ * holds its TX low for about 500 ms, and a Powered Up device listens for
+ * the fast sync probe meanwhile (Pybricks' hubs probe when they detect a
+ * device, on pins a tty does not have). Some UARTs report a break again
+ * and again while the line is low: one probe every 100 ms at most, the
+ * next one put off until then rather than skipped (a break during a probe
+ * may be a device that was not listening yet). But not after a break whose
+ * probe was not answered and no handshake followed. @lock held.
  */
 static void ev3_uart_break(struct ev3_uart_port *port)
 {
+	unsigned long next = port->probed_at + EV3_UART_PROBE_HOLDOFF;
+
 	lockdep_assert_held(&port->lock);
-	if (READ_ONCE(port->no_probe) ||
+	if (READ_ONCE(port->no_probe) || port->closing)
+		return;
+	if (port->parser.state == EV3_UART_STATE_SYNC &&
 	    port->parser.sync_speed != EV3_UART_SPEED_MIN)
+		return;		/* answered: its handshake comes */
+	/*
+	 * The last break's probe went unanswered and no handshake followed:
+	 * maybe a device whose ACK reached us too late, which resets when
+	 * its fast handshake is not answered. Let it go on at 2400 this time
+	 * rather than catch it in its fast sync again and again.
+	 */
+	if (port->probe_missed) {
+		port->probe_missed = false;
 		return;
-	if (port->probed_at &&
-	    time_before(jiffies, port->probed_at + EV3_UART_PROBE_HOLDOFF))
-		return;
-	ev3_uart_queue(port, &port->probe_work);
+	}
+	port->break_probe = true;
+	queue_delayed_work(port->wq, &port->probe_work,
+			   port->probed_at && time_before(jiffies, next) ?
+			   next - jiffies : 0);
 }
 
 static void ev3_uart_receive_buf(struct tty_struct *tty, const u8 *cp,
@@ -486,7 +505,8 @@ static void ev3_uart_receive_buf(struct tty_struct *tty, const u8 *cp,
 	while (count > 0) {
 		from = port->parser.state;
 		if (fp && *fp != TTY_NORMAL) {
-			if (*fp == TTY_BREAK && from == EV3_UART_STATE_SYNC)
+			if (*fp == TTY_BREAK && (from == EV3_UART_STATE_SYNC ||
+						 from == EV3_UART_STATE_PROBE))
 				ev3_uart_break(port);
 			port->stats.line_errors++;
 			ev3_uart_parser_line_error(&port->parser, &ev);
@@ -581,7 +601,7 @@ static void ev3_uart_trace_sensor(struct ev3_uart_port *port, u8 what,
  * that can send their handshake at 115200 answer ACK within a millisecond
  * and send it then, a few hundred bytes in tens of milliseconds instead of
  * seconds at 2400. The others (EV3 sensors, the BOOST colour and distance
- * sensor, devices busy with something else) do not answer: after 10 ms
+ * sensor, devices busy with something else) do not answer: after 30 ms
  * the line goes back to 2400 baud, where the parser hunts as before. Bytes
  * sent at 2400 meanwhile are lost (an EV3 sensor caught in its handshake
  * repeats it). After the answer, the handshake must come within 500 ms
@@ -589,9 +609,10 @@ static void ev3_uart_trace_sensor(struct ev3_uart_port *port, u8 what,
  * in SYNC at 2400 baud (else nothing is done).
  *
  * Return: true if the probe was made (the line is then at the speed the
- * parser hunts at), false if not (the line is as it was).
+ * parser hunts at), false if not (the line is as it was). @on_break: for
+ * a break (see ev3_uart_break()).
  */
-static bool ev3_uart_probe(struct ev3_uart_port *port)
+static bool ev3_uart_probe(struct ev3_uart_port *port, bool on_break)
 {
 	u8 msg[EV3_UART_SPEED_MSG_LEN], from;
 	const char *why = "no answer to SPEED";
@@ -621,7 +642,11 @@ static bool ev3_uart_probe(struct ev3_uart_port *port)
 		why = "no fast sync on this tty";
 	} else if (!ev3_uart_tx(port, msg,
 				ev3_uart_build_speed(msg, EV3_UART_SPEED_FAST))) {
-		/* 10 ms from when it is out, as Pybricks waits. */
+		/*
+		 * From when it is out. Pybricks waits 10 ms, on a UART of its
+		 * own; a USB serial adapter may hold the ACK 16 ms (an FTDI
+		 * chip's latency timer) before the tty sees it.
+		 */
 		tty_wait_until_sent(port->tty, msecs_to_jiffies(50));
 		wait_for_completion_timeout(&port->probe_done,
 					    msecs_to_jiffies(EV3_UART_PROBE_WAIT_MS) + 1);
@@ -631,6 +656,7 @@ static bool ev3_uart_probe(struct ev3_uart_port *port)
 	from = port->parser.state;
 	speed = ev3_uart_parser_probe_end(&port->parser);
 	ev3_uart_trace_state(port, from, NULL, why);
+	port->probe_missed = on_break && speed == EV3_UART_SPEED_MIN;
 	if (speed != EV3_UART_SPEED_MIN && !port->closing)
 		queue_delayed_work(port->wq, &port->fast_work,
 				   msecs_to_jiffies(EV3_UART_FAST_SYNC_MS));
@@ -643,16 +669,22 @@ static bool ev3_uart_probe(struct ev3_uart_port *port)
 /* Listen for the next device: the fast sync probe, else 2400 baud. */
 static void ev3_uart_hunt(struct ev3_uart_port *port)
 {
-	if (!ev3_uart_probe(port) && port->speed != EV3_UART_SPEED_MIN)
+	if (!ev3_uart_probe(port, false) && port->speed != EV3_UART_SPEED_MIN)
 		ev3_uart_set_speed(port, EV3_UART_SPEED_MIN);
 }
 
 static void ev3_uart_probe_work(struct work_struct *work)
 {
-	struct ev3_uart_port *port = container_of(work, struct ev3_uart_port,
+	struct ev3_uart_port *port = container_of(to_delayed_work(work),
+						  struct ev3_uart_port,
 						  probe_work);
+	bool on_break;
 
-	ev3_uart_probe(port);
+	spin_lock(&port->lock);
+	on_break = port->break_probe;
+	port->break_probe = false;
+	spin_unlock(&port->lock);
+	ev3_uart_probe(port, on_break);
 }
 
 /* A device answered the probe, and its handshake did not follow in time. */
@@ -1286,7 +1318,7 @@ static int ev3_uart_open(struct tty_struct *tty)
 	INIT_WORK(&port->ack_work, ev3_uart_ack_work);
 	INIT_DELAYED_WORK(&port->keepalive_work, ev3_uart_keepalive_work);
 	INIT_WORK(&port->reset_work, ev3_uart_reset_work);
-	INIT_WORK(&port->probe_work, ev3_uart_probe_work);
+	INIT_DELAYED_WORK(&port->probe_work, ev3_uart_probe_work);
 	INIT_DELAYED_WORK(&port->fast_work, ev3_uart_fast_work);
 	init_completion(&port->probe_done);
 	INIT_WORK(&port->tx_work, ev3_uart_tx_work);
@@ -1305,7 +1337,7 @@ static int ev3_uart_open(struct tty_struct *tty)
 	tty->receive_room = 65536;
 	tty_driver_flush_buffer(tty);
 	/* A Powered Up device that has just been powered may answer. */
-	queue_work(port->wq, &port->probe_work);
+	queue_delayed_work(port->wq, &port->probe_work, 0);
 
 	return 0;
 }
@@ -1333,6 +1365,7 @@ static void ev3_uart_close(struct tty_struct *tty)
 	cancel_work_sync(&port->ack_work);
 	cancel_delayed_work_sync(&port->keepalive_work);
 	/* Queued on the work queue; with @closing set, not again. */
+	cancel_delayed_work_sync(&port->probe_work);
 	cancel_delayed_work_sync(&port->fast_work);
 	destroy_workqueue(port->wq);
 

@@ -1826,7 +1826,7 @@ EXPORT_SYMBOL_IF_KUNIT(ev3_uart_parser_select);
  * 2400-baud handshake), then send the handshake at that speed, and no
  * speed change follows the host's ACK. EV3 sensors and devices that do not
  * answer stay at 2400: the host calls ev3_uart_parser_probe_end() when it
- * has waited long enough (10 ms) and goes back to 2400. Meanwhile the
+ * has waited long enough (Pybricks waits 10 ms) and goes back to 2400. Meanwhile the
  * parser takes only the ACK (%EV3_UART_EV_FAST); other bytes and line
  * errors are dropped.
  *
