@@ -845,6 +845,8 @@ static void trace_line(FILE *f, const char *line)
 			fprintf(f, "-> SELECT mode %s", b);
 		else if (!strcmp(a, "WRITE"))
 			fprintf(f, "-> WRITE %s bytes", c);
+		else if (!strcmp(a, "SPEED"))
+			fprintf(f, "-> SPEED 115200 (fast sync probe)");
 		else
 			fprintf(f, "-> %s", a);
 		fprintf(f, strcmp(d, "0") ? " (not sent: %s)\n" : "\n", d);
