@@ -586,7 +586,7 @@ class EmulatedSensor(threading.Thread):
         self.send(handshake(self.sdef))
         termios.tcdrain(self.fd)
         self.sync_speeds.append(speed)
-        self.log('handshake sent at %d' % speed)
+        self.log('handshake sent' if speed == 2400 else 'handshake sent at %d' % speed)
         if self.wait_ack():
             self.handshakes += 1
             self.set_speed(self.sdef.speed)
