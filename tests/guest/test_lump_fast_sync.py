@@ -25,6 +25,8 @@ import ev3
 from ev3 import ev3_sensor, find_sensor, wait_value
 
 N_LEGOEV3 = 29
+TIOCSLCKTRMIOS = 0x5457
+CBAUD = 0o010017
 DEBUGFS = '/sys/kernel/debug'
 LINE = re.compile(r'^\s*\S.*?\s+\[\d+\].*?\s(\d+\.\d+): (\w+): (.*)$')
 
@@ -232,4 +234,40 @@ def test_probe_when_attached_mid_handshake(ev3_module):
         assert emu.fast_syncs == 0 and set(emu.sync_speeds) == {2400}
         assert counters(ln.address)['tx_speed'] >= 1
     finally:
+        ln.close()
+
+
+def kernel_log():
+    return subprocess.run(['dmesg'], capture_output=True, text=True, check=True).stdout
+
+
+def test_no_probe_on_a_tty_that_cannot_do_115200(ev3_module):
+    """A tty whose speed is locked at 2400 (as a UART that cannot do 115200):
+    one line in the log, no SPEED sent from then on, and a 2400-baud sensor
+    still connects."""
+    ln = ev3.Line(0)
+    ln.attach()
+    emu = None
+    try:
+        time.sleep(0.3)                 # the probe of the attach, at 115200
+        fcntl.ioctl(ln.fd, TIOCSLCKTRMIOS,
+                    struct.pack('IIIIB19s', 0, 0, CBAUD, 0, 0, bytes(19)))
+        before = kernel_log().count('cannot set 115200 baud: no fast sync')
+        sent = counters(ln.address)['tx_speed']
+        slow = ev3_sensor.SensorDef(29, 'lego-ev3-color', 3, ev3_sensor.COLOR.modes,
+                                    speed=2400)
+        emu = ln.plug(slow)
+        path = find_sensor(ln.address, timeout=15)
+        assert path, emu.events
+        emu.set_values(0, [9])
+        assert wait_value(path, 0, 9) == 9
+        # Lost, and back: the probes after the loss and the break are skipped.
+        emu.unplug()
+        assert ev3.wait_gone(path, 5.0)
+        emu.plug()
+        assert find_sensor(ln.address, timeout=15), emu.events
+        assert kernel_log().count('cannot set 115200 baud: no fast sync') == before + 1
+        assert counters(ln.address)['tx_speed'] == sent
+    finally:
+        fcntl.ioctl(ln.fd, TIOCSLCKTRMIOS, struct.pack('IIIIB19s', 0, 0, 0, 0, 0, bytes(19)))
         ln.close()
