@@ -286,6 +286,9 @@ static void event(struct host *h, const struct ev3_uart_event *ev, size_t rest)
 		break;
 	case EV3_UART_EV_DATA:
 		CHECK(p->state == EV3_UART_STATE_DATA);
+		/* Only the ultrasonic sensor's mode 6 is ever relabelled. */
+		CHECK(!ev->us_dc_in ||
+		      (p->sensor.type == EV3_UART_TYPE_US && ev->mode == 6));
 		use_data(h, ev, rest);
 		break;
 	case EV3_UART_EV_ERROR:
@@ -517,6 +520,7 @@ static void diff_logs(const struct diff_run *a, const struct diff_run *b)
 		case EV3_UART_EV_DATA:
 			CHECK(a->ev[i].mode == b->ev[i].mode);
 			CHECK(a->ev[i].mode_changed == b->ev[i].mode_changed);
+			CHECK(a->ev[i].us_dc_in == b->ev[i].us_dc_in);
 			CHECK(a->ev[i].len == b->ev[i].len);
 			CHECK(!memcmp(a->data[i], b->data[i], a->ev[i].len));
 			break;

@@ -201,6 +201,46 @@ def test_ev3_handshake_mode_switch_and_loss(ev3_module):
         'the port\'s debugfs directory outlived it'
 
 
+@pytest.mark.parametrize('kind, mode, quirk, hdr_mode', [
+    ('us', 'US-DC-IN', 'us-dc-in-quirk', 5),     # tagged mode 5, taken as 6
+    ('color', 'RGB-RAW', 'rgb-raw-quirk', 4),    # checksum not checked
+])
+def test_ev3_quirks_in_accept(ev3_module, kind, mode, quirk, hdr_mode):
+    """A DATA message a quirk let through says which in accept: what a bug
+    report needs to tell a quirk from a sensor the parser got wrong."""
+    import ev3
+    import fcntl
+    import struct
+    import termios
+    trace = Trace('lego_ev3_uart')
+    master, slave = os.openpty()
+    tty = 'pts' + os.ttyname(slave).split('/')[-1]
+    emu = None
+    try:
+        fcntl.ioctl(slave, termios.TIOCSETD, struct.pack('i', N_LEGOEV3))
+        emu = ev3.ev3_sensor.EmulatedSensor(master, kind)
+        emu.start()
+        path = ev3.find_sensor(tty, timeout=15)
+        assert path, 'no sensor at %s (%s)' % (tty, emu.events)
+        num = ev3.read_attr(path, 'modes').split().index(mode)
+        assert not trace.events('ev3_uart_rx', tty=tty, accept=quirk)
+        ev3.write_attr(path, 'mode', mode)
+        got = trace.wait('ev3_uart_rx', timeout=10, tty=tty, msg='DATA', accept=quirk)
+        for f in (f for _, f in got):
+            assert f['arg'] == str(num), f
+            assert int(f['hdr'], 16) & 0xc7 == 0xc0 | hdr_mode, f
+        # Nothing else is marked: every other DATA passed its checksum.
+        other = {f['accept'] for _, f in trace.events('ev3_uart_rx', tty=tty, msg='DATA')
+                 if f['arg'] != str(num)}
+        assert other <= {'checksum'}, other
+    finally:
+        trace.stop()
+        if emu:
+            emu.stop()
+        os.close(slave)
+        os.close(master)
+
+
 def test_lego_sensors_trace(ev3_module):
     """lego-sensors --trace=TTY prints a handshake decoded, as it happens."""
     import ev3

@@ -773,6 +773,16 @@ static const char *cmd_name(unsigned int cmd)
 	return names[cmd & 7];
 }
 
+/* What the ev3_uart_rx event's accept field says, for a DATA message. */
+static const char *accept_note(const char *accept)
+{
+	if (!strcmp(accept, "rgb-raw-quirk"))
+		return ", checksum not checked (RGB-RAW quirk)";
+	if (!strcmp(accept, "us-dc-in-quirk"))
+		return ", tagged mode 5 (US-DC-IN quirk)";
+	return "";
+}
+
 static const char *info_name(unsigned int info)
 {
 	switch (info & ~0x20U) {
@@ -834,8 +844,7 @@ static void trace_line(FILE *f, const char *line)
 			fprintf(f, "<- %s mode %s, %s bytes%s%s\n", a, b, c,
 				!strcmp(field(fields, "mode_changed", d, sizeof(d)), "1") ?
 				", mode switched" : "",
-				!strcmp(field(fields, "accept", d, sizeof(d)), "checksum") ?
-				"" : ", checksum not checked (quirk)");
+				accept_note(field(fields, "accept", d, sizeof(d))));
 	} else if (!strcmp(ev, "ev3_uart_tx")) {
 		field(fields, "msg", a, sizeof(a));
 		field(fields, "arg", b, sizeof(b));

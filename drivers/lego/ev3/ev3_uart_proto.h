@@ -227,6 +227,8 @@ enum ev3_uart_event_type {
  * @mode: for %EV3_UART_EV_DATA, the mode the values belong to (0 to 15);
  *	for %EV3_UART_EV_MSG, the message's header
  * @mode_changed: for %EV3_UART_EV_DATA, this DATA confirmed a SELECT
+ * @us_dc_in: for %EV3_UART_EV_DATA, the message was tagged mode 5 and taken
+ *	as mode 6 (the ultrasonic sensor's US-DC-IN quirk, ev3_uart_data_msg())
  * @len: for %EV3_UART_EV_DATA, the payload length in bytes; for
  *	%EV3_UART_EV_MSG, the whole message's
  * @reason: for %EV3_UART_EV_ERROR, a static string saying what was wrong
@@ -235,6 +237,7 @@ struct ev3_uart_event {
 	enum ev3_uart_event_type type;
 	u8 mode;
 	bool mode_changed;
+	bool us_dc_in;
 	u8 len;
 	const char *reason;
 };

@@ -1313,7 +1313,9 @@ static void test_us_dc_in_mode5_tags(struct kunit *test)
 	KUNIT_ASSERT_EQ(test, count(&c->r, EV3_UART_EV_DATA), 2U);
 	KUNIT_EXPECT_EQ(test, c->r.ev[0].mode, 6);
 	KUNIT_EXPECT_TRUE(test, c->r.ev[0].mode_changed);
+	KUNIT_EXPECT_TRUE(test, c->r.ev[0].us_dc_in);
 	KUNIT_EXPECT_EQ(test, c->r.ev[1].mode, 6);
+	KUNIT_EXPECT_FALSE(test, c->r.ev[1].us_dc_in);
 	KUNIT_EXPECT_EQ(test, ev3_uart_read_value(&c->p.sensor.modes[6], c->p.data, 2, 0, &v), 0);
 	KUNIT_EXPECT_EQ(test, v, 76);
 
@@ -1325,6 +1327,7 @@ static void test_us_dc_in_mode5_tags(struct kunit *test)
 	KUNIT_ASSERT_EQ(test, count(&c->r, EV3_UART_EV_DATA), 1U);
 	KUNIT_EXPECT_EQ(test, c->r.ev[0].mode, 5);
 	KUNIT_EXPECT_TRUE(test, c->r.ev[0].mode_changed);
+	KUNIT_EXPECT_FALSE(test, c->r.ev[0].us_dc_in);
 }
 
 static void test_select_and_stale_frames(struct kunit *test)
