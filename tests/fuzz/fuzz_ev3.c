@@ -145,6 +145,7 @@ static void build_chans(struct host *h)
 {
 	const struct ev3_uart_sensor *s = &h->p->sensor;
 	char tok[EV3_UART_MAX_MODES][EV3_UART_TOKEN_LEN + 1];
+	char ver[EV3_UART_VERSION_LEN + 1];
 	unsigned int i, j, n;
 
 	n = ev3_uart_chans_build(s, NULL, 0);
@@ -185,6 +186,9 @@ static void build_chans(struct host *h)
 		for (j = 0; j < i; j++)
 			CHECK(strcmp(tok[i], tok[j]));
 	}
+	/* fw_version in sysfs: always the same width, whatever was sent. */
+	CHECK(ev3_uart_version_string(s->fw_version, ver, sizeof(ver)) ==
+	      EV3_UART_VERSION_LEN && strlen(ver) == EV3_UART_VERSION_LEN);
 }
 
 static void check_description(const struct ev3_uart_parser *p)

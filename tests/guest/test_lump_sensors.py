@@ -43,6 +43,10 @@ def test_lump_registers_with_all_modes(line, kind):
     assert read_attr(path, 'modes').split(' ') == [token(m.name) for m in sdef.modes]
     assert len(sdef.modes) > 8
     assert read_attr(path, 'mode') == token(sdef.modes[0].name)
+    # VERSION's firmware word, as LEGO writes it (BCD fields).
+    fw = sdef.version[0]
+    assert read_attr(path, 'fw_version') == '%x.%x.%02x.%04x' % (
+        fw >> 28, fw >> 24 & 0xf, fw >> 16 & 0xff, fw & 0xffff)
 
 
 @pytest.mark.parametrize('kind', KINDS)

@@ -2037,6 +2037,21 @@ static void test_chans_bounded(struct kunit *test)
 	KUNIT_EXPECT_EQ(test, ev3_uart_chans_build(s, NULL, 0), 0U);
 }
 
+static void test_version_string(struct kunit *test)
+{
+	char buf[EV3_UART_VERSION_LEN + 1];
+
+	/* As the BOOST colour and distance sensor sends it. */
+	KUNIT_EXPECT_EQ(test, ev3_uart_version_string(0x10000000, buf, sizeof(buf)), 11);
+	KUNIT_EXPECT_STREQ(test, buf, "1.0.00.0000");
+	KUNIT_EXPECT_EQ(test, ev3_uart_version_string(0x42171234, buf, sizeof(buf)), 11);
+	KUNIT_EXPECT_STREQ(test, buf, "4.2.17.1234");
+	/* Not BCD, and the top bit (not part of major): still 11 characters. */
+	KUNIT_EXPECT_EQ(test, ev3_uart_version_string(0xffffffff, buf, sizeof(buf)), 11);
+	KUNIT_EXPECT_STREQ(test, buf, "7.f.ff.ffff");
+	KUNIT_EXPECT_EQ(test, ev3_uart_version_string(0, buf, EV3_UART_VERSION_LEN), -EINVAL);
+}
+
 static void test_mode_tokens(struct kunit *test)
 {
 	static const char * const names[] = { "COL O", "IR Tx", "A", "A", "B_C", "B C",
@@ -2131,6 +2146,7 @@ static struct kunit_case ev3_uart_proto_cases[] = {
 	KUNIT_CASE(test_chan_scale_floats),
 	KUNIT_CASE(test_chans_bounded),
 	KUNIT_CASE(test_mode_tokens),
+	KUNIT_CASE(test_version_string),
 	{}
 };
 
