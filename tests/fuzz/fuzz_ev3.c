@@ -284,6 +284,10 @@ static void event(struct host *h, const struct ev3_uart_event *ev, size_t rest)
 		name = ev3_uart_driver_name(p->sensor.type);
 		CHECK(!name || strncmp(name, "lego-ev3-", 9) == 0 ||
 		      strncmp(name, "fcl-", 4) == 0);
+		CHECK(!name || strlen(name) < EV3_UART_DRIVER_NAME_LEN);
+		name = ev3_uart_lump_driver_name(p->sensor.type);
+		CHECK(!name || (strncmp(name, "lego-", 5) == 0 &&
+				strlen(name) < EV3_UART_DRIVER_NAME_LEN));
 		h->acked_wait = h->rng && rnd(h) % 4 == 0 ? 1 + rnd(h) % 3 : 0;
 		if (!h->acked_wait)
 			start_data(h);

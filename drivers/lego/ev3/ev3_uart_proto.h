@@ -341,6 +341,11 @@ static inline u64 ev3_uart_abs64(s64 v)
 
 int ev3_uart_mul_div(u64 a, u64 b, u64 c, bool round, u64 *q);
 s32 ev3_uart_scale_value(const struct ev3_uart_mode *mode, s32 raw);
+/*
+ * Room for a driver name with its NUL: the longest in the tables
+ * ("lego-technic-m-angular-motor") and "lump-uart-255" (a KUnit case checks).
+ */
+#define EV3_UART_DRIVER_NAME_LEN	32
 const char *ev3_uart_driver_name(u8 type);
 const char *ev3_uart_lump_driver_name(u8 type);
 

@@ -952,6 +952,27 @@ static void check_boost_cds(struct kunit *test, size_t chunk)
 	KUNIT_EXPECT_NULL(test, ev3_uart_lump_driver_name(29));
 }
 
+/* Every driver name fits the sensor's copy (a long one was cut once). */
+static void test_driver_names_fit(struct kunit *test)
+{
+	char fallback[EV3_UART_DRIVER_NAME_LEN];
+	const char *name;
+	unsigned int t;
+
+	for (t = 0; t < 256; t++) {
+		name = ev3_uart_driver_name(t);
+		if (name)
+			KUNIT_EXPECT_LT_MSG(test, strlen(name), EV3_UART_DRIVER_NAME_LEN,
+					    "type %u", t);
+		name = ev3_uart_lump_driver_name(t);
+		if (name)
+			KUNIT_EXPECT_LT_MSG(test, strlen(name), EV3_UART_DRIVER_NAME_LEN,
+					    "type %u", t);
+	}
+	KUNIT_EXPECT_LT(test, snprintf(fallback, sizeof(fallback), "lump-uart-%u", 255U),
+			EV3_UART_DRIVER_NAME_LEN);
+}
+
 static void test_handshake_boost_color_distance(struct kunit *test)
 {
 	check_boost_cds(test, sizeof(boost_cds_handshake));
@@ -2147,6 +2168,7 @@ static struct kunit_case ev3_uart_proto_cases[] = {
 	KUNIT_CASE(test_chans_bounded),
 	KUNIT_CASE(test_mode_tokens),
 	KUNIT_CASE(test_version_string),
+	KUNIT_CASE(test_driver_names_fit),
 	{}
 };
 
