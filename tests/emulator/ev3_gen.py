@@ -170,7 +170,16 @@ class Desc:
         self.views = 1
         self.speed = SPEED_MIN
         self.lump = False       # a Powered Up extension was used
+        self.fw_version = 0     # VERSION's first word (0: none sent)
         self.modes = [Mode() for _ in range(MAX_MODES)]
+
+    @property
+    def fw_version_str(self):
+        """The fw_version attribute: LEGO's BCD fields, empty for none."""
+        v = self.fw_version
+        if not v:
+            return ''
+        return '%x.%x.%02x.%04x' % (v >> 28 & 7, v >> 24 & 0xf, v >> 16 & 0xff, v & 0xffff)
 
     @property
     def driver(self):
@@ -309,6 +318,7 @@ class Parser:
         elif cmd == CMD_VERSION:
             if len(p) < 8:
                 return self.error('short VERSION')
+            d.fw_version = struct.unpack_from('<I', p)[0]
             d.lump = True
         elif cmd == CMD_EXT_MODE:
             pass

@@ -157,6 +157,7 @@ static void build_chans(struct host *h)
 {
 	const struct ev3_uart_sensor *s = &h->p->sensor;
 	char tok[EV3_UART_MAX_MODES][EV3_UART_TOKEN_LEN + 1];
+	char ver[EV3_UART_VERSION_LEN + 1];
 	unsigned int i, j, n;
 
 	n = ev3_uart_chans_build(s, NULL, 0);
@@ -197,6 +198,9 @@ static void build_chans(struct host *h)
 		for (j = 0; j < i; j++)
 			CHECK(strcmp(tok[i], tok[j]));
 	}
+	/* fw_version in sysfs: always the same width, whatever was sent. */
+	CHECK(ev3_uart_version_string(s->fw_version, ver, sizeof(ver)) ==
+	      EV3_UART_VERSION_LEN && strlen(ver) == EV3_UART_VERSION_LEN);
 }
 
 static void check_description(const struct ev3_uart_parser *p)
@@ -292,12 +296,19 @@ static void event(struct host *h, const struct ev3_uart_event *ev, size_t rest)
 		name = ev3_uart_driver_name(p->sensor.type);
 		CHECK(!name || strncmp(name, "lego-ev3-", 9) == 0 ||
 		      strncmp(name, "fcl-", 4) == 0);
+		CHECK(!name || strlen(name) < EV3_UART_DRIVER_NAME_LEN);
+		name = ev3_uart_lump_driver_name(p->sensor.type);
+		CHECK(!name || (strncmp(name, "lego-", 5) == 0 &&
+				strlen(name) < EV3_UART_DRIVER_NAME_LEN));
 		h->acked_wait = h->rng && rnd(h) % 4 == 0 ? 1 + rnd(h) % 3 : 0;
 		if (!h->acked_wait)
 			start_data(h);
 		break;
 	case EV3_UART_EV_DATA:
 		CHECK(p->state == EV3_UART_STATE_DATA);
+		/* Only the ultrasonic sensor's mode 6 is ever relabelled. */
+		CHECK(!ev->us_dc_in ||
+		      (p->sensor.type == EV3_UART_TYPE_US && ev->mode == 6));
 		use_data(h, ev, rest);
 		break;
 	case EV3_UART_EV_ERROR:
@@ -580,6 +591,7 @@ static void diff_logs(const struct diff_run *a, const struct diff_run *b)
 		case EV3_UART_EV_DATA:
 			CHECK(a->ev[i].mode == b->ev[i].mode);
 			CHECK(a->ev[i].mode_changed == b->ev[i].mode_changed);
+			CHECK(a->ev[i].us_dc_in == b->ev[i].us_dc_in);
 			CHECK(a->ev[i].len == b->ev[i].len);
 			CHECK(!memcmp(a->data[i], b->data[i], a->ev[i].len));
 			break;

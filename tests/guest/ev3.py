@@ -33,6 +33,16 @@ def write_attr(path, name, value):
         f.write(value)
 
 
+def plug(line, kind, **kw):
+    """Plug an emulated sensor (ev3_sensor's kind) into line, and wait for
+    its lego-sensor device: (emulator, sensorN directory)."""
+    emu = line.plug(kind, **kw)
+    path = find_sensor(line.address, timeout=15)
+    assert path, 'no lego-sensor device on %s for %s (emulator events: %s)' % (
+        line.address, kind, emu.events)
+    return emu, path
+
+
 def find_sensor(address, timeout=10.0, gone_from=None):
     """The sensorN directory whose address is `address`, waiting for it."""
     sd = open_sensor(address, timeout, gone_from)

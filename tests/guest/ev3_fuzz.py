@@ -379,7 +379,7 @@ class Runner:
         m = d.modes[mode]
         names = tokens(d)
         want = {'address': self.address, 'driver_name': d.driver,
-                'commands': '', 'fw_version': ''}
+                'commands': '', 'fw_version': d.fw_version_str}
         for attr, value in want.items():
             got, e = try_read(sd, attr)
             self.check(e is None, '%s: %s' % (attr, ename(e)))

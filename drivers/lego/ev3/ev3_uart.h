@@ -141,7 +141,7 @@ struct ev3_uart_stats {
 struct ev3_uart_sensor_dev {
 	struct ev3_uart_port *port;
 	struct ev3_uart_sensor desc;
-	char driver_name[24];
+	char driver_name[EV3_UART_DRIVER_NAME_LEN];
 	char address[EV3_UART_ADDRESS_LEN];
 	struct device dev;
 	int id;

@@ -367,6 +367,29 @@ int ev3_uart_mode_token(const struct ev3_uart_sensor *desc, u8 mode,
 }
 EXPORT_SYMBOL_IF_KUNIT(ev3_uart_mode_token);
 
+/**
+ * ev3_uart_version_string() - a Powered Up VERSION as LEGO writes it
+ * @version: the firmware or hardware version from the VERSION message
+ * @buf: room for the string
+ * @size: at least %EV3_UART_VERSION_LEN + 1
+ *
+ * The version is four BCD fields: major (3 bits), minor (one digit),
+ * bug fix (two digits) and build (four digits), shown as "1.0.00.0000".
+ * The device is not trusted to send BCD: a nibble above 9 shows as a hex
+ * digit, in the same room.
+ *
+ * Return: the string's length, or -%EINVAL if @size is too small.
+ */
+int ev3_uart_version_string(u32 version, char *buf, size_t size)
+{
+	if (size < EV3_UART_VERSION_LEN + 1)
+		return -EINVAL;
+	return snprintf(buf, size, "%x.%x.%02x.%04x", (version >> 28) & 0x7,
+			(version >> 24) & 0xf, (version >> 16) & 0xff,
+			version & 0xffff);
+}
+EXPORT_SYMBOL_IF_KUNIT(ev3_uart_version_string);
+
 /* @str equals @s, ignoring one newline at the end of @str. */
 static bool ev3_uart_streq(const char *str, size_t len, const char *s)
 {

@@ -70,4 +70,8 @@ int ev3_uart_mode_token(const struct ev3_uart_sensor *desc, u8 mode,
 			char *buf, size_t size);
 int ev3_uart_find_mode(const struct ev3_uart_sensor *desc, const char *str);
 
+/* "1.0.00.0000": see ev3_uart_version_string(). */
+#define EV3_UART_VERSION_LEN	11
+int ev3_uart_version_string(u32 version, char *buf, size_t size);
+
 #endif /* _EV3_UART_CHAN_H */

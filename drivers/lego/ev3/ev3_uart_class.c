@@ -16,6 +16,7 @@
 
 #include "lego_compat.h"
 #include "ev3_uart.h"
+#include "ev3_uart_chan.h"
 
 #define EV3_UART_NUM_VALUES	8
 
@@ -168,10 +169,17 @@ static ssize_t poll_ms_store(struct device *dev, struct device_attribute *attr,
 }
 static DEVICE_ATTR_RW(poll_ms);
 
+/* A Powered Up device's VERSION; EV3 sensors send none. */
 static ssize_t fw_version_show(struct device *dev,
 			       struct device_attribute *attr, char *buf)
 {
-	return sysfs_emit(buf, "\n");
+	struct ev3_uart_sensor_dev *sd = to_sensor(dev);
+	char ver[EV3_UART_VERSION_LEN + 1] = "";
+
+	if (sd->desc.fw_version &&
+	    ev3_uart_version_string(sd->desc.fw_version, ver, sizeof(ver)) < 0)
+		return -EINVAL;
+	return sysfs_emit(buf, "%s\n", ver);
 }
 static DEVICE_ATTR_RO(fw_version);
 

@@ -336,26 +336,29 @@ static void ev3_uart_trace_state(struct ev3_uart_port *port, u8 from,
 }
 
 /*
- * How a DATA message of @len bytes in @mode was accepted: all have a good
- * checksum but the colour sensor's RGB-RAW ones, whose checksum is not
- * checked (see ev3_uart_rgb_raw_quirk()).
+ * How the DATA message of @ev was accepted: all have a good checksum but
+ * the colour sensor's RGB-RAW ones, whose checksum is not checked (see
+ * ev3_uart_rgb_raw_quirk()); the ultrasonic sensor's US-DC-IN ones come
+ * tagged with the wrong mode.
  */
-static u8 ev3_uart_accepted_by(const struct ev3_uart_port *port, u8 mode,
-			       u8 len)
+static u8 ev3_uart_accepted_by(const struct ev3_uart_port *port,
+			       const struct ev3_uart_event *ev)
 {
-	if (port->parser.sensor.type == EV3_UART_TYPE_COLOR && mode == 4 &&
-	    len == 8)
+	if (ev->us_dc_in)
+		return EV3_UART_TRACE_QUIRK_US_DC_IN;
+	if (port->parser.sensor.type == EV3_UART_TYPE_COLOR && ev->mode == 4 &&
+	    ev->len == 8)
 		return EV3_UART_TRACE_QUIRK_RGB_RAW;
 	return EV3_UART_TRACE_CSUM;
 }
 
-/*
- * The header a DATA message of @mode with @len payload bytes had (the
- * ultrasonic sensor's US-DC-IN quirk aside: see ev3_uart_data_msg()).
- */
-static u8 ev3_uart_data_hdr(u8 mode, u8 len)
+/* The header the DATA message of @ev had (mode 5 for a US-DC-IN one). */
+static u8 ev3_uart_data_hdr(const struct ev3_uart_event *ev)
 {
-	return EV3_UART_MSG_DATA | (ilog2(len ?: 1) << EV3_UART_MSG_SIZE_SHIFT) |
+	u8 mode = ev->us_dc_in ? 5 : ev->mode;
+
+	return EV3_UART_MSG_DATA |
+	       (ilog2(ev->len ?: 1) << EV3_UART_MSG_SIZE_SHIFT) |
 	       (mode & EV3_UART_MSG_CMD_MASK);
 }
 
@@ -410,9 +413,9 @@ static void ev3_uart_event(struct ev3_uart_port *port,
 		port->stats.data_msgs++;
 		if (trace_ev3_uart_rx_enabled())
 			trace_ev3_uart_rx(port->tty->name, EV3_UART_TRACE_DATA,
-					  ev3_uart_data_hdr(ev->mode, ev->len),
+					  ev3_uart_data_hdr(ev),
 					  ev->mode, 0, ev->len,
-					  ev3_uart_accepted_by(port, ev->mode, ev->len),
+					  ev3_uart_accepted_by(port, ev),
 					  ev->mode_changed);
 		if (!sd)
 			break;

@@ -1146,7 +1146,7 @@ static void ev3_uart_data_msg(struct ev3_uart_parser *p,
 	unsigned int len = p->msg_len, plen = len - 2;
 	u8 hdr = p->msg[0];
 	u8 mode = (hdr & EV3_UART_MSG_CMD_MASK) + p->ext_mode;
-	bool changed = false;
+	bool changed = false, us_dc_in = false;
 	struct ev3_uart_mode *m;
 
 	/* The one non-DATA message ev3_uart_msg_start() lets through. */
@@ -1163,8 +1163,10 @@ static void ev3_uart_data_msg(struct ev3_uart_parser *p,
 	 * confirmed by mode 5 messages as usual.)
 	 */
 	if (s->type == EV3_UART_TYPE_US && mode == 5 && p->pending_mode != 5 &&
-	    (p->mode == 6 || p->pending_mode == 6))
+	    (p->mode == 6 || p->pending_mode == 6)) {
 		mode = 6;
+		us_dc_in = true;
+	}
 
 	if (mode >= s->num_modes)
 		return ev3_uart_bad_frame(p, ev);
@@ -1194,6 +1196,7 @@ static void ev3_uart_data_msg(struct ev3_uart_parser *p,
 	ev->type = EV3_UART_EV_DATA;
 	ev->mode = mode;
 	ev->mode_changed = changed;
+	ev->us_dc_in = us_dc_in;
 	ev->len = plen;
 }
 

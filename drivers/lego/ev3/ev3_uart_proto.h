@@ -244,6 +244,8 @@ enum ev3_uart_event_type {
  * @mode: for %EV3_UART_EV_DATA, the mode the values belong to (0 to 15);
  *	for %EV3_UART_EV_MSG, the message's header
  * @mode_changed: for %EV3_UART_EV_DATA, this DATA confirmed a SELECT
+ * @us_dc_in: for %EV3_UART_EV_DATA, the message was tagged mode 5 and taken
+ *	as mode 6 (the ultrasonic sensor's US-DC-IN quirk, ev3_uart_data_msg())
  * @len: for %EV3_UART_EV_DATA, the payload length in bytes; for
  *	%EV3_UART_EV_MSG, the whole message's
  * @reason: for %EV3_UART_EV_ERROR, a static string saying what was wrong
@@ -252,6 +254,7 @@ struct ev3_uart_event {
 	enum ev3_uart_event_type type;
 	u8 mode;
 	bool mode_changed;
+	bool us_dc_in;
 	u8 len;
 	const char *reason;
 };
@@ -363,6 +366,11 @@ static inline u64 ev3_uart_abs64(s64 v)
 
 int ev3_uart_mul_div(u64 a, u64 b, u64 c, bool round, u64 *q);
 s32 ev3_uart_scale_value(const struct ev3_uart_mode *mode, s32 raw);
+/*
+ * Room for a driver name with its NUL: the longest in the tables
+ * ("lego-technic-m-angular-motor") and "lump-uart-255" (a KUnit case checks).
+ */
+#define EV3_UART_DRIVER_NAME_LEN	32
 const char *ev3_uart_driver_name(u8 type);
 const char *ev3_uart_lump_driver_name(u8 type);
 

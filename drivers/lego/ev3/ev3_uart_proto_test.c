@@ -952,6 +952,27 @@ static void check_boost_cds(struct kunit *test, size_t chunk)
 	KUNIT_EXPECT_NULL(test, ev3_uart_lump_driver_name(29));
 }
 
+/* Every driver name fits the sensor's copy (a long one was cut once). */
+static void test_driver_names_fit(struct kunit *test)
+{
+	char fallback[EV3_UART_DRIVER_NAME_LEN];
+	const char *name;
+	unsigned int t;
+
+	for (t = 0; t < 256; t++) {
+		name = ev3_uart_driver_name(t);
+		if (name)
+			KUNIT_EXPECT_LT_MSG(test, strlen(name), EV3_UART_DRIVER_NAME_LEN,
+					    "type %u", t);
+		name = ev3_uart_lump_driver_name(t);
+		if (name)
+			KUNIT_EXPECT_LT_MSG(test, strlen(name), EV3_UART_DRIVER_NAME_LEN,
+					    "type %u", t);
+	}
+	KUNIT_EXPECT_LT(test, snprintf(fallback, sizeof(fallback), "lump-uart-%u", 255U),
+			EV3_UART_DRIVER_NAME_LEN);
+}
+
 static void test_handshake_boost_color_distance(struct kunit *test)
 {
 	check_boost_cds(test, sizeof(boost_cds_handshake));
@@ -1459,7 +1480,9 @@ static void test_us_dc_in_mode5_tags(struct kunit *test)
 	KUNIT_ASSERT_EQ(test, count(&c->r, EV3_UART_EV_DATA), 2U);
 	KUNIT_EXPECT_EQ(test, c->r.ev[0].mode, 6);
 	KUNIT_EXPECT_TRUE(test, c->r.ev[0].mode_changed);
+	KUNIT_EXPECT_TRUE(test, c->r.ev[0].us_dc_in);
 	KUNIT_EXPECT_EQ(test, c->r.ev[1].mode, 6);
+	KUNIT_EXPECT_FALSE(test, c->r.ev[1].us_dc_in);
 	KUNIT_EXPECT_EQ(test, ev3_uart_read_value(&c->p.sensor.modes[6], c->p.data, 2, 0, &v), 0);
 	KUNIT_EXPECT_EQ(test, v, 76);
 
@@ -1471,6 +1494,7 @@ static void test_us_dc_in_mode5_tags(struct kunit *test)
 	KUNIT_ASSERT_EQ(test, count(&c->r, EV3_UART_EV_DATA), 1U);
 	KUNIT_EXPECT_EQ(test, c->r.ev[0].mode, 5);
 	KUNIT_EXPECT_TRUE(test, c->r.ev[0].mode_changed);
+	KUNIT_EXPECT_FALSE(test, c->r.ev[0].us_dc_in);
 }
 
 static void test_select_and_stale_frames(struct kunit *test)
@@ -2180,6 +2204,21 @@ static void test_chans_bounded(struct kunit *test)
 	KUNIT_EXPECT_EQ(test, ev3_uart_chans_build(s, NULL, 0), 0U);
 }
 
+static void test_version_string(struct kunit *test)
+{
+	char buf[EV3_UART_VERSION_LEN + 1];
+
+	/* As the BOOST colour and distance sensor sends it. */
+	KUNIT_EXPECT_EQ(test, ev3_uart_version_string(0x10000000, buf, sizeof(buf)), 11);
+	KUNIT_EXPECT_STREQ(test, buf, "1.0.00.0000");
+	KUNIT_EXPECT_EQ(test, ev3_uart_version_string(0x42171234, buf, sizeof(buf)), 11);
+	KUNIT_EXPECT_STREQ(test, buf, "4.2.17.1234");
+	/* Not BCD, and the top bit (not part of major): still 11 characters. */
+	KUNIT_EXPECT_EQ(test, ev3_uart_version_string(0xffffffff, buf, sizeof(buf)), 11);
+	KUNIT_EXPECT_STREQ(test, buf, "7.f.ff.ffff");
+	KUNIT_EXPECT_EQ(test, ev3_uart_version_string(0, buf, EV3_UART_VERSION_LEN), -EINVAL);
+}
+
 static void test_mode_tokens(struct kunit *test)
 {
 	static const char * const names[] = { "COL O", "IR Tx", "A", "A", "B_C", "B C",
@@ -2277,6 +2316,8 @@ static struct kunit_case ev3_uart_proto_cases[] = {
 	KUNIT_CASE(test_chan_scale_floats),
 	KUNIT_CASE(test_chans_bounded),
 	KUNIT_CASE(test_mode_tokens),
+	KUNIT_CASE(test_version_string),
+	KUNIT_CASE(test_driver_names_fit),
 	{}
 };
 

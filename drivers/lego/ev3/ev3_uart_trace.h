@@ -36,6 +36,7 @@ enum ev3_uart_trace_accept {
 	EV3_UART_TRACE_NONE,
 	EV3_UART_TRACE_CSUM,
 	EV3_UART_TRACE_QUIRK_RGB_RAW,
+	EV3_UART_TRACE_QUIRK_US_DC_IN,
 };
 
 /* What happened to a sensor (ev3_uart_sensor). */
@@ -59,6 +60,7 @@ TRACE_DEFINE_ENUM(EV3_UART_TRACE_SPEED);
 TRACE_DEFINE_ENUM(EV3_UART_TRACE_NONE);
 TRACE_DEFINE_ENUM(EV3_UART_TRACE_CSUM);
 TRACE_DEFINE_ENUM(EV3_UART_TRACE_QUIRK_RGB_RAW);
+TRACE_DEFINE_ENUM(EV3_UART_TRACE_QUIRK_US_DC_IN);
 TRACE_DEFINE_ENUM(EV3_UART_TRACE_REGISTERED);
 TRACE_DEFINE_ENUM(EV3_UART_TRACE_LOST);
 TRACE_DEFINE_ENUM(EV3_UART_TRACE_CLOSED);
@@ -107,7 +109,8 @@ TRACE_EVENT(ev3_uart_rx,
 		      __print_symbolic(__entry->accept,
 				       { EV3_UART_TRACE_NONE, "-" },
 				       { EV3_UART_TRACE_CSUM, "checksum" },
-				       { EV3_UART_TRACE_QUIRK_RGB_RAW, "rgb-raw-quirk" }),
+				       { EV3_UART_TRACE_QUIRK_RGB_RAW, "rgb-raw-quirk" },
+				       { EV3_UART_TRACE_QUIRK_US_DC_IN, "us-dc-in-quirk" }),
 		      __entry->mode_changed)
 );
 
