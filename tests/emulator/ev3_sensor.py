@@ -50,6 +50,7 @@ import os
 import random
 import select
 import struct
+import sys
 import termios
 import threading
 import time
@@ -573,6 +574,8 @@ class EmulatedSensor(threading.Thread):
             delay = self.retry_delay
         self.attempts += 1
         speed = 2400
+        # Built before the reset: after a fast sync it goes out at once.
+        hs = handshake(self.sdef)
         if self.fast_sync:
             speed = self.listen_for_probe(delay)
         else:
@@ -583,7 +586,7 @@ class EmulatedSensor(threading.Thread):
             termios.tcflush(self.fd, termios.TCIFLUSH)
         if self.hostile:
             self.send_hostile()
-        self.send(handshake(self.sdef))
+        self.send(hs)
         termios.tcdrain(self.fd)
         self.sync_speeds.append(speed)
         self.log('handshake sent' if speed == 2400 else 'handshake sent at %d' % speed)
@@ -598,7 +601,14 @@ class EmulatedSensor(threading.Thread):
         break, which the host sees) for `delay` seconds while it listens at
         115200 baud for SPEED 115200. It answers one with ACK at once and
         returns 115200 (its handshake follows at that speed), else it
-        returns 2400, at 2400 baud."""
+        returns 2400, at 2400 baud.
+
+        A real device answers within a millisecond, the host waits 30 ms.
+        Python in the emulated test machine takes 4 to 15 ms, and more when
+        another thread of the test holds the interpreter lock: it is handed
+        over every 5 ms by default, every 0.5 ms from here on."""
+        if sys.getswitchinterval() > 0.0005:
+            sys.setswitchinterval(0.0005)
         self.set_speed(FAST)
         termios.tcflush(self.fd, termios.TCIFLUSH)
         try:
