@@ -762,6 +762,8 @@ static void trace_line(const char *ts, const char *ev, const char *fields,
 			fprintf(f, "-> SELECT mode %s", b);
 		else if (!strcmp(a, "WRITE"))
 			fprintf(f, "-> WRITE %s bytes", c);
+		else if (!strcmp(a, "SPEED"))
+			fprintf(f, "-> SPEED 115200 (fast sync probe)");
 		else
 			fprintf(f, "-> %s", a);
 		fprintf(f, strcmp(d, "0") ? " (not sent: %s)\n" : "\n", d);
