@@ -3,17 +3,25 @@
  * LEGO MINDSTORMS EV3 UART sensors: userspace interface of the
  * lego_ev3_uart line discipline.
  *
- * Attach the discipline with TIOCSETD (or `ldattach 29 /dev/ttyX`), then
- * use these ioctls on the same tty.
+ * Attach the discipline with TIOCSETD to N_LEGOEV3 (or ldattach), then use
+ * these ioctls on the same tty.
  */
 #ifndef _UAPI_LINUX_LEGO_EV3_UART_H
 #define _UAPI_LINUX_LEGO_EV3_UART_H
 
 #include <linux/ioctl.h>
+#include <linux/tty.h>
 #include <linux/types.h>
 
-/** N_LEGOEV3 - the discipline's default number (the kernel's N_DEVELOPMENT) */
+#ifndef N_LEGOEV3
+/*
+ * N_LEGOEV3 - the discipline's number. A kernel that has the driver in its
+ * tree reserves one in <linux/tty.h>; the out-of-tree module takes
+ * N_DEVELOPMENT (29), the number kept for disciplines outside the tree, as
+ * ev3dev's did. tools/upstream/series.sh drops this block (unifdef).
+ */
 #define N_LEGOEV3		29
+#endif
 
 /** LEGO_EV3_LABEL_LEN - size of a port label, NUL included */
 #define LEGO_EV3_LABEL_LEN	16
