@@ -24,7 +24,8 @@
 # 6. headers: make headers, then each uapi header the series adds compiled
 #    alone in userspace with -Wall -Wextra -Werror;
 # 7. htmldocs: make SPHINXDIRS=userspace-api htmldocs (the series adds rows
-#    to ioctl-number.rst): no warning about them, and the page lists them;
+#    to ioctl-number.rst and a page with the uapi headers' kernel-doc): no
+#    warning about them, and the pages list what they should;
 # 8. build-ARCH-MODE: allnoconfig plus tests/upstream/build.config and the
 #    drivers and their KUnit suites as MODE (m or y), checked after
 #    olddefconfig (IIO_BUFFER and IIO_KFIFO_BUF must be selected); vmlinux
@@ -264,7 +265,8 @@ step_kunit() {
 		{ echo "not every test passed"; return 1; }
 }
 
-# The documentation the series touches (ioctl-number.rst) built by Sphinx.
+# The documentation the series touches (ioctl-number.rst, its page) built
+# by Sphinx.
 step_htmldocs() {
 	local log=$up_out/htmldocs-$series.log
 	kmake x86_64 m SPHINXDIRS=userspace-api htmldocs >"$log" 2>&1 || { tail -n 40 "$log"; return 1; }
@@ -273,8 +275,14 @@ step_htmldocs() {
 	if grep -E 'WARNING|ERROR' "$log" | grep -E 'ioctl-number|lego'; then
 		return 1
 	fi
-	grep -q 'LEGO MINDSTORMS' "$up_out/build-$series-x86_64-m/Documentation/output/userspace-api/ioctl/ioctl-number.html" ||
+	local html=$up_out/build-$series-x86_64-m/Documentation/output/userspace-api
+	grep -q 'LEGO MINDSTORMS' "$html/ioctl/ioctl-number.html" ||
 		{ echo "ioctl-number.html does not list the LEGO drivers"; return 1; }
+	# The page of the series, with the kernel-doc of both uapi headers.
+	for w in 'struct lego_ev3_port_label' 'LEGO_EV3_SET_PORT_LABEL' 'struct nxt_transaction' 'NXT_IOC_TRANSACT'; do
+		grep -q "$w" "$html/lego.html" || { echo "lego.html has no $w"; return 1; }
+	done
+	echo "ioctl-number.html and lego.html checked"
 }
 
 for s in "${steps[@]}"; do

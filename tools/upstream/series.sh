@@ -14,8 +14,9 @@
 # there is no second copy of any source. What differs in-tree is either a
 # file of this repository that the out-of-tree build does not read
 # (drivers/lego/*/Kconfig, .kunitconfig, the Makefile that the out-of-tree
-# Kbuild includes, tools/upstream/MAINTAINERS, the commit messages in
-# tools/upstream/msg/) or a mechanical rule:
+# Kbuild includes, tools/upstream/MAINTAINERS, the userspace API page
+# tools/upstream/doc/lego.rst, the commit messages in tools/upstream/msg/)
+# or a mechanical rule:
 #
 # - files move to their mainline places (see PLACES below);
 # - C sources and headers go through tools/upstream/intree.py, which drops
@@ -27,7 +28,8 @@
 #   number, NR_LDISCS raised), the ioctl magic numbers in
 #   Documentation/userspace-api/ioctl/ioctl-number.rst, the Kconfig
 #   "source" lines and Makefile lines of drivers/iio/common and
-#   drivers/usb/misc, the MAINTAINERS entries (each patch adds the F: lines
+#   drivers/usb/misc, the page in Documentation/userspace-api/index.rst,
+#   the MAINTAINERS entries (each patch adds the F: lines
 #   of the files it adds).
 #
 # Commits carry the author and Signed-off-by of this checkout's HEAD, and
@@ -215,12 +217,23 @@ piece_nxt_usb() {
 	commit 6-nxt-usb.txt
 }
 
+# 7. The userspace API guide's page: the uapi headers' kernel-doc.
+piece_docs() {
+	local f=Documentation/userspace-api/index.rst
+	put tools/upstream/doc/lego.rst Documentation/userspace-api/lego.rst
+	# In "Devices and I/O".
+	grep -qxF '   isapnp' "$tree/$f" || die "$f: no isapnp entry"
+	sed -i '/^   isapnp$/a\   lego' "$tree/$f"
+	commit 7-docs.txt
+}
+
 piece_ldisc
 piece_uapi
 piece_ev3_proto
 piece_ev3_ldisc
 piece_nxt_proto
 piece_nxt_usb
+piece_docs
 
 # Nothing of this checkout's drivers or their ABI may be left out of the series.
 for f in "$top"/Documentation/ABI/testing/*lego*; do

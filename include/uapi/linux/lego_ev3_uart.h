@@ -28,9 +28,9 @@
 
 /**
  * struct lego_ev3_port_label - the label of the port a tty serves
- * @label: NUL-terminated, at most 15 characters from [A-Za-z0-9_.-], e.g.
- *	"in1"; empty for none. A sensor's address is "<tty>:<label>", or the
- *	tty name alone without a label.
+ * @label: NUL-terminated, at most 15 characters from ``[A-Za-z0-9_.-]``,
+ *	e.g. "in1"; empty for none. A sensor's address is "<tty>:<label>", or
+ *	the tty name alone without a label.
  */
 struct lego_ev3_port_label {
 	char label[LEGO_EV3_LABEL_LEN];
