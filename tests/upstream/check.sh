@@ -10,7 +10,7 @@
 #
 # SERIES: 6.12 (default). STEPS (default: all): series am checkpatch
 # kernel-doc abi headers htmldocs build-x86_64-m build-x86_64-y build-arm64-m
-# build-arm64-y kunit.
+# build-arm64-y bisect kunit.
 #
 # 1. series: `make upstream-series` writes the series from this checkout;
 # 2. am: a clean copy of the base (a worktree of the scratch repository,
@@ -35,7 +35,10 @@
 #    aarch64-linux-gnu-. Each configuration builds in
 #    .build/upstream/build-SERIES-ARCH-MODE (O=), kept for the next run:
 #    only what changed is rebuilt;
-# 9. kunit: tools/testing/kunit/kunit.py run (UML) with both drivers'
+# 9. bisect: each commit of the series checked out in turn, and the
+#    drivers' directories that have a Makefile by then built in with W=1
+#    (build-x86_64-y's configuration): no patch breaks the build;
+# 10. kunit: tools/testing/kunit/kunit.py run (UML) with both drivers'
 #    .kunitconfig; both suites must run and every case pass. The UML
 #    build is kept in .build/upstream/kunit-SERIES-um.
 #
@@ -56,7 +59,7 @@ prog=upstream-check
 
 steps=("$@")
 [ ${#steps[@]} -gt 0 ] || steps=(series am checkpatch kernel-doc abi headers htmldocs
-	build-x86_64-m build-x86_64-y build-arm64-m build-arm64-y kunit)
+	build-x86_64-m build-x86_64-y build-arm64-m build-arm64-y bisect kunit)
 work=$up_out/check-$series
 logs=$up_out/check-$series.log
 mkdir -p "$logs"
@@ -248,6 +251,53 @@ step_build() {
 	fi
 }
 
+# Every patch builds (git bisect): at each commit of the series, the
+# drivers' directories that have a Makefile by then, built in with W=1, in
+# the configuration of build-x86_64-y (its .config, olddefconfig: the
+# options of a driver not there yet drop out).
+step_bisect() {
+	local out=$up_out/build-$series-x86_64-bisect cfg=$up_out/build-$series-x86_64-y/.config
+	local c d n=0 dirs log2 rc=0
+	[ -f "$cfg" ] || { echo "no $cfg: run build-x86_64-y first"; return 1; }
+	local tip
+	tip=$(git -C "$work" rev-parse HEAD)
+	mkdir -p "$out"
+	log2=$(mktemp)
+	for c in $(git -C "$work" rev-list --reverse "$(up_base_tag)..HEAD"); do
+		n=$((n + 1))
+		git -C "$work" checkout -q --detach "$c" || { rc=1; break; }
+		dirs=()
+		for d in drivers/iio/common/lego_ev3_uart drivers/usb/misc/lego_nxt; do
+			[ -f "$work/$d/Makefile" ] && dirs+=("$d/")
+		done
+		if [ ${#dirs[@]} = 0 ]; then
+			echo "patch $n: nothing of ours is built yet"
+			continue
+		fi
+		cp "$cfg" "$out/.config"
+		find "$out/drivers/iio/common/lego_ev3_uart" "$out/drivers/usb/misc/lego_nxt" \
+			-name '*.o' -delete 2>/dev/null
+		if ! make -C "$work" O="$out" -s olddefconfig >"$log2" 2>&1 ||
+			! make -C "$work" O="$out" -j"$jobs" W=1 "${dirs[@]}" >>"$log2" 2>&1 ||
+			grep -E 'warning:|error:' "$log2"; then
+			cat "$log2"
+			echo "patch $n ($(git -C "$work" log -1 --format=%s "$c")): FAILED"
+			rc=1
+			break
+		fi
+		for d in "${dirs[@]}"; do
+			[ -n "$(find "$out/$d" -name '*.o' ! -name 'built-in*')" ] ||
+				{ echo "patch $n: nothing was compiled in $d"; rc=1; }
+		done
+		[ "$rc" = 0 ] || break
+		echo "patch $n: ${dirs[*]} built with W=1"
+	done
+	rm -f "$log2"
+	# Back to the whole series.
+	git -C "$work" checkout -q --detach "$tip" || rc=1
+	return $rc
+}
+
 # Both KUnit suites under UML with kunit.py and the drivers' .kunitconfig.
 step_kunit() {
 	local out dirs=(drivers/iio/common/lego_ev3_uart drivers/usb/misc/lego_nxt) args=() d
@@ -287,7 +337,7 @@ step_htmldocs() {
 
 for s in "${steps[@]}"; do
 	case "$s" in
-	series | am | checkpatch | kernel-doc | abi | headers | build-x86_64-[my] | build-arm64-[my] | kunit | htmldocs) ;;
+	series | am | checkpatch | kernel-doc | abi | headers | build-x86_64-[my] | build-arm64-[my] | bisect | kunit | htmldocs) ;;
 	*) echo "$prog: unknown step $s" >&2; exit 2 ;;
 	esac
 done
@@ -303,6 +353,7 @@ for s in "${steps[@]}"; do
 	abi) step_abi >"$logs/$s.log" 2>&1 ;;
 	headers) step_headers >"$logs/$s.log" 2>&1 ;;
 	kunit) step_kunit >"$logs/$s.log" 2>&1 ;;
+	bisect) step_bisect >"$logs/$s.log" 2>&1 ;;
 	htmldocs) step_htmldocs >"$logs/$s.log" 2>&1 ;;
 	build-*-*)
 		a=${s#build-}
