@@ -9,8 +9,8 @@
 #   tests/upstream/check.sh [SERIES] [STEP...]
 #
 # SERIES: 6.12 (default). STEPS (default: all): series am checkpatch
-# kernel-doc abi headers htmldocs build-x86_64-m build-x86_64-y build-arm64-m
-# build-arm64-y bisect kunit.
+# kernel-doc abi headers htmldocs lego-docs build-x86_64-m build-x86_64-y
+# build-arm64-m build-arm64-y bisect kunit.
 #
 # 1. series: `make upstream-series` writes the series from this checkout;
 # 2. am: a clean copy of the base (a worktree of the scratch repository,
@@ -26,6 +26,8 @@
 # 7. htmldocs: make SPHINXDIRS=userspace-api htmldocs (the series adds rows
 #    to ioctl-number.rst and a page with the uapi headers' kernel-doc): no
 #    warning about them, and the pages list what they should;
+#    lego-docs: this checkout's Documentation/lego (not part of the series)
+#    through sphinx-build -W;
 # 8. build-ARCH-MODE: allnoconfig plus tests/upstream/build.config and the
 #    drivers and their KUnit suites as MODE (m or y), checked after
 #    olddefconfig (IIO_BUFFER and IIO_KFIFO_BUF must be selected); vmlinux
@@ -58,7 +60,7 @@ prog=upstream-check
 . "$top/tests/kernel/lib.sh"
 
 steps=("$@")
-[ ${#steps[@]} -gt 0 ] || steps=(series am checkpatch kernel-doc abi headers htmldocs
+[ ${#steps[@]} -gt 0 ] || steps=(series am checkpatch kernel-doc abi headers htmldocs lego-docs
 	build-x86_64-m build-x86_64-y build-arm64-m build-arm64-y bisect kunit)
 work=$up_out/check-$series
 logs=$up_out/check-$series.log
@@ -251,6 +253,16 @@ step_build() {
 	fi
 }
 
+# This checkout's own pages (Documentation/lego, which stay out of the
+# tree) through Sphinx with warnings as errors, as htmldocs would.
+step_lego_docs() {
+	local out=$up_out/lego-docs
+	rm -rf "$out"
+	sphinx-build -q -W --keep-going -C -D master_doc=index -D project="LEGO MINDSTORMS" \
+		-b html "$top/Documentation/lego" "$out" || return 1
+	echo "$(find "$out" -maxdepth 1 -name '*.html' | wc -l) pages in $out"
+}
+
 # Every patch builds (git bisect): at each commit of the series, the
 # drivers' directories that have a Makefile by then, built in with W=1, in
 # the configuration of build-x86_64-y (its .config, olddefconfig: the
@@ -337,7 +349,7 @@ step_htmldocs() {
 
 for s in "${steps[@]}"; do
 	case "$s" in
-	series | am | checkpatch | kernel-doc | abi | headers | build-x86_64-[my] | build-arm64-[my] | bisect | kunit | htmldocs) ;;
+	series | am | checkpatch | kernel-doc | abi | headers | build-x86_64-[my] | build-arm64-[my] | bisect | kunit | htmldocs | lego-docs) ;;
 	*) echo "$prog: unknown step $s" >&2; exit 2 ;;
 	esac
 done
@@ -354,6 +366,7 @@ for s in "${steps[@]}"; do
 	headers) step_headers >"$logs/$s.log" 2>&1 ;;
 	kunit) step_kunit >"$logs/$s.log" 2>&1 ;;
 	bisect) step_bisect >"$logs/$s.log" 2>&1 ;;
+	lego-docs) step_lego_docs >"$logs/$s.log" 2>&1 ;;
 	htmldocs) step_htmldocs >"$logs/$s.log" 2>&1 ;;
 	build-*-*)
 		a=${s#build-}
