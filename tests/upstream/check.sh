@@ -9,7 +9,7 @@
 #   tests/upstream/check.sh [SERIES] [STEP...]
 #
 # SERIES: 6.12 (default). STEPS (default: all): series am checkpatch
-# kernel-doc abi headers htmldocs lego-docs build-x86_64-m build-x86_64-y
+# kernel-doc refs abi headers htmldocs lego-docs build-x86_64-m build-x86_64-y
 # build-arm64-m build-arm64-y bisect kunit.
 #
 # 1. series: `make upstream-series` writes the series from this checkout;
@@ -20,6 +20,7 @@
 #    warning or check (nor any other output);
 # 4. kernel-doc: scripts/kernel-doc -none -Wall on every C file and header
 #    the series adds: no output;
+#    refs: every path the series' added lines name exists in the tree;
 # 5. abi: scripts/get_abi.pl validate: no line about our ABI files;
 # 6. headers: make headers, then each uapi header the series adds compiled
 #    alone in userspace with -Wall -Wextra -Werror;
@@ -60,7 +61,7 @@ prog=upstream-check
 . "$top/tests/kernel/lib.sh"
 
 steps=("$@")
-[ ${#steps[@]} -gt 0 ] || steps=(series am checkpatch kernel-doc abi headers htmldocs lego-docs
+[ ${#steps[@]} -gt 0 ] || steps=(series am checkpatch kernel-doc refs abi headers htmldocs lego-docs
 	build-x86_64-m build-x86_64-y build-arm64-m build-arm64-y bisect kunit)
 work=$up_out/check-$series
 logs=$up_out/check-$series.log
@@ -253,6 +254,20 @@ step_build() {
 	fi
 }
 
+# Every path the series' lines name (Documentation/..., drivers/...,
+# tests/...) exists in the tree: a comment or an ABI entry must not point
+# at a file that stays out of the tree. nxt-python's own tests/test_brick.py
+# is another project's file.
+step_refs() {
+	local out
+	out=$(git -C "$work" diff "$(up_base_tag)" HEAD | grep '^+[^+]' |
+		grep -oP '(?<![\w/.<-])(Documentation|drivers|include|scripts|tests|tools)/[\w./-]*\w' |
+		grep -vxF 'tests/test_brick.py' | sort -u |
+		while read -r f; do [ -e "$work/$f" ] || echo "$f"; done)
+	[ -z "$out" ] || { echo "paths named by the series that are not in the tree:"; echo "$out"; return 1; }
+	echo "every path the series names is in the tree"
+}
+
 # This checkout's own pages (Documentation/lego, which stay out of the
 # tree) through Sphinx with warnings as errors, as htmldocs would.
 step_lego_docs() {
@@ -349,7 +364,7 @@ step_htmldocs() {
 
 for s in "${steps[@]}"; do
 	case "$s" in
-	series | am | checkpatch | kernel-doc | abi | headers | build-x86_64-[my] | build-arm64-[my] | bisect | kunit | htmldocs | lego-docs) ;;
+	series | am | checkpatch | kernel-doc | abi | headers | build-x86_64-[my] | build-arm64-[my] | bisect | kunit | htmldocs | lego-docs | refs) ;;
 	*) echo "$prog: unknown step $s" >&2; exit 2 ;;
 	esac
 done
@@ -367,6 +382,7 @@ for s in "${steps[@]}"; do
 	kunit) step_kunit >"$logs/$s.log" 2>&1 ;;
 	bisect) step_bisect >"$logs/$s.log" 2>&1 ;;
 	lego-docs) step_lego_docs >"$logs/$s.log" 2>&1 ;;
+	refs) step_refs >"$logs/$s.log" 2>&1 ;;
 	htmldocs) step_htmldocs >"$logs/$s.log" 2>&1 ;;
 	build-*-*)
 		a=${s#build-}
