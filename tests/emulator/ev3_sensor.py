@@ -17,6 +17,11 @@ ev3dev.md):
   no NACK came for a second;
 - SELECT switches mode after the sensor's own delay; WRITE 0x11 resets the
   gyro angle;
+- Powered Up devices that can (the SPIKE colour and distance sensors, not
+  the BOOST colour and distance sensor) listen at 115200 baud while they
+  hold TX low after a reset, and answer the host's fast sync probe (SPEED
+  115200 sent at 115200) with ACK, then send their handshake at 115200;
+  without a probe they go on at 2400 like the others;
 - quirks: the colour sensor's RGB-RAW frames with a wrong checksum and a
   fourth value, the infrared sensor's "00 ff" in its handshake and its stale
   values for ~1.1 s after a mode switch, the ultrasonic sensor's US-DC-IN
@@ -39,11 +44,13 @@ Two test aids go beyond a real sensor:
   A socket cannot carry framing errors, so the garbage is made of 0x00 and
   0xff bytes only, which can never form a message.
 """
+import fcntl
 import math
 import os
 import random
 import select
 import struct
+import sys
 import termios
 import threading
 import time
@@ -59,6 +66,11 @@ BAUD = {2400: termios.B2400, 9600: termios.B9600, 19200: termios.B19200,
         38400: termios.B38400, 57600: termios.B57600, 115200: termios.B115200,
         230400: termios.B230400, 460800: termios.B460800}
 SPEED_OF = {v: k for k, v in BAUD.items()}
+FAST = 115200
+# The host's fast sync probe, SPEED 115200 (sent at 115200).
+PROBE = bytes([0x52, 0x00, 0xc2, 0x01, 0x00, 0x6e])
+# Line break on and off (asm-generic/ioctls.h; Python's termios lacks them).
+TIOCSBRK, TIOCCBRK = 0x5427, 0x5428
 
 
 def checksum(data):
@@ -138,15 +150,18 @@ class SensorDef:
     quirks=False: none of the real sensors' quirks in the data phase."""
 
     def __init__(self, type_id, driver, views, modes, speed=57600, raw_handshake=None,
-                 quirks=True, lump=False, version=None, combos=()):
+                 quirks=True, lump=False, version=None, combos=(), fast_sync=False):
         """lump: a Powered Up device (LUMP): the handshake in its form
         (see handshake()), and an EXT_MODE message before every DATA
         message; version: (firmware, hardware) for the VERSION message;
-        combos: the MODE_COMBOS bitmaps sent after mode 0's FORMAT."""
+        combos: the MODE_COMBOS bitmaps sent after mode 0's FORMAT;
+        fast_sync: answers the host's SPEED 115200 probe (see
+        EmulatedSensor.listen_for_probe())."""
         self.type, self.driver, self.views = type_id, driver, views
         self.modes, self.speed = modes, speed
         self.raw_handshake, self.quirks = raw_handshake, quirks
         self.lump, self.version, self.combos = lump, version, combos
+        self.fast_sync = fast_sync
 
 
 COLOR = SensorDef(29, 'lego-ev3-color', 3, [
@@ -263,7 +278,8 @@ SPIKE_COLOR = SensorDef(61, 'lego-spike-color', 8, [
     _spike('SHSV', 'RAW', 4, S16, (0, 360)),
     _spike('DEBUG', 'RAW', 2, S16, (0, 1023)),
     _spike('CALIB', 'RAW', 7, S16, (0, 65535), cadence='nack'),
-], speed=115200, lump=True, version=(0x10000000, 0x10000000), combos=(0x00e3,))
+], speed=115200, lump=True, version=(0x10000000, 0x10000000), combos=(0x00e3,),
+    fast_sync=True)
 
 SPIKE_DIST = SensorDef(62, 'lego-spike-ultrasonic', 8, [
     _spike('DISTL', 'cm', 1, S16, (0, 250), fig=5, cadence='continuous', period=0.03),
@@ -275,7 +291,7 @@ SPIKE_DIST = SensorDef(62, 'lego-spike-ultrasonic', 8, [
     _spike('PING', 'PCT', 1, S8, (0, 1), fig=1),
     _spike('ADRAW', 'PCT', 1, S16, (0, 1024), fig=4),
     _spike('CALIB', 'PCT', 7, S16, (0, 65535), fig=5, cadence='nack'),
-], speed=115200, lump=True, version=(0x10000000, 0x10000000))
+], speed=115200, lump=True, version=(0x10000000, 0x10000000), fast_sync=True)
 
 SENSORS = {'color': COLOR, 'us': US, 'gyro': GYRO, 'gyro-old': GYRO_OLD, 'ir': IR,
            'fcl-humidity': FCL_HUMIDITY, 'boost-cds': BOOST_CDS, 'spike-color': SPIKE_COLOR,
@@ -387,7 +403,7 @@ class EmulatedSensor(threading.Thread):
     stop() is called."""
 
     def __init__(self, path, kind, hostile=False, seed=1, boot_delay=0.5, period_scale=1.0,
-                 host_tty=None, retry_delay=None):
+                 host_tty=None, retry_delay=None, fast_sync=None):
         """period_scale > 1 slows the spontaneous cadence of continuous modes
         (NACK replies stay immediate): several emulators in one Python
         process inside an emulated machine cannot all keep real cadences
@@ -395,7 +411,10 @@ class EmulatedSensor(threading.Thread):
 
         host_tty: the host's end of a line that carries no baud rate (a
         socket between two UARTs); what is sent is garbled while the host
-        end's speed differs from ours."""
+        end's speed differs from ours.
+
+        fast_sync: False makes a device that answers the fast sync probe
+        ignore it (None: as its definition says)."""
         super().__init__(daemon=True)
         self.host_tty = host_tty
         self.host_fd = None
@@ -404,6 +423,10 @@ class EmulatedSensor(threading.Thread):
         self.stream_req = None
         self.period_scale = period_scale
         self.sdef = SENSORS[kind] if isinstance(kind, str) else kind
+        self.fast_sync = getattr(self.sdef, 'fast_sync', False) if fast_sync is None \
+            else fast_sync
+        self.sync_speeds = []       # the speed of each handshake sent
+        self.fast_syncs = 0         # probes answered
         self.path, self.hostile, self.boot_delay = path, hostile, boot_delay
         self.retry_delay = retry_delay  # boot delay after an unanswered handshake
         self.attempts = 0
@@ -542,27 +565,76 @@ class EmulatedSensor(threading.Thread):
                 os.close(self.host_fd)
 
     def connect(self):
-        """Reset, handshake at 2400 baud; True once the host ACKed."""
-        self.set_speed(2400)
+        """Reset, handshake at 2400 baud (or at 115200 after the host's
+        fast sync probe); True once the host ACKed."""
         with self.lock:
             self.mode = 0
-        termios.tcsendbreak(self.fd, 0)
         delay = self.boot_delay
         if self.attempts and self.retry_delay is not None:
             delay = self.retry_delay
         self.attempts += 1
-        self.stopping.wait(delay)
-        termios.tcflush(self.fd, termios.TCIFLUSH)
+        speed = 2400
+        # Built before the reset: after a fast sync it goes out at once.
+        hs = handshake(self.sdef)
+        if self.fast_sync:
+            speed = self.listen_for_probe(delay)
+        else:
+            self.set_speed(2400)
+            termios.tcsendbreak(self.fd, 0)
+            self.stopping.wait(delay)
+        if speed == 2400:
+            termios.tcflush(self.fd, termios.TCIFLUSH)
         if self.hostile:
             self.send_hostile()
-        self.send(handshake(self.sdef))
+        self.send(hs)
         termios.tcdrain(self.fd)
-        self.log('handshake sent')
+        self.sync_speeds.append(speed)
+        self.log('handshake sent' if speed == 2400 else 'handshake sent at %d' % speed)
         if self.wait_ack():
             self.handshakes += 1
             self.set_speed(self.sdef.speed)
             return True
         return False
+
+    def listen_for_probe(self, delay):
+        """The reset of a device that can sync fast: TX held low (a
+        break, which the host sees) for `delay` seconds while it listens at
+        115200 baud for SPEED 115200. It answers one with ACK at once and
+        returns 115200 (its handshake follows at that speed), else it
+        returns 2400, at 2400 baud.
+
+        A real device answers within a millisecond, the host waits 30 ms.
+        Python in the emulated test machine takes 4 to 15 ms, and more when
+        another thread of the test holds the interpreter lock: it is handed
+        over every 5 ms by default, every 0.5 ms from here on."""
+        if sys.getswitchinterval() > 0.0005:
+            sys.setswitchinterval(0.0005)
+        self.set_speed(FAST)
+        termios.tcflush(self.fd, termios.TCIFLUSH)
+        try:
+            fcntl.ioctl(self.fd, TIOCSBRK)
+        except OSError:
+            pass                    # a tty with no break (a pty)
+        deadline = time.monotonic() + delay
+        buf = b''
+        try:
+            while not self.stopping.is_set():
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    break
+                buf = buf[-(len(PROBE) - 1):] + self.read(min(left, 0.05))
+                if PROBE in buf:
+                    self.send(bytes([SYS_ACK]))
+                    self.fast_syncs += 1
+                    self.log('fast sync: ACK to SPEED 115200')
+                    return FAST
+        finally:
+            try:
+                fcntl.ioctl(self.fd, TIOCCBRK)
+            except OSError:
+                pass
+        self.set_speed(2400)
+        return 2400
 
     def wait_ack(self):
         """The sensor waits 80 ms for the host's ACK, on its own clock.

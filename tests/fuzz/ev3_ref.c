@@ -20,6 +20,7 @@
 #define ev3_uart_build_ack		ref_ev3_uart_build_ack
 #define ev3_uart_build_nack		ref_ev3_uart_build_nack
 #define ev3_uart_build_select		ref_ev3_uart_build_select
+#define ev3_uart_build_speed		ref_ev3_uart_build_speed
 #define ev3_uart_build_write		ref_ev3_uart_build_write
 #define ev3_uart_build_lump_data	ref_ev3_uart_build_lump_data
 #define ev3_uart_parser_init		ref_ev3_uart_parser_init
@@ -28,5 +29,7 @@
 #define ev3_uart_parser_start_data	ref_ev3_uart_parser_start_data
 #define ev3_uart_parser_select		ref_ev3_uart_parser_select
 #define ev3_uart_parser_tick		ref_ev3_uart_parser_tick
+#define ev3_uart_parser_probe		ref_ev3_uart_parser_probe
+#define ev3_uart_parser_probe_end	ref_ev3_uart_parser_probe_end
 
 #include "ev3_uart_proto.c"

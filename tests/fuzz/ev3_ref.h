@@ -14,5 +14,7 @@ void ref_ev3_uart_parser_start_data(struct ev3_uart_parser *p);
 int ref_ev3_uart_parser_select(struct ev3_uart_parser *p, u8 mode);
 bool ref_ev3_uart_parser_tick(struct ev3_uart_parser *p,
 			      struct ev3_uart_event *ev);
+int ref_ev3_uart_parser_probe(struct ev3_uart_parser *p, u32 speed);
+u32 ref_ev3_uart_parser_probe_end(struct ev3_uart_parser *p);
 
 #endif /* _LEGO_FUZZ_EV3_REF_H */

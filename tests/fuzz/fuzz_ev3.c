@@ -9,7 +9,8 @@
  * drives a pseudo-random host: batches of 1 to 64 bytes, line errors
  * (framing, parity, break), keep-alive ticks, SELECTs and WRITEs, bytes
  * arriving between the sensor's ACK and the host's speed change, failed
- * registrations. After every call the parser's state is checked against
+ * registrations, fast sync probes (SPEED 115200) that the bytes may answer
+ * or not. After every call the parser's state is checked against
  * what its header promises, and every event against the state. One input
  * in four also goes through differential(): the fast path against the
  * byte loop.
@@ -31,6 +32,7 @@ struct host {
 	unsigned int num_chans;
 	u32 rng;		/* xorshift32 state; 0: the quiet host */
 	unsigned int acked_wait;	/* batches to receive before start_data */
+	unsigned int probe_wait;	/* batches to receive before probe_end */
 	s64 now;
 	s64 last_ts;
 	unsigned long events;
@@ -72,7 +74,10 @@ static void check_parser(const struct ev3_uart_parser *p)
 {
 	const struct ev3_uart_sensor *s = &p->sensor;
 
-	CHECK(p->state <= EV3_UART_STATE_DATA);
+	CHECK(p->state <= EV3_UART_STATE_PROBE);
+	/* 2400 baud, or the probe's speed from the probe on. */
+	CHECK(p->sync_speed == EV3_UART_SPEED_MIN ||
+	      p->sync_speed == EV3_UART_SPEED_FAST);
 	CHECK(p->msg_len <= EV3_UART_MAX_MSG_LEN);
 	CHECK(p->replay_pos <= p->replay_len);
 	CHECK(p->replay_len <= EV3_UART_MAX_MSG_LEN);
@@ -98,6 +103,13 @@ static void check_parser(const struct ev3_uart_parser *p)
 	}
 	if (p->state == EV3_UART_STATE_SYNC) {
 		CHECK(p->msg_len <= 3);
+		return;
+	}
+	/* Waiting for the probe's ACK: nothing held, nothing to replay. */
+	if (p->state == EV3_UART_STATE_PROBE) {
+		CHECK(p->sync_speed == EV3_UART_SPEED_FAST);
+		CHECK(!p->msg_len && p->replay_pos == p->replay_len);
+		CHECK(p->fast_hdr == EV3_UART_NO_HDR);
 		return;
 	}
 	/* A message being received: its header and length agree. */
@@ -284,6 +296,10 @@ static void event(struct host *h, const struct ev3_uart_event *ev, size_t rest)
 		name = ev3_uart_driver_name(p->sensor.type);
 		CHECK(!name || strncmp(name, "lego-ev3-", 9) == 0 ||
 		      strncmp(name, "fcl-", 4) == 0);
+		CHECK(!name || strlen(name) < EV3_UART_DRIVER_NAME_LEN);
+		name = ev3_uart_lump_driver_name(p->sensor.type);
+		CHECK(!name || (strncmp(name, "lego-", 5) == 0 &&
+				strlen(name) < EV3_UART_DRIVER_NAME_LEN));
 		h->acked_wait = h->rng && rnd(h) % 4 == 0 ? 1 + rnd(h) % 3 : 0;
 		if (!h->acked_wait)
 			start_data(h);
@@ -303,6 +319,11 @@ static void event(struct host *h, const struct ev3_uart_event *ev, size_t rest)
 		CHECK(p->report_msgs && p->state == EV3_UART_STATE_INFO);
 		CHECK(ev->len >= 3 && ev->len <= EV3_UART_MAX_MSG_LEN);
 		break;
+	case EV3_UART_EV_FAST:
+		/* The probe's ACK: hunting for TYPE at its speed. */
+		CHECK(p->state == EV3_UART_STATE_SYNC && !p->msg_len);
+		CHECK(p->sync_speed == EV3_UART_SPEED_FAST);
+		break;
 	default:
 		CHECK(0);
 	}
@@ -316,7 +337,7 @@ static void receive(struct host *h, const u8 *buf, size_t count)
 	unsigned int stuck = 0;
 	size_t used;
 	u32 speed = h->p->state == EV3_UART_STATE_DATA ? h->p->sensor.speed
-						       : EV3_UART_SPEED_MIN;
+						       : h->p->sync_speed;
 
 	/*
 	 * The batch is handled after its last byte came in (8N1: 10 bits a
@@ -339,6 +360,45 @@ static void receive(struct host *h, const u8 *buf, size_t count)
 		count -= used;
 		event(h, &ev, count);
 	}
+}
+
+/*
+ * The fast sync probe (SPEED 115200 sent at 115200), as the ldisc makes it
+ * from SYNC at 2400 baud; probe_end() after a few batches.
+ */
+static void probe(struct host *h)
+{
+	struct ev3_uart_parser *p = h->p;
+	bool can = p->state == EV3_UART_STATE_SYNC &&
+		   p->sync_speed == EV3_UART_SPEED_MIN;
+	u8 msg[EV3_UART_SPEED_MSG_LEN];
+
+	CHECK(ev3_uart_build_speed(msg, EV3_UART_SPEED_FAST) == sizeof(msg));
+	CHECK(ev3_uart_msg_len(msg[0]) == sizeof(msg));
+	CHECK(msg[5] == ev3_uart_checksum(msg, 5));
+	if (ev3_uart_parser_probe(p, EV3_UART_SPEED_FAST)) {
+		CHECK(!can);
+		return;
+	}
+	CHECK(can && p->state == EV3_UART_STATE_PROBE);
+	check_parser(p);
+	h->probe_wait = 1 + rnd(h) % 4;
+}
+
+static void probe_end(struct host *h)
+{
+	struct ev3_uart_parser *p = h->p;
+	bool waiting = p->state == EV3_UART_STATE_PROBE;
+	u32 old = p->sync_speed, speed;
+
+	speed = ev3_uart_parser_probe_end(p);
+	CHECK(speed == p->sync_speed);
+	CHECK(p->state != EV3_UART_STATE_PROBE);
+	if (waiting)
+		CHECK(speed == EV3_UART_SPEED_MIN && p->state == EV3_UART_STATE_SYNC);
+	else
+		CHECK(speed == old);
+	check_parser(p);
 }
 
 /* The host's side of the data phase: SELECT, WRITE, keep-alive. */
@@ -405,6 +465,8 @@ static void host_actions(struct host *h)
 		ev3_uart_parser_line_error(p, &ev);
 		event(h, &ev, 0);
 	}
+	if (rnd(h) % 32 == 0)
+		probe(h);
 }
 
 /*
@@ -428,18 +490,22 @@ struct diff_ops {
 	void (*start_data)(struct ev3_uart_parser *p);
 	int (*select)(struct ev3_uart_parser *p, u8 mode);
 	bool (*tick)(struct ev3_uart_parser *p, struct ev3_uart_event *ev);
+	int (*probe)(struct ev3_uart_parser *p, u32 speed);
+	u32 (*probe_end)(struct ev3_uart_parser *p);
 };
 
 static const struct diff_ops diff_ref = {
 	ref_ev3_uart_parser_init, ref_ev3_uart_parser_feed,
 	ref_ev3_uart_parser_line_error, ref_ev3_uart_parser_start_data,
 	ref_ev3_uart_parser_select, ref_ev3_uart_parser_tick,
+	ref_ev3_uart_parser_probe, ref_ev3_uart_parser_probe_end,
 };
 
 static const struct diff_ops diff_fast = {
 	ev3_uart_parser_init, ev3_uart_parser_feed,
 	ev3_uart_parser_line_error, ev3_uart_parser_start_data,
 	ev3_uart_parser_select, ev3_uart_parser_tick,
+	ev3_uart_parser_probe, ev3_uart_parser_probe_end,
 };
 
 struct diff_run {
@@ -490,6 +556,7 @@ static void diff_state(const struct ev3_uart_parser *a,
 		       const struct ev3_uart_parser *b)
 {
 	CHECK(a->state == b->state);
+	CHECK(a->sync_speed == b->sync_speed);
 	CHECK(!memcmp(&a->sensor, &b->sensor, sizeof(a->sensor)));
 	CHECK(a->msg_len == b->msg_len);
 	CHECK(!memcmp(a->msg, b->msg, a->msg_len));
@@ -582,6 +649,15 @@ static void differential(const u8 *data, size_t size, u32 seed)
 				diff_event(&r[i], &ev[i], at);
 			}
 		}
+		if (rnd(&h) % 32 == 0) {
+			for (i = 0; i < 2; i++)
+				ret[i] = r[i].ops->probe(&r[i].p, EV3_UART_SPEED_FAST);
+			CHECK(ret[0] == ret[1]);
+		} else if (rnd(&h) % 4 == 0) {
+			for (i = 0; i < 2; i++)
+				ret[i] = r[i].ops->probe_end(&r[i].p);
+			CHECK(ret[0] == ret[1]);
+		}
 		diff_logs(&r[0], &r[1]);
 		diff_state(&r[0].p, &r[1].p);
 	}
@@ -621,6 +697,8 @@ int LLVMFuzzerTestOneInput(const unsigned char *data, size_t size)
 		if (h.p->state == EV3_UART_STATE_ACKED && h.acked_wait &&
 		    !--h.acked_wait)
 			start_data(&h);
+		if (h.probe_wait && !--h.probe_wait)
+			probe_end(&h);
 		if (h.rng)
 			host_actions(&h);
 	}

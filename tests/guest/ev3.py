@@ -33,6 +33,16 @@ def write_attr(path, name, value):
         f.write(value)
 
 
+def plug(line, kind, **kw):
+    """Plug an emulated sensor (ev3_sensor's kind) into line, and wait for
+    its lego-sensor device: (emulator, sensorN directory)."""
+    emu = line.plug(kind, **kw)
+    path = find_sensor(line.address, timeout=15)
+    assert path, 'no lego-sensor device on %s for %s (emulator events: %s)' % (
+        line.address, kind, emu.events)
+    return emu, path
+
+
 def find_sensor(address, timeout=10.0, gone_from=None):
     """The sensorN directory whose address is `address`, waiting for it."""
     sd = open_sensor(address, timeout, gone_from)
@@ -221,6 +231,24 @@ class Line:
     def attach(self):
         self.fd = os.open(self.host, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
         fcntl.ioctl(self.fd, termios.TIOCSETD, struct.pack('i', N_LEGOEV3))
+        self.wait_probe()
+
+    def wait_probe(self, timeout=2.0):
+        """Wait until the fast sync probe the discipline makes when it is
+        attached is over and the tty back at 2400 baud (about 35 ms), as
+        tests that read or lock the tty's speed expect."""
+        path = '/sys/kernel/debug/lego_ev3_uart/%s/counters' % os.path.basename(self.host)
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            try:
+                with open(path) as f:
+                    c = dict(line.split() for line in f)
+            except OSError:
+                return                  # no debugfs: nothing to wait for
+            if int(c.get('tx_speed', 1)) + int(c.get('tx_errors', 0)) >= 1 and \
+                    c.get('state') != '4' and termios.tcgetattr(self.fd)[4] == termios.B2400:
+                return
+            time.sleep(0.01)
 
     def detach(self):
         if self.fd is not None:

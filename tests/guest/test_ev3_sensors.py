@@ -7,23 +7,16 @@ import time
 
 import pytest
 
-from ev3 import (ev3_sensor, find_sensor, read_attr, wait_gone, wait_handshakes, wait_value,
+from ev3 import (ev3_sensor, find_sensor, plug, read_attr, wait_gone, wait_handshakes, wait_value,
                  write_attr)
 
 KINDS = ['color', 'us', 'gyro', 'gyro-old', 'ir', 'fcl-humidity']
 
 
-def connect(line, kind, **kw):
-    emu = line.plug(kind, **kw)
-    path = find_sensor(line.address, timeout=15)
-    assert path, 'no lego-sensor device for %s (emulator events: %s)' % (kind, emu.events)
-    return emu, path
-
-
 @pytest.mark.parametrize('kind', KINDS)
 def test_handshake_registers_sensor(line, kind):
     sdef = ev3_sensor.SENSORS[kind]
-    emu, path = connect(line, kind)
+    emu, path = plug(line, kind)
     assert read_attr(path, 'driver_name') == sdef.driver
     assert read_attr(path, 'modes').split(' ') == [m.name for m in sdef.modes]
     assert read_attr(path, 'mode') == sdef.modes[0].name
@@ -42,7 +35,7 @@ def test_handshake_registers_sensor(line, kind):
 @pytest.mark.parametrize('kind', KINDS)
 def test_every_mode(line, kind):
     sdef = ev3_sensor.SENSORS[kind]
-    emu, path = connect(line, kind)
+    emu, path = plug(line, kind)
     for i, m in enumerate(sdef.modes):
         if m.deaf:
             continue            # these make the sensor drop out: tested apart
@@ -65,7 +58,7 @@ def test_every_mode(line, kind):
 
 
 def test_unknown_mode_is_einval(line):
-    emu, path = connect(line, 'color')
+    emu, path = plug(line, 'color')
     with pytest.raises(OSError) as e:
         write_attr(path, 'mode', 'NO-SUCH-MODE')
     assert e.value.errno == errno.EINVAL
@@ -78,7 +71,7 @@ def test_unknown_mode_is_einval(line):
 
 
 def test_values_follow_the_sensor(line):
-    emu, path = connect(line, 'color')
+    emu, path = plug(line, 'color')
     for v in (0, 17, 100, 42):
         emu.set_values(0, [v])
         assert wait_value(path, 0, v) == v
@@ -88,7 +81,7 @@ def test_values_follow_the_sensor(line):
 
 
 def test_rgb_raw_bad_checksums_and_fourth_value(line):
-    emu, path = connect(line, 'color')
+    emu, path = plug(line, 'color')
     emu.set_values(4, [300, 400, 500, 12])
     write_attr(path, 'mode', 'RGB-RAW')
     assert read_attr(path, 'num_values') == '4'
@@ -97,7 +90,7 @@ def test_rgb_raw_bad_checksums_and_fourth_value(line):
 
 
 def test_ultrasonic_cm_and_dc_in(line):
-    emu, path = connect(line, 'us')
+    emu, path = plug(line, 'us')
     emu.set_values(0, [263])
     assert wait_value(path, 0, 263) == 263          # 26.3 cm, 1 decimal
     assert read_attr(path, 'units') == 'cm'
@@ -113,7 +106,7 @@ def test_ultrasonic_cm_and_dc_in(line):
 
 
 def test_gyro_reset_through_direct(line):
-    emu, path = connect(line, 'gyro')
+    emu, path = plug(line, 'gyro')
     emu.set_values(0, [42])
     assert wait_value(path, 0, 42) == 42
     with open(os.path.join(path, 'direct'), 'wb') as f:
@@ -127,7 +120,7 @@ def test_gyro_reset_through_direct(line):
 
 
 def test_ir_settles_before_mode_write_returns(line):
-    emu, path = connect(line, 'ir')
+    emu, path = plug(line, 'ir')
     emu.set_values(2, [1, 2, 3, 4])
     t0 = time.monotonic()
     write_attr(path, 'mode', 'IR-REMOTE')
@@ -137,14 +130,14 @@ def test_ir_settles_before_mode_write_returns(line):
 
 
 def test_keepalive_holds_10s(line):
-    emu, path = connect(line, 'color')
+    emu, path = plug(line, 'color')
     time.sleep(10)
     assert os.path.isdir(path)
     assert emu.handshakes == 1, emu.events
 
 
 def test_unplug_and_replug(line):
-    emu, path = connect(line, 'gyro')
+    emu, path = plug(line, 'gyro')
     t0 = time.monotonic()
     emu.unplug()
     assert wait_gone(path, 3.0)
@@ -157,7 +150,7 @@ def test_unplug_and_replug(line):
 
 
 def test_mode_restored_after_reconnect(line):
-    emu, path = connect(line, 'color')
+    emu, path = plug(line, 'color')
     write_attr(path, 'mode', 'COL-COLOR')
     emu.unplug()
     assert wait_gone(path, 3.0)
@@ -172,14 +165,14 @@ def test_mode_restored_after_reconnect(line):
 
 
 def test_hostile_sensor_survived(line):
-    emu, path = connect(line, 'color', hostile=True)
+    emu, path = plug(line, 'color', hostile=True)
     assert read_attr(path, 'driver_name') == 'lego-ev3-color'
     emu.set_values(0, [33])
     assert wait_value(path, 0, 33) == 33
 
 
 def test_detach_with_files_open(line):
-    emu, path = connect(line, 'color')
+    emu, path = plug(line, 'color')
     f = open(os.path.join(path, 'value0'))
     g = open(os.path.join(path, 'mode'), 'r+')
     line.detach()
@@ -203,7 +196,7 @@ def test_mode_that_silences_the_sensor_is_not_restored_forever(line):
     """IR-S-ALT makes the real sensor stop answering keep-alives: the host
     drops it, restores the mode once after the reconnect, and when that
     drops it again gives up, so the sensor comes back in its default mode."""
-    emu, path = connect(line, 'ir')
+    emu, path = plug(line, 'ir')
     try:
         write_attr(path, 'mode', 'IR-S-ALT')
     except OSError as e:

@@ -12,7 +12,7 @@ import time
 
 import pytest
 
-from ev3 import (SerialLine, find_sensor, read_attr, serial_pair, wait_gone, wait_handshakes,
+from ev3 import (SerialLine, find_sensor, plug, read_attr, serial_pair, wait_gone, wait_handshakes,
                  wait_value, write_attr)
 
 PAIR = serial_pair()
@@ -30,13 +30,6 @@ def sline(ev3_module):
     yield ln
     ln.close()
     assert not find_sensor(ln.address, timeout=0.1), 'sensor left behind after detach'
-
-
-def connect(ln, kind):
-    emu = ln.plug(kind)
-    path = find_sensor(ln.address, timeout=15)
-    assert path, 'no sensor on %s (emulator events: %s)' % (ln.address, emu.events)
-    return emu, path
 
 
 def wait_speed(ln, baud, timeout=3.0):
@@ -58,7 +51,7 @@ def test_ports_are_16550a_and_console_stays_on_ttyS0():
 
 @pytest.mark.parametrize('kind', ['color', 'gyro'])
 def test_sensor_on_8250(sline, kind):
-    emu, path = connect(sline, kind)
+    emu, path = plug(sline, kind)
     sdef = emu.sdef
     assert read_attr(path, 'driver_name') == sdef.driver
     assert read_attr(path, 'address') == sline.address
@@ -104,7 +97,7 @@ def test_speed_mismatch_garbles_the_line(sline):
     to 9600 behind the discipline's back and the sensor's DATA turns into
     garbage, the discipline drops the sensor and (back at 2400) connects it
     again once the sensor has reset."""
-    emu, path = connect(sline, 'gyro')
+    emu, path = plug(sline, 'gyro')
     assert wait_speed(sline, 57600) == 57600
     attrs = termios.tcgetattr(sline.fd)
     attrs[4] = attrs[5] = termios.B9600

@@ -14,7 +14,7 @@ import time
 
 import pytest
 
-from ev3 import (CLASS, IIO, Line, find_sensor, open_sensor, read_attr, wait_gone,
+from ev3 import (CLASS, IIO, Line, find_sensor, open_sensor, plug, read_attr, wait_gone,
                  wait_value, write_attr)
 from ev3_sensor import S8, S16, Mode, SensorDef
 
@@ -35,9 +35,7 @@ def run(*args, timeout=30, env=None):
 
 
 def connect(line, kind):
-    emu = line.plug(kind)
-    path = find_sensor(line.address, timeout=15)
-    assert path, 'no sensor for %s (emulator events: %s)' % (kind, emu.events)
+    emu, path = plug(line, kind)
     if isinstance(kind, str):
         # LEGO's sensors have IIO channels: the IIO device comes just after
         # the lego-sensor device, and the tool's listing should show it.

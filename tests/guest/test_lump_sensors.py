@@ -8,7 +8,7 @@ import time
 
 import pytest
 
-from ev3 import (ev3_sensor, find_sensor, iio_device, read_attr, wait_attr_int, wait_gone,
+from ev3 import (ev3_sensor, find_sensor, iio_device, plug, read_attr, wait_attr_int, wait_gone,
                  wait_value, write_attr)
 
 KINDS = ['boost-cds', 'spike-color', 'spike-dist']
@@ -28,17 +28,10 @@ def shown(m, raw):
     return int(s0 * f) + int((raw - r0) * (s1 * f - s0 * f) // (r1 - r0))
 
 
-def connect(line, kind, **kw):
-    emu = line.plug(kind, **kw)
-    path = find_sensor(line.address, timeout=15)
-    assert path, 'no lego-sensor device for %s (emulator events: %s)' % (kind, emu.events)
-    return emu, path
-
-
 @pytest.mark.parametrize('kind', KINDS)
 def test_lump_registers_with_all_modes(line, kind):
     sdef = ev3_sensor.SENSORS[kind]
-    emu, path = connect(line, kind)
+    emu, path = plug(line, kind)
     assert read_attr(path, 'driver_name') == sdef.driver
     assert read_attr(path, 'modes').split(' ') == [token(m.name) for m in sdef.modes]
     assert len(sdef.modes) > 8
@@ -53,7 +46,7 @@ def test_lump_registers_with_all_modes(line, kind):
 def test_lump_every_mode(line, kind):
     """Every mode, 8 and up included, selected by its token; its values."""
     sdef = ev3_sensor.SENSORS[kind]
-    emu, path = connect(line, kind)
+    emu, path = plug(line, kind)
     order = list(range(8, len(sdef.modes))) + list(range(8))
     for i in order:
         m = sdef.modes[i]
@@ -70,7 +63,7 @@ def test_lump_every_mode(line, kind):
 
 
 def test_lump_iio_rgb_and_high_mode(line):
-    emu, path = connect(line, 'boost-cds')
+    emu, path = plug(line, 'boost-cds')
     dev = iio_device('lego-boost-color-dist')
     assert dev
     emu.set_values(6, [300, 400, 500])
@@ -85,7 +78,7 @@ def test_lump_iio_rgb_and_high_mode(line):
 
 
 def test_ev3_sensor_after_lump_unplugged(line):
-    emu, path = connect(line, 'spike-color')
+    emu, path = plug(line, 'spike-color')
     write_attr(path, 'mode', 'CALIB')         # mode 9: EXT_MODE 8 in force
     emu.unplug()
     assert wait_gone(path, 3.0)
@@ -104,7 +97,7 @@ def test_ev3_sensor_after_lump_unplugged(line):
 
 def test_lump_iio_distance(line):
     """The SPIKE distance sensor's cm modes are IIO distances in metres."""
-    emu, path = connect(line, 'spike-dist')
+    emu, path = plug(line, 'spike-dist')
     dev = iio_device('lego-spike-ultrasonic')
     assert dev
     emu.set_values(0, [123])                        # 123 cm

@@ -5,11 +5,15 @@ and a loss (an emulated colour sensor on a pty), and for NXT transactions
 (the emulated brick); the counters in debugfs are compared with what the
 emulators did. Documentation/lego/tracing.rst describes both.
 """
+import contextlib
 import errno
+import fcntl
 import os
 import re
 import shlex
+import struct
 import subprocess
+import termios
 import time
 
 import pytest
@@ -102,6 +106,35 @@ def event_fields(system, name):
         return set(re.findall(r'field:[^;]*?(\w+)(?:\[\d*\])?;', f.read()))
 
 
+@contextlib.contextmanager
+def pty_sensor():
+    """A pty for the line discipline: yields (tty, attach); attach(kind)
+    sets the discipline, starts an emulated sensor of that kind on the
+    master and returns (emulator, sensorN directory). Stops and closes all
+    on the way out."""
+    import ev3
+    master, slave = os.openpty()
+    tty = 'pts' + os.ttyname(slave).split('/')[-1]
+    emus = []
+
+    def attach(kind):
+        fcntl.ioctl(slave, termios.TIOCSETD, struct.pack('i', N_LEGOEV3))
+        emu = ev3.ev3_sensor.EmulatedSensor(master, kind)
+        emus.append(emu)
+        emu.start()
+        path = ev3.find_sensor(tty, timeout=15)
+        assert path, 'no sensor at %s (%s)' % (tty, emu.events)
+        return emu, path
+
+    try:
+        yield tty, attach
+    finally:
+        for emu in emus:
+            emu.stop()
+        os.close(slave)
+        os.close(master)
+
+
 def test_ev3_events_are_in_tracefs(ev3_module):
     have = set(os.listdir('%s/events/lego_ev3_uart' % tracefs()))
     assert set(EV3_EVENTS) <= have
@@ -120,85 +153,78 @@ def test_nxt_events_are_in_tracefs():
 def test_ev3_handshake_mode_switch_and_loss(ev3_module):
     """A colour sensor's whole life on a pty, read back from the trace, and
     the port's counters against the emulator's."""
-    import ev3
-    import fcntl
-    import struct
-    import termios
     trace = Trace('lego_ev3_uart')
-    master, slave = os.openpty()
-    tty = 'pts' + os.ttyname(slave).split('/')[-1]
-    emu = None
     try:
-        fcntl.ioctl(slave, termios.TIOCSETD, struct.pack('i', N_LEGOEV3))
-        emu = ev3.ev3_sensor.EmulatedSensor(master, 'color')
-        emu.start()
-        path = ev3.find_sensor(tty, timeout=15)
-        assert path, 'no sensor at %s (%s)' % (tty, emu.events)
-        emu.set_values(0, [61])
-        assert ev3.wait_value(path, 0, 61) == 61
-
-        # The handshake: TYPE, the state changes, ACK both ways, the
-        # speed, the registration, then DATA and keep-alive NACKs.
-        rx = trace.events('ev3_uart_rx', tty=tty, msg='TYPE')
-        assert rx and rx[0][1]['arg'] == '29', rx
-        hs = trace.events('ev3_uart_handshake', tty=tty)
-        assert hs and hs[0][1]['type'] == '29' and hs[0][1]['speed'] == '57600', hs
-        assert trace.events('ev3_uart_rx', tty=tty, msg='ACK')
-        # Each message of the handshake: MODES and SPEED, then the modes'
-        # INFO, ending with mode 0's FORMAT.
-        hsmsgs = [f for _, f in trace.events('ev3_uart_rx', tty=tty)
-                  if f['msg'] in ('CMD', 'INFO')]
-        assert [(f['hdr'], f['len']) for f in hsmsgs[:2]] == [('0x49', '4'), ('0x52', '6')], hsmsgs
-        assert (hsmsgs[-1]['hdr'], hsmsgs[-1]['info']) == ('0x90', '0x80'), hsmsgs
-        names = [f for f in hsmsgs if f['msg'] == 'INFO' and f['info'] == '0x00']
-        assert len(names) == 6, names                    # the colour sensor's 6 modes
-        states = [(f['from'], f['to']) for _, f in trace.events('ev3_uart_state', tty=tty)]
-        for step in [('SYNC', 'INFO'), ('INFO', 'ACKED'), ('ACKED', 'DATA')]:
-            assert step in states, states
-        assert trace.events('ev3_uart_tx', tty=tty, msg='ACK', ret=0)
-        assert trace.events('ev3_uart_speed', tty=tty, speed=57600)
-        reg = trace.events('ev3_uart_sensor', tty=tty, event='registered')
-        assert reg and reg[0][1]['driver'] == 'lego-ev3-color', reg
-        assert reg[0][1]['dev'] == os.path.basename(path), reg
-        data = trace.events('ev3_uart_rx', tty=tty, msg='DATA', arg=0)
-        assert data and data[-1][1]['accept'] == 'checksum', data
-        assert trace.wait('ev3_uart_tx', tty=tty, msg='NACK')
-
-        # A mode switch: SELECT out, the first DATA of mode 1 marks it.
-        ev3.write_attr(path, 'mode', 'COL-AMBIENT')
-        emu.set_values(1, [7])
-        assert ev3.wait_value(path, 0, 7) == 7
-        assert trace.events('ev3_uart_tx', tty=tty, msg='SELECT', arg=1, ret=0)
-        assert trace.events('ev3_uart_rx', tty=tty, msg='DATA', arg=1, mode_changed=1)
-
-        # A loss: the sensor goes silent.
-        emu.unplug()
-        assert ev3.wait_gone(path, 5.0)
-        lost = trace.wait('ev3_uart_sensor', tty=tty, event='lost')
-        assert lost and lost[0][1]['driver'] == 'lego-ev3-color', lost
-        back = [f for _, f in trace.events('ev3_uart_state', tty=tty)
-                if f['from'] == 'DATA' and f['to'] == 'SYNC']
-        assert back and back[-1]['reason'], back
-        assert trace.events('ev3_uart_speed', tty=tty, speed=2400)
-
-        # The counters, against the emulator's.
-        c = counters('%s/lego_ev3_uart/%s/counters' % (DEBUGFS, tty))
-        assert c['handshakes'] >= emu.handshakes == 1, c
-        assert c['registered'] == 1 and c['lost'] == 1, c
-        assert c['resyncs'] >= 1 and c['tx_ack'] == 1 and c['tx_select'] >= 1, c
-        assert c['tx_nack'] >= 1 and c['tx_errors'] == 0, c
-        assert 0 < c['data_msgs'] <= emu.frames_sent, (c, emu.frames_sent)
-        assert c['data_msgs'] == len(trace.events('ev3_uart_rx', tty=tty, msg='DATA'))
-        assert c['info_msgs'] == len(hsmsgs), (c, len(hsmsgs))
-        assert c['tx_nack'] == len(trace.events('ev3_uart_tx', tty=tty, msg='NACK'))
+        with pty_sensor() as (tty, attach):
+            emu, path = attach('color')
+            check_life(trace, tty, emu, path)
     finally:
         trace.stop()
-        if emu:
-            emu.stop()
-        os.close(slave)
-        os.close(master)
     assert not os.path.exists('%s/lego_ev3_uart/%s' % (DEBUGFS, tty)), \
         'the port\'s debugfs directory outlived it'
+
+
+def check_life(trace, tty, emu, path):
+    """The handshake, a mode switch and a loss, in the trace and the
+    counters."""
+    import ev3
+    emu.set_values(0, [61])
+    assert ev3.wait_value(path, 0, 61) == 61
+
+    # The handshake: TYPE, the state changes, ACK both ways, the
+    # speed, the registration, then DATA and keep-alive NACKs.
+    rx = trace.events('ev3_uart_rx', tty=tty, msg='TYPE')
+    assert rx and rx[0][1]['arg'] == '29', rx
+    hs = trace.events('ev3_uart_handshake', tty=tty)
+    assert hs and hs[0][1]['type'] == '29' and hs[0][1]['speed'] == '57600', hs
+    assert trace.events('ev3_uart_rx', tty=tty, msg='ACK')
+    # Each message of the handshake: MODES and SPEED, then the modes'
+    # INFO, ending with mode 0's FORMAT.
+    hsmsgs = [f for _, f in trace.events('ev3_uart_rx', tty=tty)
+              if f['msg'] in ('CMD', 'INFO')]
+    assert [(f['hdr'], f['len']) for f in hsmsgs[:2]] == [('0x49', '4'), ('0x52', '6')], hsmsgs
+    assert (hsmsgs[-1]['hdr'], hsmsgs[-1]['info']) == ('0x90', '0x80'), hsmsgs
+    names = [f for f in hsmsgs if f['msg'] == 'INFO' and f['info'] == '0x00']
+    assert len(names) == 6, names                    # the colour sensor's 6 modes
+    states = [(f['from'], f['to']) for _, f in trace.events('ev3_uart_state', tty=tty)]
+    for step in [('SYNC', 'INFO'), ('INFO', 'ACKED'), ('ACKED', 'DATA')]:
+        assert step in states, states
+    assert trace.events('ev3_uart_tx', tty=tty, msg='ACK', ret=0)
+    assert trace.events('ev3_uart_speed', tty=tty, speed=57600)
+    reg = trace.events('ev3_uart_sensor', tty=tty, event='registered')
+    assert reg and reg[0][1]['driver'] == 'lego-ev3-color', reg
+    assert reg[0][1]['dev'] == os.path.basename(path), reg
+    data = trace.events('ev3_uart_rx', tty=tty, msg='DATA', arg=0)
+    assert data and data[-1][1]['accept'] == 'checksum', data
+    assert trace.wait('ev3_uart_tx', tty=tty, msg='NACK')
+
+    # A mode switch: SELECT out, the first DATA of mode 1 marks it.
+    ev3.write_attr(path, 'mode', 'COL-AMBIENT')
+    emu.set_values(1, [7])
+    assert ev3.wait_value(path, 0, 7) == 7
+    assert trace.events('ev3_uart_tx', tty=tty, msg='SELECT', arg=1, ret=0)
+    assert trace.events('ev3_uart_rx', tty=tty, msg='DATA', arg=1, mode_changed=1)
+
+    # A loss: the sensor goes silent.
+    emu.unplug()
+    assert ev3.wait_gone(path, 5.0)
+    lost = trace.wait('ev3_uart_sensor', tty=tty, event='lost')
+    assert lost and lost[0][1]['driver'] == 'lego-ev3-color', lost
+    back = [f for _, f in trace.events('ev3_uart_state', tty=tty)
+            if f['from'] == 'DATA' and f['to'] == 'SYNC']
+    assert back and back[-1]['reason'], back
+    assert trace.events('ev3_uart_speed', tty=tty, speed=2400)
+
+    # The counters, against the emulator's.
+    c = counters('%s/lego_ev3_uart/%s/counters' % (DEBUGFS, tty))
+    assert c['handshakes'] >= emu.handshakes == 1, c
+    assert c['registered'] == 1 and c['lost'] == 1, c
+    assert c['resyncs'] >= 1 and c['tx_ack'] == 1 and c['tx_select'] >= 1, c
+    assert c['tx_nack'] >= 1 and c['tx_errors'] == 0, c
+    assert 0 < c['data_msgs'] <= emu.frames_sent, (c, emu.frames_sent)
+    assert c['data_msgs'] == len(trace.events('ev3_uart_rx', tty=tty, msg='DATA'))
+    assert c['info_msgs'] == len(hsmsgs), (c, len(hsmsgs))
+    assert c['tx_nack'] == len(trace.events('ev3_uart_tx', tty=tty, msg='NACK'))
 
 
 @pytest.mark.parametrize('kind, mode, quirk, hdr_mode', [
@@ -208,70 +234,47 @@ def test_ev3_handshake_mode_switch_and_loss(ev3_module):
 def test_ev3_quirks_in_accept(ev3_module, kind, mode, quirk, hdr_mode):
     """A DATA message a quirk let through says which in accept: what a bug
     report needs to tell a quirk from a sensor the parser got wrong."""
-    import ev3
-    import fcntl
-    import struct
-    import termios
     trace = Trace('lego_ev3_uart')
-    master, slave = os.openpty()
-    tty = 'pts' + os.ttyname(slave).split('/')[-1]
-    emu = None
     try:
-        fcntl.ioctl(slave, termios.TIOCSETD, struct.pack('i', N_LEGOEV3))
-        emu = ev3.ev3_sensor.EmulatedSensor(master, kind)
-        emu.start()
-        path = ev3.find_sensor(tty, timeout=15)
-        assert path, 'no sensor at %s (%s)' % (tty, emu.events)
-        num = ev3.read_attr(path, 'modes').split().index(mode)
-        assert not trace.events('ev3_uart_rx', tty=tty, accept=quirk)
-        ev3.write_attr(path, 'mode', mode)
-        got = trace.wait('ev3_uart_rx', timeout=10, tty=tty, msg='DATA', accept=quirk)
-        for f in (f for _, f in got):
-            assert f['arg'] == str(num), f
-            assert int(f['hdr'], 16) & 0xc7 == 0xc0 | hdr_mode, f
-        # Nothing else is marked: every other DATA passed its checksum.
-        other = {f['accept'] for _, f in trace.events('ev3_uart_rx', tty=tty, msg='DATA')
-                 if f['arg'] != str(num)}
-        assert other <= {'checksum'}, other
+        with pty_sensor() as (tty, attach):
+            _, path = attach(kind)
+            check_quirk(trace, tty, path, mode, quirk, hdr_mode)
     finally:
         trace.stop()
-        if emu:
-            emu.stop()
-        os.close(slave)
-        os.close(master)
+
+
+def check_quirk(trace, tty, path, mode, quirk, hdr_mode):
+    import ev3
+    num = ev3.read_attr(path, 'modes').split().index(mode)
+    assert not trace.events('ev3_uart_rx', tty=tty, accept=quirk)
+    ev3.write_attr(path, 'mode', mode)
+    got = trace.wait('ev3_uart_rx', timeout=10, tty=tty, msg='DATA', accept=quirk)
+    assert got, 'no DATA with accept=%s in %s' % (quirk, mode)
+    for f in (f for _, f in got):
+        assert f['arg'] == str(num), f
+        assert int(f['hdr'], 16) & 0xc7 == 0xc0 | hdr_mode, f
+    # Nothing else is marked: every other DATA passed its checksum.
+    other = {f['accept'] for _, f in trace.events('ev3_uart_rx', tty=tty, msg='DATA')
+             if f['arg'] != str(num)}
+    assert other <= {'checksum'}, other
 
 
 def test_lego_sensors_trace(ev3_module):
     """lego-sensors --trace=TTY prints a handshake decoded, as it happens."""
-    import ev3
-    import fcntl
     import signal
-    import struct
-    import termios
     tool = os.path.join(os.environ['LEGO_BUILD'], 'tools/lego-sensors')
-    tracefs()
-    master, slave = os.openpty()
-    tty = 'pts' + os.ttyname(slave).split('/')[-1]
     write(tracefs() + '/trace', '')
-    proc = subprocess.Popen([tool, '--trace=' + tty], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
-    emu = None
-    try:
-        assert wait_for(lambda: open(tracefs() + '/events/lego_ev3_uart/enable').read()
-                        .strip() == '1', 5.0), 'lego-sensors --trace did not enable the events'
-        fcntl.ioctl(slave, termios.TIOCSETD, struct.pack('i', N_LEGOEV3))
-        emu = ev3.ev3_sensor.EmulatedSensor(master, 'color')
-        emu.start()
-        path = ev3.find_sensor(tty, timeout=15)
-        assert path, 'no sensor at %s (%s)' % (tty, emu.events)
-        time.sleep(0.5)
-    finally:
-        proc.send_signal(signal.SIGINT)
-        out, errs = proc.communicate(timeout=10)
-        if emu:
-            emu.stop()
-        os.close(slave)
-        os.close(master)
+    with pty_sensor() as (tty, attach):
+        proc = subprocess.Popen([tool, '--trace=' + tty], stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE, text=True)
+        try:
+            assert wait_for(lambda: open(tracefs() + '/events/lego_ev3_uart/enable').read()
+                            .strip() == '1', 5.0), 'lego-sensors --trace did not enable the events'
+            _, path = attach('color')
+            time.sleep(0.5)
+        finally:
+            proc.send_signal(signal.SIGINT)
+            out, errs = proc.communicate(timeout=10)
     assert proc.returncode == 0, errs
     lines = [line.split(None, 2)[2] for line in out.splitlines() if line.split()[1:2] == [tty]]
     for want in ('== SYNC -> INFO: TYPE message', '<- TYPE 29', '<- MODES (4 bytes)',

@@ -31,6 +31,8 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "tracefs.h"
+
 #ifndef LEGO_VERSION
 #define LEGO_VERSION "unknown"
 #endif
@@ -684,86 +686,10 @@ static int watch(char **sel, int nsel, bool json, double interval)
  * The protocol, live: the lego_ev3_uart trace events (see
  * Documentation/lego/tracing.rst) read from tracefs's trace_pipe and
  * printed one message a line. The events are enabled for the run and
- * disabled again when it is interrupted.
+ * disabled again when it is interrupted (tools/lib/tracefs.c).
  */
-static char tracefs[PATH_MAX];
 
-/* Write `val` to the tracefs file `name`. Returns 0 or -errno. */
-static int trace_write(const char *name, const char *val)
-{
-	char path[PATH_MAX + 64];
-	ssize_t n;
-	int fd;
-
-	snprintf(path, sizeof(path), "%s/%s", tracefs, name);
-	fd = open(path, O_WRONLY | O_TRUNC | O_CLOEXEC);
-	if (fd < 0)
-		return -errno;
-	n = write(fd, val, strlen(val));
-	if (n < 0) {
-		n = -errno;
-		close(fd);
-		return n;
-	}
-	close(fd);
-	return 0;
-}
-
-/* Where tracefs is mounted with the driver's events; false if nowhere. */
-static bool find_tracefs(void)
-{
-	static const char *const where[] = {
-		"/sys/kernel/tracing", "/sys/kernel/debug/tracing",
-	};
-	char path[PATH_MAX + 64];
-	const char *dir;
-	size_t i;
-
-	/* $TRACEFS first, then the usual mounts. */
-	for (i = 0; i <= ARRAY_SIZE(where); i++) {
-		dir = i ? where[i - 1] : getenv("TRACEFS");
-
-		if (!dir || !*dir)
-			continue;
-		snprintf(path, sizeof(path), "%s/events/lego_ev3_uart", dir);
-		if (!access(path, F_OK)) {
-			snprintf(tracefs, sizeof(tracefs), "%s", dir);
-			return true;
-		}
-	}
-	return false;
-}
-
-/*
- * The value of `key` in the fields of a trace line ("a=1 b=\"x y\""), into
- * buf; "" if absent.
- */
-static const char *field(const char *fields, const char *key, char *buf,
-			 size_t size)
-{
-	size_t klen = strlen(key), n = 0;
-	const char *p = fields;
-	char end = ' ';
-
-	buf[0] = '\0';
-	while ((p = strstr(p, key))) {
-		if ((p == fields || p[-1] == ' ') && p[klen] == '=')
-			break;
-		p += klen;
-	}
-	if (!p)
-		return buf;
-	p += klen + 1;
-	if (*p == '"') {
-		end = '"';
-		p++;
-	}
-	while (*p && *p != end && *p != '\n' && n + 1 < size)
-		buf[n++] = *p++;
-	buf[n] = '\0';
-	return buf;
-}
-
+/* A CMD message's name, from its header. */
 static const char *cmd_name(unsigned int cmd)
 {
 	static const char *const names[] = {
@@ -796,41 +722,23 @@ static const char *info_name(unsigned int info)
 	}
 }
 
-/* One line of trace_pipe, decoded; other systems' lines are left out. */
-static void trace_line(FILE *f, const char *line)
+/* One event of trace_pipe, decoded, to the FILE @arg. */
+static void trace_line(const char *ts, const char *ev, const char *fields,
+		       void *arg)
 {
-	char ev[32], ts[32], tty[64], a[64], b[64], c[64], d[64];
-	const char *p = strstr(line, ": ev3_uart_"), *q, *fields;
-	size_t n;
+	char tty[64], a[64], b[64], c[64], d[64];
+	FILE *f = arg;
 
-	if (!p)
-		return;
-	/* The timestamp ends where the event's name starts. */
-	for (q = p; q > line && q[-1] != ' '; q--)
-		;
-	n = (size_t)(p - q) < sizeof(ts) ? (size_t)(p - q) : sizeof(ts) - 1;
-	memcpy(ts, q, n);
-	ts[n] = '\0';
-	p += 2;
-	q = strchr(p, ':');
-	if (!q)
-		return;
-	n = (size_t)(q - p) < sizeof(ev) ? (size_t)(q - p) : sizeof(ev) - 1;
-	memcpy(ev, p, n);
-	ev[n] = '\0';
-	fields = q + 1;
-	while (*fields == ' ')
-		fields++;
-	field(fields, "tty", tty, sizeof(tty));
+	tracefs_field(fields, "tty", tty, sizeof(tty));
 	fprintf(f, "%s %-8s ", ts, tty);
 
 	if (!strcmp(ev, "ev3_uart_rx")) {
-		unsigned int hdr = strtoul(field(fields, "hdr", a, sizeof(a)), NULL, 16);
-		unsigned int info = strtoul(field(fields, "info", b, sizeof(b)), NULL, 16);
+		unsigned int hdr = strtoul(tracefs_field(fields, "hdr", a, sizeof(a)), NULL, 16);
+		unsigned int info = strtoul(tracefs_field(fields, "info", b, sizeof(b)), NULL, 16);
 
-		field(fields, "msg", a, sizeof(a));
-		field(fields, "arg", b, sizeof(b));
-		field(fields, "len", c, sizeof(c));
+		tracefs_field(fields, "msg", a, sizeof(a));
+		tracefs_field(fields, "arg", b, sizeof(b));
+		tracefs_field(fields, "len", c, sizeof(c));
 		if (!strcmp(a, "TYPE"))
 			fprintf(f, "<- TYPE %s\n", b);
 		else if (!strcmp(a, "CMD"))
@@ -842,40 +750,42 @@ static void trace_line(FILE *f, const char *line)
 			fprintf(f, "<- ACK: handshake complete, %s modes\n", b);
 		else
 			fprintf(f, "<- %s mode %s, %s bytes%s%s\n", a, b, c,
-				!strcmp(field(fields, "mode_changed", d, sizeof(d)), "1") ?
+				!strcmp(tracefs_field(fields, "mode_changed", d, sizeof(d)), "1") ?
 				", mode switched" : "",
-				accept_note(field(fields, "accept", d, sizeof(d))));
+				accept_note(tracefs_field(fields, "accept", d, sizeof(d))));
 	} else if (!strcmp(ev, "ev3_uart_tx")) {
-		field(fields, "msg", a, sizeof(a));
-		field(fields, "arg", b, sizeof(b));
-		field(fields, "len", c, sizeof(c));
-		field(fields, "ret", d, sizeof(d));
+		tracefs_field(fields, "msg", a, sizeof(a));
+		tracefs_field(fields, "arg", b, sizeof(b));
+		tracefs_field(fields, "len", c, sizeof(c));
+		tracefs_field(fields, "ret", d, sizeof(d));
 		if (!strcmp(a, "SELECT"))
 			fprintf(f, "-> SELECT mode %s", b);
 		else if (!strcmp(a, "WRITE"))
 			fprintf(f, "-> WRITE %s bytes", c);
+		else if (!strcmp(a, "SPEED"))
+			fprintf(f, "-> SPEED 115200 (fast sync probe)");
 		else
 			fprintf(f, "-> %s", a);
 		fprintf(f, strcmp(d, "0") ? " (not sent: %s)\n" : "\n", d);
 	} else if (!strcmp(ev, "ev3_uart_handshake")) {
 		fprintf(f, "== sensor type %s: %s modes (%s shown), %s baud\n",
-			field(fields, "type", a, sizeof(a)),
-			field(fields, "modes", b, sizeof(b)),
-			field(fields, "view_modes", c, sizeof(c)),
-			field(fields, "speed", d, sizeof(d)));
+			tracefs_field(fields, "type", a, sizeof(a)),
+			tracefs_field(fields, "modes", b, sizeof(b)),
+			tracefs_field(fields, "view_modes", c, sizeof(c)),
+			tracefs_field(fields, "speed", d, sizeof(d)));
 	} else if (!strcmp(ev, "ev3_uart_speed")) {
-		field(fields, "ret", b, sizeof(b));
-		fprintf(f, "== %s baud%s\n", field(fields, "speed", a, sizeof(a)),
+		tracefs_field(fields, "ret", b, sizeof(b));
+		fprintf(f, "== %s baud%s\n", tracefs_field(fields, "speed", a, sizeof(a)),
 			strcmp(b, "0") ? " (not supported by the tty)" : "");
 	} else if (!strcmp(ev, "ev3_uart_state")) {
-		fprintf(f, "== %s -> %s", field(fields, "from", a, sizeof(a)),
-			field(fields, "to", b, sizeof(b)));
-		field(fields, "reason", c, sizeof(c));
+		fprintf(f, "== %s -> %s", tracefs_field(fields, "from", a, sizeof(a)),
+			tracefs_field(fields, "to", b, sizeof(b)));
+		tracefs_field(fields, "reason", c, sizeof(c));
 		fprintf(f, *c ? ": %s\n" : "\n", c);
 	} else if (!strcmp(ev, "ev3_uart_sensor")) {
-		field(fields, "dev", c, sizeof(c));
-		fprintf(f, "== sensor %s: %s%s%s\n", field(fields, "event", a, sizeof(a)),
-			field(fields, "driver", b, sizeof(b)), *c ? " as " : "", c);
+		tracefs_field(fields, "dev", c, sizeof(c));
+		fprintf(f, "== sensor %s: %s%s%s\n", tracefs_field(fields, "event", a, sizeof(a)),
+			tracefs_field(fields, "driver", b, sizeof(b)), *c ? " as " : "", c);
 	} else {
 		fprintf(f, "%s %s\n", ev, fields);
 	}
@@ -884,76 +794,30 @@ static void trace_line(FILE *f, const char *line)
 /* --trace[=TTY]: until interrupted (SIGINT, SIGTERM) or the end of input. */
 static int trace(const char *tty)
 {
-	char filter[128], path[PATH_MAX + 64], buf[8192], *nl, *start;
-	struct pollfd pfd[2];
-	size_t len = 0;
-	sigset_t set;
-	ssize_t n;
+	struct tracefs t;
+	char filter[128];
 	int ret;
 
-	if (!find_tracefs()) {
+	if (tracefs_find(&t, "lego_ev3_uart")) {
 		err("no lego_ev3_uart events in tracefs: is lego_ev3_uart loaded, and tracefs\n"
 		    "mounted (mount -t tracefs nodev /sys/kernel/tracing)?");
 		return EXIT_FAIL;
 	}
-	if (tty && *tty) {
+	if (tty && *tty)
 		snprintf(filter, sizeof(filter), "tty == \"%s\"", tty);
-		ret = trace_write("events/lego_ev3_uart/filter", filter);
-	} else {
-		ret = trace_write("events/lego_ev3_uart/filter", "0");
-	}
-	if (!ret)
-		ret = trace_write("events/lego_ev3_uart/enable", "1");
+	ret = tracefs_enable(&t, tty && *tty ? filter : NULL);
 	if (ret) {
-		err("cannot enable the events in %s: %s (root needed)", tracefs, strerror(-ret));
+		tracefs_disable(&t);
+		err("cannot enable the events in %s: %s (root needed)", t.dir, strerror(-ret));
 		return EXIT_FAIL;
 	}
-	/* The signals end the loop below, which then disables the events. */
-	sigemptyset(&set);
-	sigaddset(&set, SIGINT);
-	sigaddset(&set, SIGTERM);
-	sigprocmask(SIG_BLOCK, &set, NULL);
-	snprintf(path, sizeof(path), "%s/trace_pipe", tracefs);
-	pfd[0].fd = open(path, O_RDONLY | O_NONBLOCK | O_CLOEXEC);
-	pfd[1].fd = signalfd(-1, &set, SFD_CLOEXEC);
-	if (pfd[0].fd < 0 || pfd[1].fd < 0) {
-		err("%s: %s", path, strerror(errno));
-		trace_write("events/lego_ev3_uart/enable", "0");
+	/* The signals end the read, which lets the events be disabled. */
+	ret = tracefs_read(&t, "ev3_uart_", trace_line, stdout);
+	tracefs_disable(&t);
+	if (ret) {
+		err("%s/trace_pipe: %s", t.dir, strerror(-ret));
 		return EXIT_FAIL;
 	}
-	pfd[0].events = POLLIN;
-	pfd[1].events = POLLIN;
-	setvbuf(stdout, NULL, _IOLBF, 0);
-	for (;;) {
-		if (poll(pfd, 2, -1) < 0 && errno != EINTR)
-			break;
-		if (pfd[1].revents)
-			break;
-		if (!pfd[0].revents)
-			continue;
-		n = read(pfd[0].fd, buf + len, sizeof(buf) - 1 - len);
-		if (n < 0 && (errno == EAGAIN || errno == EINTR))
-			continue;
-		if (n <= 0)
-			break;
-		len += n;
-		buf[len] = '\0';
-		/* Whole lines; a line longer than the buffer is cut. */
-		for (start = buf; (nl = strchr(start, '\n')); start = nl + 1) {
-			*nl = '\0';
-			trace_line(stdout, start);
-		}
-		len -= start - buf;
-		memmove(buf, start, len);
-		if (len == sizeof(buf) - 1) {
-			trace_line(stdout, buf);
-			len = 0;
-		}
-	}
-	close(pfd[0].fd);
-	close(pfd[1].fd);
-	trace_write("events/lego_ev3_uart/enable", "0");
-	trace_write("events/lego_ev3_uart/filter", "0");
 	return EXIT_OK;
 }
 

@@ -16,15 +16,20 @@
  * a user's (sysfs, IIO buffer) and the restore of the user's mode after a
  * reconnect (ack_work, keepalive_work), which only try it and give way.
  * ev3_uart_port.tx_mutex serialises writes to the tty (ACK, NACK, SELECT,
- * WRITE), which all happen in process context, and protects the transmit
- * queue (see ev3_uart_tx()).
+ * WRITE, SPEED), which all happen in process context, and protects the
+ * transmit queue (see ev3_uart_tx()).
  *
  * ev3_uart_port.closing and ev3_uart_sensor_dev.gone are written under the
  * port lock; the few readers outside it use READ_ONCE().
  *
  * The work items that register and unregister sensors (ack_work,
  * reset_work) run on the port's ordered workqueue, so a sensor is never
- * registered and unregistered at the same time. keepalive_work runs on
+ * registered and unregistered at the same time. So do the ones that set
+ * the tty's speed: those two, probe_work and fast_work (the fast sync
+ * probe, see ev3_uart_hunt()); ev3_uart_port.speed and .no_probe are
+ * theirs (the receive path only reads no_probe, with READ_ONCE()). The
+ * receive path completes ev3_uart_port.probe_done, under the port lock,
+ * when the probe is answered. keepalive_work runs on
  * system_unbound_wq, so that NACKs go out (from another CPU if need be)
  * while a sensor registers (the sensor resets after a second without one);
  * it only ticks the parser, sends and queues reset_work. tx_work runs on
@@ -83,12 +88,14 @@ struct ev3_uart_iio;
  * @bad_frames: DATA messages dropped: bad checksum, size or mode (parser
  *	restarts)
  * @speed_changes: speed switches of the tty
+ * @fast_syncs: fast sync probes a device answered (its ACK)
  * @registered: sensors registered
  * @lost: sensors lost (not counting a close)
  * @tx_ack: ACKs sent (under &ev3_uart_port.tx_mutex, like the rest)
  * @tx_nack: NACKs sent
  * @tx_select: SELECTs sent
  * @tx_write: WRITEs sent
+ * @tx_speed: SPEEDs sent (the fast sync probes)
  * @tx_errors: messages the tty did not take
  *
  * All but the tx_ ones are under &ev3_uart_port.lock.
@@ -103,12 +110,14 @@ struct ev3_uart_stats {
 	u64 garbage;
 	u64 bad_frames;
 	u64 speed_changes;
+	u64 fast_syncs;
 	u64 registered;
 	u64 lost;
 	u64 tx_ack;
 	u64 tx_nack;
 	u64 tx_select;
 	u64 tx_write;
+	u64 tx_speed;
 	u64 tx_errors;
 };
 
@@ -132,7 +141,7 @@ struct ev3_uart_stats {
 struct ev3_uart_sensor_dev {
 	struct ev3_uart_port *port;
 	struct ev3_uart_sensor desc;
-	char driver_name[24];
+	char driver_name[EV3_UART_DRIVER_NAME_LEN];
 	char address[EV3_UART_ADDRESS_LEN];
 	struct device dev;
 	int id;
@@ -161,7 +170,19 @@ struct ev3_uart_sensor_dev {
  * @ack_work: answers the sensor's ACK, switches speed and registers the
  *	sensor
  * @keepalive_work: sends NACK every 100 ms and detects a lost sensor
- * @reset_work: drops a lost sensor and goes back to 2400 baud
+ * @reset_work: drops a lost sensor and goes back to 2400 baud (after the
+ *	fast sync probe)
+ * @probe_work: the fast sync probe, when the discipline is attached and
+ *	when a device resets (a break in the SYNC or PROBE state), 100 ms
+ *	after the last at the earliest
+ * @fast_work: gives up a fast sync whose handshake did not come in time
+ * @probe_done: completed by the receive path when the probe is answered
+ * @probed_at: jiffies of the last probe (under @lock)
+ * @break_probe: @probe_work was queued for a break (under @lock)
+ * @probe_missed: the last probe for a break went unanswered, and no
+ *	handshake started since: the next break gets none (under @lock)
+ * @speed: the speed the tty was last set to, 0 if unknown
+ * @no_probe: the tty cannot run at 115200 baud: no fast sync probe
  * @select_mutex: see "Locking"
  * @select_mode: the mode a SELECT is waiting for, or %EV3_UART_NO_MODE
  * @select_done: completed by the first DATA of @select_mode, or on loss
@@ -199,6 +220,14 @@ struct ev3_uart_port {
 	struct work_struct ack_work;
 	struct delayed_work keepalive_work;
 	struct work_struct reset_work;
+	struct delayed_work probe_work;
+	struct delayed_work fast_work;
+	struct completion probe_done;
+	unsigned long probed_at;
+	bool break_probe;
+	bool probe_missed;
+	u32 speed;
+	bool no_probe;
 	struct mutex select_mutex;	/* one mode change at a time */
 	u8 select_mode;
 	struct completion select_done;

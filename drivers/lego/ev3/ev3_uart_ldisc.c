@@ -8,6 +8,11 @@
  * lego-sensor class in ev3_uart_class.c; locking is described in ev3_uart.h.
  *
  * Life of a connection:
+ *  - when the discipline is attached, when a device resets (its TX held
+ *    low: a break) and when a sensor was lost, the fast sync probe first
+ *    (ev3_uart_probe()): SPEED 115200 at 115200 baud; a Powered Up device
+ *    that answers ACK sends its handshake at 115200, else the line goes
+ *    back to 2400 baud 30 ms later;
  *  - at 2400 baud the parser hunts for a TYPE message and reads the
  *    handshake;
  *  - on the sensor's ACK, ack_timer fires 10 ms later (the sensor waits
@@ -60,6 +65,9 @@
 #define EV3_UART_RESTORE_GRACE	(2 * HZ)
 #define EV3_UART_RESTORE_EVERY	3	/* keep-alive periods between SELECTs */
 #define EV3_UART_RESTORE_TICKS	15	/* give up after that many periods */
+#define EV3_UART_PROBE_WAIT_MS	30	/* for the ACK to SPEED, once it is out */
+#define EV3_UART_FAST_SYNC_MS	500	/* from that ACK to the handshake's */
+#define EV3_UART_PROBE_HOLDOFF	(HZ / 10)	/* between probes breaks ask for */
 
 /*
  * N_LEGOEV3 from <linux/lego_ev3_uart.h>. There is no parameter to choose
@@ -139,7 +147,7 @@ static int ev3_uart_tx_flush(struct ev3_uart_port *port)
 	return 0;
 }
 
-/* What a message sent starts with: ACK, NACK, SELECT or WRITE. */
+/* What a message sent starts with: ACK, NACK, SELECT, SPEED or WRITE. */
 static u8 ev3_uart_tx_kind(u8 hdr)
 {
 	if (hdr == EV3_UART_SYS_ACK)
@@ -148,6 +156,8 @@ static u8 ev3_uart_tx_kind(u8 hdr)
 		return EV3_UART_TRACE_NACK;
 	if (hdr == (EV3_UART_MSG_CMD | EV3_UART_CMD_SELECT))
 		return EV3_UART_TRACE_SELECT;
+	if ((hdr & ~EV3_UART_MSG_SIZE_MASK) == (EV3_UART_MSG_CMD | EV3_UART_CMD_SPEED))
+		return EV3_UART_TRACE_SPEED;
 	return EV3_UART_TRACE_WRITE;
 }
 
@@ -167,6 +177,8 @@ static void ev3_uart_tx_account(struct ev3_uart_port *port, const u8 *buf,
 		st->tx_nack++;
 	else if (kind == EV3_UART_TRACE_SELECT)
 		st->tx_select++;
+	else if (kind == EV3_UART_TRACE_SPEED)
+		st->tx_speed++;
 	else
 		st->tx_write++;
 	trace_ev3_uart_tx(port->tty->name, kind, buf[0], len > 1 ? buf[1] : 0,
@@ -242,6 +254,9 @@ static void ev3_uart_set_termios(struct tty_struct *tty, struct ktermios *t)
  * as good (the tty core itself rounds to a standard rate that close, and
  * UARTs tolerate more).
  *
+ * Only from the work items on the port's ordered workqueue (and open()),
+ * which keep @port->speed.
+ *
  * Return: 0, or -%EINVAL if the tty runs at another speed than @baud.
  */
 static int ev3_uart_set_speed(struct ev3_uart_port *port, unsigned int baud)
@@ -263,6 +278,7 @@ static int ev3_uart_set_speed(struct ev3_uart_port *port, unsigned int baud)
 		up_read(&tty->termios_rwsem);
 		ret = abs((int)got - (int)baud) <= baud / 50 ? 0 : -EINVAL;
 	}
+	port->speed = ret ? 0 : baud;
 	spin_lock(&port->lock);
 	port->stats.speed_changes++;
 	spin_unlock(&port->lock);
@@ -313,6 +329,8 @@ static void ev3_uart_trace_state(struct ev3_uart_port *port, u8 from,
 		why = "TYPE message";
 	else if (!why && ev && ev->type == EV3_UART_EV_HANDSHAKE)
 		why = "ACK from the sensor";
+	else if (!why && ev && ev->type == EV3_UART_EV_FAST)
+		why = "ACK to SPEED: fast sync";
 	trace_ev3_uart_state(port->tty->name, from, to, why ?: "");
 }
 
@@ -360,6 +378,7 @@ static void ev3_uart_event(struct ev3_uart_port *port,
 		ev3_uart_trace_state(port, from, ev, NULL);
 	switch (ev->type) {
 	case EV3_UART_EV_SYNC:
+		port->probe_missed = false;
 		pr_debug("%s: sensor type %u syncing\n", port->tty->name,
 			 port->parser.sensor.type);
 		port->stats.syncs++;
@@ -426,9 +445,51 @@ static void ev3_uart_event(struct ev3_uart_port *port,
 		pr_info_ratelimited("%s: %s\n", port->tty->name, ev->reason);
 		ev3_uart_queue(port, &port->reset_work);
 		break;
+	case EV3_UART_EV_FAST:
+		/* The probe's answer: ev3_uart_probe() waits for it. */
+		port->stats.fast_syncs++;
+		port->probe_missed = false;
+		complete(&port->probe_done);
+		break;
 	case EV3_UART_EV_NONE:
 		break;
 	}
+}
+
+/*
+ * A break while hunting for a sensor (or probing): a device that resets
+ * holds its TX low for about 500 ms, and a Powered Up device listens for
+ * the fast sync probe meanwhile (Pybricks' hubs probe when they detect a
+ * device, on pins a tty does not have). Some UARTs report a break again
+ * and again while the line is low: one probe every 100 ms at most, the
+ * next one put off until then rather than skipped (a break during a probe
+ * may be a device that was not listening yet). But not after a break whose
+ * probe was not answered and no handshake followed. @lock held.
+ */
+static void ev3_uart_break(struct ev3_uart_port *port)
+{
+	unsigned long next = port->probed_at + EV3_UART_PROBE_HOLDOFF;
+
+	lockdep_assert_held(&port->lock);
+	if (READ_ONCE(port->no_probe) || port->closing)
+		return;
+	if (port->parser.state == EV3_UART_STATE_SYNC &&
+	    port->parser.sync_speed != EV3_UART_SPEED_MIN)
+		return;		/* answered: its handshake comes */
+	/*
+	 * The last break's probe went unanswered and no handshake followed:
+	 * maybe a device whose ACK reached us too late, which resets when
+	 * its fast handshake is not answered. Let it go on at 2400 this time
+	 * rather than catch it in its fast sync again and again.
+	 */
+	if (port->probe_missed) {
+		port->probe_missed = false;
+		return;
+	}
+	port->break_probe = true;
+	queue_delayed_work(port->wq, &port->probe_work,
+			   port->probed_at && time_before(jiffies, next) ?
+			   next - jiffies : 0);
 }
 
 static void ev3_uart_receive_buf(struct tty_struct *tty, const u8 *cp,
@@ -446,6 +507,9 @@ static void ev3_uart_receive_buf(struct tty_struct *tty, const u8 *cp,
 	while (count > 0) {
 		from = port->parser.state;
 		if (fp && *fp != TTY_NORMAL) {
+			if (*fp == TTY_BREAK && (from == EV3_UART_STATE_SYNC ||
+						 from == EV3_UART_STATE_PROBE))
+				ev3_uart_break(port);
 			port->stats.line_errors++;
 			ev3_uart_parser_line_error(&port->parser, &ev);
 			cp++;
@@ -534,6 +598,116 @@ static void ev3_uart_trace_sensor(struct ev3_uart_port *port, u8 what,
 			      sd ? dev_name(&sd->dev) : "", desc->speed);
 }
 
+/*
+ * The fast sync probe (SPEED 115200 at 115200 baud): Powered Up devices
+ * that can send their handshake at 115200 answer ACK within a millisecond
+ * and send it then, a few hundred bytes in tens of milliseconds instead of
+ * seconds at 2400. The others (EV3 sensors, the BOOST colour and distance
+ * sensor, devices busy with something else) do not answer: after 30 ms
+ * the line goes back to 2400 baud, where the parser hunts as before. Bytes
+ * sent at 2400 meanwhile are lost (an EV3 sensor caught in its handshake
+ * repeats it). After the answer, the handshake must come within 500 ms
+ * (ev3_uart_fast_work()). Only from the port's workqueue, with the parser
+ * in SYNC at 2400 baud (else nothing is done).
+ *
+ * Return: true if the probe was made (the line is then at the speed the
+ * parser hunts at), false if not (the line is as it was). @on_break: for
+ * a break (see ev3_uart_break()).
+ */
+static bool ev3_uart_probe(struct ev3_uart_port *port, bool on_break)
+{
+	u8 msg[EV3_UART_SPEED_MSG_LEN], from;
+	const char *why = "no answer to SPEED";
+	u32 speed;
+	int ret;
+
+	if (port->no_probe)
+		return false;
+	cancel_delayed_work(&port->fast_work);
+	spin_lock(&port->lock);
+	from = port->parser.state;
+	ret = port->closing ? -ESHUTDOWN :
+	      ev3_uart_parser_probe(&port->parser, EV3_UART_SPEED_FAST);
+	if (!ret) {
+		reinit_completion(&port->probe_done);
+		port->probed_at = jiffies ?: 1;
+		ev3_uart_trace_state(port, from, NULL, "fast sync probe");
+	}
+	spin_unlock(&port->lock);
+	if (ret)
+		return false;
+
+	if (ev3_uart_set_speed(port, EV3_UART_SPEED_FAST)) {
+		pr_info("%s: cannot set %u baud: no fast sync for Powered Up devices\n",
+			port->tty->name, EV3_UART_SPEED_FAST);
+		WRITE_ONCE(port->no_probe, true);
+		why = "no fast sync on this tty";
+	} else if (!ev3_uart_tx(port, msg,
+				ev3_uart_build_speed(msg, EV3_UART_SPEED_FAST))) {
+		/*
+		 * From when it is out. Pybricks waits 10 ms, on a UART of its
+		 * own; a USB serial adapter may hold the ACK 16 ms (an FTDI
+		 * chip's latency timer) before the tty sees it.
+		 */
+		tty_wait_until_sent(port->tty, msecs_to_jiffies(50));
+		wait_for_completion_timeout(&port->probe_done,
+					    msecs_to_jiffies(EV3_UART_PROBE_WAIT_MS) + 1);
+	}
+
+	spin_lock(&port->lock);
+	from = port->parser.state;
+	speed = ev3_uart_parser_probe_end(&port->parser);
+	ev3_uart_trace_state(port, from, NULL, why);
+	port->probe_missed = on_break && speed == EV3_UART_SPEED_MIN;
+	if (speed != EV3_UART_SPEED_MIN && !port->closing)
+		queue_delayed_work(port->wq, &port->fast_work,
+				   msecs_to_jiffies(EV3_UART_FAST_SYNC_MS));
+	spin_unlock(&port->lock);
+	if (speed != port->speed)
+		ev3_uart_set_speed(port, speed);
+	return true;
+}
+
+/* Listen for the next device: the fast sync probe, else 2400 baud. */
+static void ev3_uart_hunt(struct ev3_uart_port *port)
+{
+	if (!ev3_uart_probe(port, false) && port->speed != EV3_UART_SPEED_MIN)
+		ev3_uart_set_speed(port, EV3_UART_SPEED_MIN);
+}
+
+static void ev3_uart_probe_work(struct work_struct *work)
+{
+	struct ev3_uart_port *port = container_of(to_delayed_work(work),
+						  struct ev3_uart_port,
+						  probe_work);
+	bool on_break;
+
+	spin_lock(&port->lock);
+	on_break = port->break_probe;
+	port->break_probe = false;
+	spin_unlock(&port->lock);
+	ev3_uart_probe(port, on_break);
+}
+
+/* A device answered the probe, and its handshake did not follow in time. */
+static void ev3_uart_fast_work(struct work_struct *work)
+{
+	struct ev3_uart_port *port = container_of(to_delayed_work(work),
+						  struct ev3_uart_port,
+						  fast_work);
+	bool late;
+
+	spin_lock(&port->lock);
+	late = port->parser.sync_speed != EV3_UART_SPEED_MIN &&
+	       (port->parser.state == EV3_UART_STATE_SYNC ||
+		port->parser.state == EV3_UART_STATE_INFO);
+	if (late)
+		ev3_uart_parser_restart(port, "no handshake after the fast sync");
+	spin_unlock(&port->lock);
+	if (late)
+		ev3_uart_set_speed(port, EV3_UART_SPEED_MIN);
+}
+
 static void ev3_uart_ack_work(struct work_struct *work)
 {
 	struct ev3_uart_port *port = container_of(work, struct ev3_uart_port,
@@ -552,21 +726,26 @@ static void ev3_uart_ack_work(struct work_struct *work)
 	}
 	*desc = port->parser.sensor;
 	spin_unlock(&port->lock);
+	cancel_delayed_work(&port->fast_work);
 
 	/* Not again a speed this tty could not do (see below). */
 	if (desc->speed == port->bad_speed) {
 		pr_debug("%s: sensor type %u wants %u baud again; not answered\n",
 			 tty->name, desc->type, desc->speed);
 		why = "speed not supported by the tty";
-		goto restart;
+		goto fail;
 	}
 
 	why = "ACK not sent";
 	if (ev3_uart_tx(port, &ack, ev3_uart_build_ack(&ack)))
 		goto fail;
-	/* The sensor switches speed once it has our ACK: so do we. */
-	tty_wait_until_sent(tty, msecs_to_jiffies(50));
-	if (ev3_uart_set_speed(port, desc->speed)) {
+	/*
+	 * The sensor switches speed once it has our ACK: so do we. Not after
+	 * a fast sync: the handshake came at the sensor's speed.
+	 */
+	if (desc->speed != port->speed)
+		tty_wait_until_sent(tty, msecs_to_jiffies(50));
+	if (desc->speed != port->speed && ev3_uart_set_speed(port, desc->speed)) {
 		/*
 		 * The UART cannot run at the sensor's speed, or its speed is
 		 * locked (TIOCSLCKTRMIOS): the sensor would be lost and come
@@ -620,11 +799,10 @@ static void ev3_uart_ack_work(struct work_struct *work)
 	return;
 
 fail:
-	ev3_uart_set_speed(port, EV3_UART_SPEED_MIN);
-restart:
 	spin_lock(&port->lock);
 	ev3_uart_parser_restart(port, why);
 	spin_unlock(&port->lock);
+	ev3_uart_hunt(port);
 }
 
 static void ev3_uart_keepalive_work(struct work_struct *work)
@@ -705,7 +883,7 @@ static void ev3_uart_reset_work(struct work_struct *work)
 	complete_all(&port->select_done);
 	spin_unlock(&port->lock);
 
-	ev3_uart_set_speed(port, EV3_UART_SPEED_MIN);
+	ev3_uart_hunt(port);
 	if (sd) {
 		pr_info("%s: %s disconnected\n", port->tty->name,
 			sd->driver_name);
@@ -1048,6 +1226,7 @@ static int ev3_uart_counters_show(struct seq_file *m, void *unused)
 	st.tx_nack = port->stats.tx_nack;
 	st.tx_select = port->stats.tx_select;
 	st.tx_write = port->stats.tx_write;
+	st.tx_speed = port->stats.tx_speed;
 	st.tx_errors = port->stats.tx_errors;
 	mutex_unlock(&port->tx_mutex);
 
@@ -1061,12 +1240,14 @@ static int ev3_uart_counters_show(struct seq_file *m, void *unused)
 	seq_printf(m, "garbage %llu\n", st.garbage);
 	seq_printf(m, "bad_frames %llu\n", st.bad_frames);
 	seq_printf(m, "speed_changes %llu\n", st.speed_changes);
+	seq_printf(m, "fast_syncs %llu\n", st.fast_syncs);
 	seq_printf(m, "registered %llu\n", st.registered);
 	seq_printf(m, "lost %llu\n", st.lost);
 	seq_printf(m, "tx_ack %llu\n", st.tx_ack);
 	seq_printf(m, "tx_nack %llu\n", st.tx_nack);
 	seq_printf(m, "tx_select %llu\n", st.tx_select);
 	seq_printf(m, "tx_write %llu\n", st.tx_write);
+	seq_printf(m, "tx_speed %llu\n", st.tx_speed);
 	seq_printf(m, "tx_errors %llu\n", st.tx_errors);
 	return 0;
 }
@@ -1139,6 +1320,9 @@ static int ev3_uart_open(struct tty_struct *tty)
 	INIT_WORK(&port->ack_work, ev3_uart_ack_work);
 	INIT_DELAYED_WORK(&port->keepalive_work, ev3_uart_keepalive_work);
 	INIT_WORK(&port->reset_work, ev3_uart_reset_work);
+	INIT_DELAYED_WORK(&port->probe_work, ev3_uart_probe_work);
+	INIT_DELAYED_WORK(&port->fast_work, ev3_uart_fast_work);
+	init_completion(&port->probe_done);
 	INIT_WORK(&port->tx_work, ev3_uart_tx_work);
 	ev3_uart_parser_init(&port->parser);
 	port->select_mode = EV3_UART_NO_MODE;
@@ -1147,12 +1331,15 @@ static int ev3_uart_open(struct tty_struct *tty)
 	ev3_uart_find_label(port);
 
 	ev3_uart_setup_tty(tty);
+	port->speed = EV3_UART_SPEED_MIN;
 	port->debugfs = debugfs_create_dir(tty->name, ev3_uart_debugfs_root);
 	debugfs_create_file("counters", 0400, port->debugfs, port,
 			    &ev3_uart_counters_fops);
 	tty->disc_data = port;
 	tty->receive_room = 65536;
 	tty_driver_flush_buffer(tty);
+	/* A Powered Up device that has just been powered may answer. */
+	queue_delayed_work(port->wq, &port->probe_work, 0);
 
 	return 0;
 }
@@ -1179,6 +1366,9 @@ static void ev3_uart_close(struct tty_struct *tty)
 	hrtimer_cancel(&port->ack_timer);
 	cancel_work_sync(&port->ack_work);
 	cancel_delayed_work_sync(&port->keepalive_work);
+	/* Queued on the work queue; with @closing set, not again. */
+	cancel_delayed_work_sync(&port->probe_work);
+	cancel_delayed_work_sync(&port->fast_work);
 	destroy_workqueue(port->wq);
 
 	spin_lock(&port->lock);

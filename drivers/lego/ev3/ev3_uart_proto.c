@@ -6,10 +6,13 @@
  * checksum, the XOR of 0xff with every byte before it. The payload length is
  * a power of two given by the header; INFO messages carry one more byte (the
  * info type) between the header and the payload. Multi-byte values are
- * little endian and are read only with get_unaligned_le16/32(), so neither
- * the host's byte order nor its alignment rules matter.
+ * little endian and are read only with get_unaligned_le16/32() (and written
+ * with put_unaligned_le32()), so neither the host's byte order nor its
+ * alignment rules matter.
  *
- * A connection goes SYNC -> INFO -> ACKED -> DATA (see enum ev3_uart_state).
+ * A connection goes SYNC -> INFO -> ACKED -> DATA (see enum ev3_uart_state),
+ * or, when the host offers a Powered Up device a fast sync, SYNC -> PROBE
+ * -> SYNC at 115200 baud -> INFO -> ACKED -> DATA.
  * Nothing a sensor sends is trusted: every length, mode number, count and
  * range is checked before use, and any error in the handshake sends the
  * parser back to SYNC, where only a valid TYPE message gets it out again.
@@ -500,6 +503,27 @@ size_t ev3_uart_build_select(u8 *buf, u8 mode)
 EXPORT_SYMBOL_IF_KUNIT(ev3_uart_build_select);
 
 /**
+ * ev3_uart_build_speed() - the host's SPEED message (the fast sync probe)
+ * @buf: at least %EV3_UART_SPEED_MSG_LEN bytes
+ * @speed: the baud rate offered, little endian in the message
+ *
+ * Sent at @speed itself: a Powered Up device that can send its handshake
+ * at that speed answers ACK (see ev3_uart_parser_probe()). For 115200:
+ * ``52 00 c2 01 00 6e``.
+ *
+ * Return: the message length, %EV3_UART_SPEED_MSG_LEN.
+ */
+size_t ev3_uart_build_speed(u8 *buf, u32 speed)
+{
+	buf[0] = EV3_UART_MSG_CMD | 2 << EV3_UART_MSG_SIZE_SHIFT |
+		 EV3_UART_CMD_SPEED;
+	put_unaligned_le32(speed, buf + 1);
+	buf[5] = ev3_uart_checksum(buf, 5);
+	return EV3_UART_SPEED_MSG_LEN;
+}
+EXPORT_SYMBOL_IF_KUNIT(ev3_uart_build_speed);
+
+/**
  * ev3_uart_build_write() - a WRITE message, padded to a power of two
  * @buf: at least %EV3_UART_MAX_PAYLOAD + 2 bytes
  * @data: the bytes to send
@@ -614,6 +638,7 @@ static void ev3_uart_reset(struct ev3_uart_parser *p)
 {
 	ev3_uart_fast_clear(p);
 	p->state = EV3_UART_STATE_SYNC;
+	p->sync_speed = EV3_UART_SPEED_MIN;
 	p->msg_len = 0;
 	p->replay_len = 0;
 	p->replay_pos = 0;
@@ -654,7 +679,8 @@ static void ev3_uart_start_handshake(struct ev3_uart_parser *p, u8 type,
 	s->type = type;
 	s->num_modes = 1;
 	s->num_view_modes = 1;
-	s->speed = EV3_UART_SPEED_MIN;
+	/* No SPEED: stay where the handshake came (2400, or a fast sync's). */
+	s->speed = p->sync_speed;
 	p->cmd_seen = BIT(EV3_UART_CMD_TYPE);
 	p->info_mode = EV3_UART_NO_MODE;
 	p->info_seen = 0;
@@ -1409,6 +1435,16 @@ static void ev3_uart_byte(struct ev3_uart_parser *p, u8 b,
 	case EV3_UART_STATE_ACKED:
 		p->garbage++;
 		break;
+	case EV3_UART_STATE_PROBE:
+		if (b != EV3_UART_SYS_ACK) {
+			p->garbage++;
+			break;
+		}
+		/* A fast sync: the handshake follows at this speed. */
+		p->state = EV3_UART_STATE_SYNC;
+		p->msg_len = 0;
+		ev->type = EV3_UART_EV_FAST;
+		break;
 	default:
 		if (!p->msg_len)
 			ev3_uart_msg_start(p, b, ev);
@@ -1721,6 +1757,8 @@ void ev3_uart_parser_line_error(struct ev3_uart_parser *p,
 		ev3_uart_error(p, ev, "line error in handshake");
 		break;
 	case EV3_UART_STATE_ACKED:
+	case EV3_UART_STATE_PROBE:
+		/* A device that cannot answer at the probe's speed, garbled. */
 		break;
 	case EV3_UART_STATE_DATA:
 		p->msg_len = 0;
@@ -1778,6 +1816,60 @@ int ev3_uart_parser_select(struct ev3_uart_parser *p, u8 mode)
 	return 0;
 }
 EXPORT_SYMBOL_IF_KUNIT(ev3_uart_parser_select);
+
+/**
+ * ev3_uart_parser_probe() - note that the host offers a fast sync
+ * @p: the parser, hunting for a TYPE message at 2400 baud
+ * @speed: the speed the host switched the line to and sends SPEED at
+ *	(%EV3_UART_SPEED_FAST)
+ *
+ * Powered Up devices that can send their handshake at 115200 baud answer
+ * a SPEED 115200 message sent at 115200 (ev3_uart_build_speed()) with ACK
+ * (they listen for it for about 500 ms after they reset, before their
+ * 2400-baud handshake), then send the handshake at that speed, and no
+ * speed change follows the host's ACK. EV3 sensors and devices that do not
+ * answer stay at 2400: the host calls ev3_uart_parser_probe_end() when it
+ * has waited long enough (Pybricks waits 10 ms) and goes back to 2400. Meanwhile the
+ * parser takes only the ACK (%EV3_UART_EV_FAST); other bytes and line
+ * errors are dropped.
+ *
+ * Return: 0, -%EBUSY outside the SYNC state at 2400 baud (a handshake is
+ * under way), -%EINVAL for a speed out of range.
+ */
+int ev3_uart_parser_probe(struct ev3_uart_parser *p, u32 speed)
+{
+	if (speed < EV3_UART_SPEED_MIN || speed > EV3_UART_SPEED_MAX)
+		return -EINVAL;
+	if (p->state != EV3_UART_STATE_SYNC ||
+	    p->sync_speed != EV3_UART_SPEED_MIN)
+		return -EBUSY;
+	p->state = EV3_UART_STATE_PROBE;
+	p->sync_speed = speed;
+	p->msg_len = 0;
+	return 0;
+}
+EXPORT_SYMBOL_IF_KUNIT(ev3_uart_parser_probe);
+
+/**
+ * ev3_uart_parser_probe_end() - the host stops waiting for the probe's ACK
+ * @p: the parser
+ *
+ * Without an answer the parser hunts for a TYPE message at 2400 baud
+ * again; after one (%EV3_UART_EV_FAST), at the probe's speed, whatever
+ * state the handshake that followed has reached.
+ *
+ * Return: the speed the line must run at from now on, &p->sync_speed.
+ */
+u32 ev3_uart_parser_probe_end(struct ev3_uart_parser *p)
+{
+	if (p->state == EV3_UART_STATE_PROBE) {
+		p->state = EV3_UART_STATE_SYNC;
+		p->sync_speed = EV3_UART_SPEED_MIN;
+		p->msg_len = 0;
+	}
+	return p->sync_speed;
+}
+EXPORT_SYMBOL_IF_KUNIT(ev3_uart_parser_probe_end);
 
 /**
  * ev3_uart_parser_tick() - account for one keep-alive period (100 ms)

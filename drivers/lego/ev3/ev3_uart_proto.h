@@ -80,6 +80,14 @@ enum ev3_uart_msg_type {
 #define EV3_UART_TYPE_MAX		101
 #define EV3_UART_SPEED_MIN		2400
 #define EV3_UART_SPEED_MAX		460800
+/*
+ * Powered Up devices' speed, at which the host may offer them a "fast
+ * sync": it sends SPEED 115200 at 115200 baud, and a device that answers
+ * ACK sends its handshake at that speed (see ev3_uart_parser_probe()).
+ */
+#define EV3_UART_SPEED_FAST		115200
+/* The length of a SPEED message (ev3_uart_build_speed()). */
+#define EV3_UART_SPEED_MSG_LEN		6
 /* Decimals beyond this make 10^decimals overflow the fixed-point values. */
 #define EV3_UART_MAX_DECIMALS		9
 #define EV3_UART_MAX_FIGURES		15
@@ -191,12 +199,17 @@ struct ev3_uart_sensor {
  *	switch speed, then call ev3_uart_parser_start_data(). Bytes received
  *	meanwhile are dropped: they come at a speed the tty is not set to.
  * @EV3_UART_STATE_DATA: data phase, at the sensor's speed
+ * @EV3_UART_STATE_PROBE: the host sent SPEED at &ev3_uart_parser.sync_speed
+ *	(the fast sync probe) and waits for a Powered Up device's ACK; any
+ *	other byte or line error is dropped. The ACK makes it SYNC at that
+ *	speed; no ACK, ev3_uart_parser_probe_end() makes it SYNC at 2400.
  */
 enum ev3_uart_state {
 	EV3_UART_STATE_SYNC,
 	EV3_UART_STATE_INFO,
 	EV3_UART_STATE_ACKED,
 	EV3_UART_STATE_DATA,
+	EV3_UART_STATE_PROBE,
 };
 
 /**
@@ -211,6 +224,9 @@ enum ev3_uart_state {
  *	the caller must go back to 2400 baud
  * @EV3_UART_EV_MSG: a handshake message (CMD or INFO) was taken; only with
  *	&ev3_uart_parser.report_msgs set (for tracing): nothing to act on
+ * @EV3_UART_EV_FAST: a device answered the SPEED probe with ACK: the line
+ *	stays at &ev3_uart_parser.sync_speed, where the parser now hunts for
+ *	its TYPE message (SYNC state)
  */
 enum ev3_uart_event_type {
 	EV3_UART_EV_NONE,
@@ -219,6 +235,7 @@ enum ev3_uart_event_type {
 	EV3_UART_EV_DATA,
 	EV3_UART_EV_ERROR,
 	EV3_UART_EV_MSG,
+	EV3_UART_EV_FAST,
 };
 
 /**
@@ -245,6 +262,10 @@ struct ev3_uart_event {
 /**
  * struct ev3_uart_parser - state of the protocol on one line
  * @state: see &enum ev3_uart_state
+ * @sync_speed: the speed the line runs at in the SYNC, PROBE and INFO
+ *	states: %EV3_UART_SPEED_MIN, or the probe's (after the device
+ *	answered it, until the parser restarts); a handshake without SPEED
+ *	asks for it
  * @sensor: the sensor description, complete from %EV3_UART_EV_HANDSHAKE on
  * @msg: the message being received (in SYNC state: the sliding window)
  * @msg_len: bytes held in @msg
@@ -280,6 +301,7 @@ struct ev3_uart_event {
  */
 struct ev3_uart_parser {
 	enum ev3_uart_state state;
+	u32 sync_speed;
 	struct ev3_uart_sensor sensor;
 	u8 msg[EV3_UART_MAX_MSG_LEN];
 	u8 msg_len;
@@ -322,11 +344,14 @@ void ev3_uart_parser_line_error(struct ev3_uart_parser *p,
 				struct ev3_uart_event *ev);
 void ev3_uart_parser_start_data(struct ev3_uart_parser *p);
 int ev3_uart_parser_select(struct ev3_uart_parser *p, u8 mode);
+int ev3_uart_parser_probe(struct ev3_uart_parser *p, u32 speed);
+u32 ev3_uart_parser_probe_end(struct ev3_uart_parser *p);
 bool ev3_uart_parser_tick(struct ev3_uart_parser *p, struct ev3_uart_event *ev);
 
 size_t ev3_uart_build_ack(u8 *buf);
 size_t ev3_uart_build_nack(u8 *buf);
 size_t ev3_uart_build_select(u8 *buf, u8 mode);
+size_t ev3_uart_build_speed(u8 *buf, u32 speed);
 int ev3_uart_build_write(u8 *buf, const u8 *data, size_t len);
 int ev3_uart_build_lump_data(u8 *buf, u8 mode, const u8 *data, size_t len);
 
@@ -341,6 +366,11 @@ static inline u64 ev3_uart_abs64(s64 v)
 
 int ev3_uart_mul_div(u64 a, u64 b, u64 c, bool round, u64 *q);
 s32 ev3_uart_scale_value(const struct ev3_uart_mode *mode, s32 raw);
+/*
+ * Room for a driver name with its NUL: the longest in the tables
+ * ("lego-technic-m-angular-motor") and "lump-uart-255" (a KUnit case checks).
+ */
+#define EV3_UART_DRIVER_NAME_LEN	32
 const char *ev3_uart_driver_name(u8 type);
 const char *ev3_uart_lump_driver_name(u8 type);
 

@@ -952,6 +952,27 @@ static void check_boost_cds(struct kunit *test, size_t chunk)
 	KUNIT_EXPECT_NULL(test, ev3_uart_lump_driver_name(29));
 }
 
+/* Every driver name fits the sensor's copy (a long one was cut once). */
+static void test_driver_names_fit(struct kunit *test)
+{
+	char fallback[EV3_UART_DRIVER_NAME_LEN];
+	const char *name;
+	unsigned int t;
+
+	for (t = 0; t < 256; t++) {
+		name = ev3_uart_driver_name(t);
+		if (name)
+			KUNIT_EXPECT_LT_MSG(test, strlen(name), EV3_UART_DRIVER_NAME_LEN,
+					    "type %u", t);
+		name = ev3_uart_lump_driver_name(t);
+		if (name)
+			KUNIT_EXPECT_LT_MSG(test, strlen(name), EV3_UART_DRIVER_NAME_LEN,
+					    "type %u", t);
+	}
+	KUNIT_EXPECT_LT(test, snprintf(fallback, sizeof(fallback), "lump-uart-%u", 255U),
+			EV3_UART_DRIVER_NAME_LEN);
+}
+
 static void test_handshake_boost_color_distance(struct kunit *test)
 {
 	check_boost_cds(test, sizeof(boost_cds_handshake));
@@ -1093,6 +1114,152 @@ static void test_build_lump_data(struct kunit *test)
 	KUNIT_EXPECT_EQ(test, ev3_uart_build_lump_data(buf, 16, three, 3), -EINVAL);
 	KUNIT_EXPECT_EQ(test, ev3_uart_build_lump_data(buf, 0, three, 0), -EINVAL);
 	KUNIT_EXPECT_EQ(test, ev3_uart_build_lump_data(buf, 0, buf, 33), -EINVAL);
+}
+
+/* The fast sync probe: SPEED 115200, as Pybricks sends it at 115200. */
+static void test_build_speed(struct kunit *test)
+{
+	static const u8 fast[] = { 0x52, 0x00, 0xc2, 0x01, 0x00, 0x6e };
+	/* The same message as the LEGO sensors' SPEED 57600. */
+	static const u8 ev3[] = { 0x52, 0x00, 0xe1, 0x00, 0x00, 0x4c };
+	u8 buf[EV3_UART_SPEED_MSG_LEN];
+
+	KUNIT_ASSERT_EQ(test, ev3_uart_build_speed(buf, EV3_UART_SPEED_FAST),
+			(size_t)EV3_UART_SPEED_MSG_LEN);
+	KUNIT_EXPECT_MEMEQ(test, buf, fast, sizeof(fast));
+	KUNIT_ASSERT_EQ(test, ev3_uart_build_speed(buf, 57600), sizeof(ev3));
+	KUNIT_EXPECT_MEMEQ(test, buf, ev3, sizeof(ev3));
+	KUNIT_EXPECT_EQ(test, ev3_uart_msg_len(buf[0]), sizeof(ev3));
+}
+
+/* A handshake with one mode and no SPEED (a device that omits it). */
+static size_t enc_no_speed(u8 *buf)
+{
+	static const struct tmode m = { "TEST", { F0, F100 }, { F0, F100 }, NULL, 1, 0, 2, 0 };
+	u8 type = 99;
+	size_t len = 0;
+
+	len += enc_cmd(buf, EV3_UART_CMD_TYPE, &type, 1);
+	len += enc_mode(buf + len, type, 0, &m);
+	buf[len++] = EV3_UART_SYS_ACK;
+	return len;
+}
+
+/* The probe answered: ACK, then the handshake at 115200, in any batches. */
+static void test_fast_sync_answered(struct kunit *test)
+{
+	/* What a probe meets: garbled bytes, a TYPE, SYNC, NACK, 0xff. */
+	static const u8 junk[] = { 0x00, 0xff, 0x40, 0x3d, 0x82, 0x02, 0x52 };
+	struct ev3_uart_event ev;
+	size_t chunk, len;
+	struct ctx *c;
+
+	for (chunk = 1; chunk <= 64; chunk *= 4) {
+		c = new_ctx(test);
+		KUNIT_EXPECT_EQ(test, c->p.sync_speed, 2400U);
+		KUNIT_ASSERT_EQ(test, ev3_uart_parser_probe(&c->p, EV3_UART_SPEED_FAST), 0);
+		KUNIT_EXPECT_EQ(test, c->p.state, EV3_UART_STATE_PROBE);
+		KUNIT_EXPECT_EQ(test, c->p.sync_speed, EV3_UART_SPEED_FAST);
+		/* Once at a time; nothing else takes the parser meanwhile. */
+		KUNIT_EXPECT_EQ(test, ev3_uart_parser_probe(&c->p, EV3_UART_SPEED_FAST), -EBUSY);
+		KUNIT_EXPECT_EQ(test, ev3_uart_parser_select(&c->p, 0), -ENODEV);
+		KUNIT_EXPECT_FALSE(test, ev3_uart_parser_tick(&c->p, &ev));
+		ev3_uart_parser_start_data(&c->p);
+		KUNIT_EXPECT_EQ(test, c->p.state, EV3_UART_STATE_PROBE);
+
+		/* Garbage and line errors are dropped, a TYPE too. */
+		feed(&c->p, junk, sizeof(junk), chunk, &c->r);
+		ev3_uart_parser_line_error(&c->p, &ev);
+		KUNIT_EXPECT_EQ(test, ev.type, EV3_UART_EV_NONE);
+		KUNIT_EXPECT_EQ(test, c->r.n, 0U);
+		KUNIT_EXPECT_EQ(test, c->p.state, EV3_UART_STATE_PROBE);
+		KUNIT_EXPECT_EQ(test, c->p.garbage, (unsigned long)sizeof(junk));
+
+		/* The ACK, and the handshake right behind it. */
+		c->buf[0] = EV3_UART_SYS_ACK;
+		len = 1 + enc_handshake(c->buf + 1, &sensors[0]);
+		feed(&c->p, c->buf, len, chunk, &c->r);
+		KUNIT_ASSERT_EQ(test, c->r.n, 3U);
+		KUNIT_EXPECT_EQ(test, c->r.ev[0].type, EV3_UART_EV_FAST);
+		KUNIT_EXPECT_EQ(test, c->r.ev[1].type, EV3_UART_EV_SYNC);
+		KUNIT_EXPECT_EQ(test, c->r.ev[2].type, EV3_UART_EV_HANDSHAKE);
+		KUNIT_EXPECT_EQ(test, c->p.sensor.type, 29);
+		/* Its own SPEED counts. */
+		KUNIT_EXPECT_EQ(test, c->p.sensor.speed, 57600U);
+		/* The host's wait ends after the ACK: the line stays fast. */
+		KUNIT_EXPECT_EQ(test, ev3_uart_parser_probe_end(&c->p), EV3_UART_SPEED_FAST);
+		KUNIT_EXPECT_EQ(test, c->p.state, EV3_UART_STATE_ACKED);
+		ev3_uart_parser_start_data(&c->p);
+		KUNIT_EXPECT_EQ(test, c->p.state, EV3_UART_STATE_DATA);
+	}
+
+	/* No SPEED in a fast handshake: it stays at 115200. */
+	c = new_ctx(test);
+	KUNIT_ASSERT_EQ(test, ev3_uart_parser_probe(&c->p, EV3_UART_SPEED_FAST), 0);
+	c->buf[0] = EV3_UART_SYS_ACK;
+	len = 1 + enc_no_speed(c->buf + 1);
+	feed(&c->p, c->buf, len, len, &c->r);
+	KUNIT_ASSERT_EQ(test, last(&c->r)->type, EV3_UART_EV_HANDSHAKE);
+	KUNIT_EXPECT_EQ(test, c->p.sensor.speed, EV3_UART_SPEED_FAST);
+}
+
+/* The probe not answered, or a fast handshake that fails: 2400 again. */
+static void test_fast_sync_unanswered(struct kunit *test)
+{
+	struct ctx *c = new_ctx(test);
+	struct ev3_uart_event ev;
+	size_t len;
+
+	KUNIT_EXPECT_EQ(test, ev3_uart_parser_probe(&c->p, 1200), -EINVAL);
+	KUNIT_EXPECT_EQ(test, ev3_uart_parser_probe(&c->p, 921600), -EINVAL);
+	KUNIT_EXPECT_EQ(test, c->p.state, EV3_UART_STATE_SYNC);
+	KUNIT_ASSERT_EQ(test, ev3_uart_parser_probe(&c->p, EV3_UART_SPEED_FAST), 0);
+	/*
+	 * An EV3 sensor's handshake at 2400, read at 115200: each byte's low
+	 * bits as 0x00 frames (mostly flagged as line errors too), never an
+	 * ACK, whose one-bit pulse a slower line cannot make.
+	 */
+	len = enc_handshake(c->buf, &sensors[0]);
+	memset(c->buf, 0x00, len / 2);
+	memset(c->buf + len / 2, 0xff, len - len / 2);
+	feed(&c->p, c->buf, len, 7, &c->r);
+	KUNIT_EXPECT_EQ(test, c->r.n, 0U);
+	KUNIT_EXPECT_EQ(test, ev3_uart_parser_probe_end(&c->p), 2400U);
+	KUNIT_EXPECT_EQ(test, c->p.state, EV3_UART_STATE_SYNC);
+	KUNIT_EXPECT_EQ(test, c->p.sync_speed, 2400U);
+	/* Ending it again changes nothing. */
+	KUNIT_EXPECT_EQ(test, ev3_uart_parser_probe_end(&c->p), 2400U);
+	/* Then the next handshake at 2400, without SPEED: 2400. */
+	len = enc_no_speed(c->buf);
+	feed(&c->p, c->buf, len, len, &c->r);
+	KUNIT_ASSERT_EQ(test, last(&c->r)->type, EV3_UART_EV_HANDSHAKE);
+	KUNIT_EXPECT_EQ(test, c->p.sensor.speed, 2400U);
+	/* Not while a handshake is under way. */
+	KUNIT_EXPECT_EQ(test, ev3_uart_parser_probe(&c->p, EV3_UART_SPEED_FAST), -EBUSY);
+
+	/* A fast handshake broken by a line error: back to 2400. */
+	c = new_ctx(test);
+	KUNIT_ASSERT_EQ(test, ev3_uart_parser_probe(&c->p, EV3_UART_SPEED_FAST), 0);
+	c->buf[0] = EV3_UART_SYS_ACK;
+	enc_handshake(c->buf + 1, &sensors[0]);
+	feed(&c->p, c->buf, 10, 10, &c->r);
+	KUNIT_EXPECT_EQ(test, c->p.state, EV3_UART_STATE_INFO);
+	/* A handshake under way cannot be probed. */
+	KUNIT_EXPECT_EQ(test, ev3_uart_parser_probe(&c->p, EV3_UART_SPEED_FAST), -EBUSY);
+	ev3_uart_parser_line_error(&c->p, &ev);
+	KUNIT_EXPECT_EQ(test, ev.type, EV3_UART_EV_ERROR);
+	KUNIT_EXPECT_EQ(test, c->p.state, EV3_UART_STATE_SYNC);
+	KUNIT_EXPECT_EQ(test, c->p.sync_speed, 2400U);
+	KUNIT_EXPECT_EQ(test, ev3_uart_parser_probe_end(&c->p), 2400U);
+	/* And a fast SYNC with no TYPE yet cannot be probed again. */
+	KUNIT_ASSERT_EQ(test, ev3_uart_parser_probe(&c->p, EV3_UART_SPEED_FAST), 0);
+	c->buf[0] = EV3_UART_SYS_ACK;
+	feed(&c->p, c->buf, 1, 1, &c->r);
+	KUNIT_EXPECT_EQ(test, last(&c->r)->type, EV3_UART_EV_FAST);
+	KUNIT_EXPECT_EQ(test, ev3_uart_parser_probe(&c->p, EV3_UART_SPEED_FAST), -EBUSY);
+	/* ev3_uart_parser_init() (the host's restart) returns to 2400. */
+	ev3_uart_parser_init(&c->p);
+	KUNIT_EXPECT_EQ(test, c->p.sync_speed, 2400U);
 }
 
 static void test_data_ext_mode(struct kunit *test)
@@ -2117,6 +2284,9 @@ static struct kunit_case ev3_uart_proto_cases[] = {
 	KUNIT_CASE(test_boost_cds_channels),
 	KUNIT_CASE(test_data_ext_mode),
 	KUNIT_CASE(test_build_lump_data),
+	KUNIT_CASE(test_build_speed),
+	KUNIT_CASE(test_fast_sync_answered),
+	KUNIT_CASE(test_fast_sync_unanswered),
 	KUNIT_CASE(test_ext_mode_ignored_for_ev3),
 	KUNIT_CASE(test_lump_16_modes_and_flags),
 	KUNIT_CASE(test_ext_mode_and_fast_path),
@@ -2147,6 +2317,7 @@ static struct kunit_case ev3_uart_proto_cases[] = {
 	KUNIT_CASE(test_chans_bounded),
 	KUNIT_CASE(test_mode_tokens),
 	KUNIT_CASE(test_version_string),
+	KUNIT_CASE(test_driver_names_fit),
 	{}
 };
 

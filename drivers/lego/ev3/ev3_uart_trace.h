@@ -28,6 +28,7 @@ enum ev3_uart_trace_msg {
 	EV3_UART_TRACE_DATA,
 	EV3_UART_TRACE_CMD,
 	EV3_UART_TRACE_INFO,
+	EV3_UART_TRACE_SPEED,
 };
 
 /* How a DATA message was accepted (ev3_uart_rx). */
@@ -55,6 +56,7 @@ TRACE_DEFINE_ENUM(EV3_UART_TRACE_WRITE);
 TRACE_DEFINE_ENUM(EV3_UART_TRACE_DATA);
 TRACE_DEFINE_ENUM(EV3_UART_TRACE_CMD);
 TRACE_DEFINE_ENUM(EV3_UART_TRACE_INFO);
+TRACE_DEFINE_ENUM(EV3_UART_TRACE_SPEED);
 TRACE_DEFINE_ENUM(EV3_UART_TRACE_NONE);
 TRACE_DEFINE_ENUM(EV3_UART_TRACE_CSUM);
 TRACE_DEFINE_ENUM(EV3_UART_TRACE_QUIRK_RGB_RAW);
@@ -133,8 +135,9 @@ TRACE_EVENT(ev3_uart_handshake,
 );
 
 /*
- * A message sent to the sensor: ACK, NACK, SELECT (@arg: the mode) or
- * WRITE (@arg: its first byte); @len bytes; @ret 0 or the tty's error.
+ * A message sent to the sensor: ACK, NACK, SELECT (@arg: the mode), WRITE
+ * (@arg: its first byte) or SPEED (the fast sync probe, at the speed it
+ * offers); @len bytes; @ret 0 or the tty's error.
  */
 TRACE_EVENT(ev3_uart_tx,
 	    TP_PROTO(const char *tty, u8 msg, u8 hdr, u8 arg, u8 len, int ret),
@@ -161,7 +164,8 @@ TRACE_EVENT(ev3_uart_tx,
 				       { EV3_UART_TRACE_WRITE, "WRITE" },
 				       { EV3_UART_TRACE_DATA, "DATA" },
 				       { EV3_UART_TRACE_CMD, "CMD" },
-				       { EV3_UART_TRACE_INFO, "INFO" }),
+				       { EV3_UART_TRACE_INFO, "INFO" },
+				       { EV3_UART_TRACE_SPEED, "SPEED" }),
 		      __entry->hdr, __entry->arg, __entry->len, __entry->ret)
 );
 
@@ -196,12 +200,14 @@ TRACE_EVENT(ev3_uart_state,
 				       { 0, "SYNC" },
 				       { 1, "INFO" },
 				       { 2, "ACKED" },
-				       { 3, "DATA" }),
+				       { 3, "DATA" },
+				       { 4, "PROBE" }),
 		      __print_symbolic(__entry->to,
 				       { 0, "SYNC" },
 				       { 1, "INFO" },
 				       { 2, "ACKED" },
-				       { 3, "DATA" }),
+				       { 3, "DATA" },
+				       { 4, "PROBE" }),
 		      __get_str(reason))
 );
 

@@ -20,7 +20,6 @@ rounds, no JSON; run it on the benchmark kernel:
 import argparse
 import os
 import sys
-import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import nxt_bench as nb                  # noqa: E402  (it sets up tests/guest too)

@@ -1,0 +1,273 @@
+"""The fast sync of Powered Up devices through the real line discipline.
+
+The discipline sends SPEED 115200 at 115200 baud (the probe) when it is
+attached, when a device resets (the break of its TX held low) and after a
+loss. The emulated SPIKE colour and distance sensors listen for it while
+they hold TX low and answer ACK, then send their handshake at 115200: read
+back from the trace events (lego_ev3_uart) and the debugfs counters, and
+timed against the same handshake at 2400. The BOOST colour and distance
+sensor and the EV3 sensors do not answer: they still register at 2400 on
+a port that probes, as does a SPIKE sensor whose reset the host did not
+probe (on a pty, which has no break).
+"""
+import fcntl
+import os
+import re
+import shlex
+import struct
+import subprocess
+import termios
+import time
+
+import pytest
+
+import ev3
+from ev3 import ev3_sensor, find_sensor, wait_value
+
+N_LEGOEV3 = 29
+TIOCSLCKTRMIOS = 0x5457
+CBAUD = 0o010017
+DEBUGFS = '/sys/kernel/debug'
+LINE = re.compile(r'^\s*\S.*?\s+\[\d+\].*?\s(\d+\.\d+): (\w+): (.*)$')
+
+
+def tracefs():
+    path = '/sys/kernel/tracing'
+    if not os.path.isdir(path + '/events'):
+        subprocess.run(['mount', '-t', 'tracefs', 'tracefs', path], check=True)
+    return path
+
+
+def write(path, value):
+    with open(path, 'w') as f:
+        f.write(value)
+
+
+class Trace:
+    """The lego_ev3_uart events of one tty, with their timestamps."""
+
+    def __init__(self):
+        self.root = tracefs()
+        write(self.root + '/buffer_size_kb', '4096')
+        write(self.root + '/trace', '')
+        write(self.root + '/events/lego_ev3_uart/enable', '1')
+        write(self.root + '/tracing_on', '1')
+
+    def stop(self):
+        write(self.root + '/events/lego_ev3_uart/enable', '0')
+
+    def events(self, tty):
+        """[(time, name, fields)] of `tty`, in order."""
+        out = []
+        with open(self.root + '/trace') as f:
+            for line in f:
+                m = LINE.match(line)
+                if not m:
+                    continue
+                fields = dict(kv.split('=', 1) for kv in shlex.split(m.group(3)) if '=' in kv)
+                if fields.get('tty') == tty:
+                    out.append((float(m.group(1)), m.group(2), fields))
+        return out
+
+
+@pytest.fixture
+def trace():
+    t = Trace()
+    yield t
+    t.stop()
+
+
+def counters(tty):
+    with open('%s/lego_ev3_uart/%s/counters' % (DEBUGFS, tty)) as f:
+        return {k: int(v) for k, v in (line.split() for line in f)}
+
+
+def last_handshake(events):
+    """The last handshake that registered a sensor: (seconds from its TYPE
+    to its ACK, the events from just before the TYPE to the registration)."""
+    reg = [i for i, (_, n, f) in enumerate(events)
+           if n == 'ev3_uart_sensor' and f['event'] == 'registered']
+    assert reg, 'no registration in the trace: %s' % events[-30:]
+    end = reg[-1]
+    acked = [i for i in range(end) if events[i][1] == 'ev3_uart_state'
+             and events[i][2]['to'] == 'ACKED']
+    typed = [i for i in range(acked[-1]) if events[i][1] == 'ev3_uart_state'
+             and events[i][2]['from'] == 'SYNC' and events[i][2]['to'] == 'INFO']
+    start = typed[-1]
+    # From the last probe before it.
+    begin = max([i for i in range(start) if events[i][1] == 'ev3_uart_tx'
+                 and events[i][2]['msg'] == 'SPEED'] or [start])
+    return events[acked[-1]][0] - events[start][0], events[begin:end + 1]
+
+
+def plug_and_find(line, kind, **kw):
+    emu = line.plug(kind, **kw)
+    t0 = time.monotonic()
+    path = find_sensor(line.address, timeout=20)
+    assert path, 'no sensor for %s (emulator events: %s)' % (kind, emu.events)
+    return emu, path, time.monotonic() - t0
+
+
+@pytest.mark.parametrize('kind', ['spike-color', 'spike-dist'])
+def test_spike_registers_by_fast_sync(trace, line, kind):
+    emu, path, took = plug_and_find(line, kind)
+    sdef = ev3_sensor.SENSORS[kind]
+    assert ev3.read_attr(path, 'driver_name') == sdef.driver
+    # The emulator answered the probe and the handshake it sent at 115200
+    # was taken. Python in the emulated machine answers the probe in 4 to
+    # 15 ms (the host waits 30 ms); one that answers too late waits for an
+    # ACK in vain, resets, and the next probe but one catches it.
+    assert emu.handshakes == 1 and emu.sync_speeds[-1] == 115200, emu.events
+    assert set(emu.sync_speeds) == {115200} and emu.fast_syncs == len(emu.sync_speeds)
+    ev = trace.events(line.address)
+    hs_time, hs = last_handshake(ev)
+    names = [(n, f.get('msg') or f.get('to') or f.get('speed')) for _, n, f in hs]
+    # The line went to 115200 for the probe, SPEED went out, the ACK came...
+    before = [f['speed'] for _, n, f in ev[:ev.index(hs[0])] if n == 'ev3_uart_speed']
+    assert before and before[-1] == '115200', names
+    assert [f for _, n, f in hs if n == 'ev3_uart_tx' and f['msg'] == 'SPEED'
+            and f['hdr'] == '0x52' and f['len'] == '6' and f['ret'] == '0'], hs
+    fast = [f for _, n, f in hs if n == 'ev3_uart_state' and f['from'] == 'PROBE']
+    assert fast and fast[0]['to'] == 'SYNC' and 'fast sync' in fast[0]['reason'], fast
+    # ...the handshake asked for 115200, and no speed change followed the ACK.
+    shake = [i for i, (_, n, _f) in enumerate(hs) if n == 'ev3_uart_handshake']
+    assert shake and hs[shake[-1]][2]['speed'] == '115200', hs
+    assert not [n for _, n, _f in hs[shake[-1]:] if n == 'ev3_uart_speed'], hs
+    assert [f for _, n, f in hs[shake[-1]:] if n == 'ev3_uart_tx' and f['msg'] == 'ACK']
+    # 741 or 665 bytes: 58 to 65 ms on the line at 115200 (3 s at 2400).
+    assert hs_time < 0.5, hs_time
+    c = counters(line.address)
+    assert 1 <= c['fast_syncs'] <= emu.fast_syncs and c['registered'] == 1, c
+    assert c['tx_speed'] == len([n for _, n, f in ev if n == 'ev3_uart_tx'
+                                 and f['msg'] == 'SPEED']) >= c['fast_syncs'], c
+    # The data phase at 115200.
+    emu.set_values(1, [17])
+    ev3.write_attr(path, 'mode', sdef.modes[1].name)
+    assert wait_value(path, 0, 17) == 17
+    print('%s: handshake %.1f ms at 115200, registered %.2f s after the plug, '
+          '%d fast sync(s) for it' % (kind, hs_time * 1e3, took, emu.fast_syncs))
+
+
+def test_fast_sync_is_much_faster_than_2400(trace, line):
+    """The same SPIKE colour sensor, its probe answered, then ignored."""
+    emu, path, took_fast = plug_and_find(line, 'spike-color')
+    fast, _ = last_handshake(trace.events(line.address))
+    assert emu.handshakes == 1 and emu.sync_speeds[-1] == 115200, emu.events
+    emu.unplug()
+    assert ev3.wait_gone(path, 5.0)
+    emu.stop()
+    time.sleep(0.3)
+    emu, path, took_slow = plug_and_find(line, 'spike-color', fast_sync=False)
+    slow, hs = last_handshake(trace.events(line.address))
+    assert emu.sync_speeds == [2400], emu.events
+    # The probe went out at the plug's break, unanswered: back to 2400.
+    assert [f for _, n, f in hs if n == 'ev3_uart_state' and f['from'] == 'PROBE'
+            and f['reason'] == 'no answer to SPEED'], hs
+    shake = [i for i, (_, n, _f) in enumerate(hs) if n == 'ev3_uart_handshake']
+    assert [f['speed'] for _, n, f in hs[shake[-1]:] if n == 'ev3_uart_speed'] == ['115200'], hs
+    print('spike-color handshake: %.1f ms at 115200, %.1f ms at 2400; registered '
+          '%.2f s and %.2f s after the plug' % (fast * 1e3, slow * 1e3, took_fast, took_slow))
+    assert slow > 2.5, slow                  # 741 bytes at 2400: 3.09 s
+    assert slow > 10 * fast, (fast, slow)
+    assert took_slow - took_fast > 2.0, (took_fast, took_slow)
+
+
+@pytest.mark.parametrize('kind', ['boost-cds', 'color'])
+def test_others_register_at_2400_on_a_probing_port(trace, line, kind):
+    """The BOOST sensor and an EV3 sensor ignore the probe (it reaches them
+    garbled: they listen at 2400)."""
+    emu, path, _ = plug_and_find(line, kind)
+    sdef = ev3_sensor.SENSORS[kind]
+    assert ev3.read_attr(path, 'driver_name') == sdef.driver
+    assert emu.fast_syncs == 0 and emu.sync_speeds[-1] == 2400, emu.events
+    hs_time, hs = last_handshake(trace.events(line.address))
+    assert hs_time > 1.0, hs_time                # 311 or 716 bytes at 2400
+    ev = trace.events(line.address)
+    probes = [f for _, n, f in ev if n == 'ev3_uart_tx' and f['msg'] == 'SPEED']
+    assert probes, 'no probe on the port'
+    assert [f for _, n, f in ev if n == 'ev3_uart_state' and f['from'] == 'PROBE'
+            and f['reason'] == 'no answer to SPEED']
+    c = counters(line.address)
+    assert c['fast_syncs'] == 0 and c['tx_speed'] == len(probes), c
+    emu.set_values(0, [3])
+    assert wait_value(path, 0, 3) == 3
+
+
+def test_spike_at_2400_when_the_probe_misses_it(ev3_module):
+    """On a pty there is no break: the host's probe when it is attached
+    comes before the sensor listens, and the SPIKE sensor goes on at 2400
+    as it does with a host that never probes."""
+    master, slave = os.openpty()
+    tty = 'pts' + os.ttyname(slave).split('/')[-1]
+    emu = None
+    try:
+        fcntl.ioctl(slave, termios.TIOCSETD, struct.pack('i', N_LEGOEV3))
+        time.sleep(0.2)
+        emu = ev3_sensor.EmulatedSensor(master, 'spike-dist')
+        emu.start()
+        path = find_sensor(tty, timeout=20)
+        assert path, emu.events
+        assert ev3.read_attr(path, 'driver_name') == 'lego-spike-ultrasonic'
+        assert emu.fast_syncs == 0 and emu.sync_speeds == [2400], emu.events
+        assert counters(tty)['tx_speed'] >= 1
+        emu.set_values(0, [77])
+        assert wait_value(path, 0, 77) == 77
+    finally:
+        if emu:
+            emu.stop()
+        os.close(slave)
+        os.close(master)
+
+
+def test_probe_when_attached_mid_handshake(ev3_module):
+    """Attached while an EV3 sensor is half through its handshake: the
+    probe costs that handshake at most, the next one registers it."""
+    ln = ev3.Line(1)
+    emu = ln.plug('color')
+    try:
+        # The break (0.25 s), the boot delay (0.5 s), then 0.4 s of the 1.3 s.
+        time.sleep(1.15)
+        ln.attach()
+        path = find_sensor(ln.address, timeout=15)
+        assert path, emu.events
+        assert ev3.read_attr(path, 'driver_name') == 'lego-ev3-color'
+        assert emu.fast_syncs == 0 and set(emu.sync_speeds) == {2400}
+        assert counters(ln.address)['tx_speed'] >= 1
+    finally:
+        ln.close()
+
+
+def kernel_log():
+    return subprocess.run(['dmesg'], capture_output=True, text=True, check=True).stdout
+
+
+def test_no_probe_on_a_tty_that_cannot_do_115200(ev3_module):
+    """A tty whose speed is locked at 2400 (as a UART that cannot do 115200):
+    one line in the log, no SPEED sent from then on, and a 2400-baud sensor
+    still connects."""
+    ln = ev3.Line(0)
+    ln.attach()
+    emu = None
+    try:
+        time.sleep(0.3)                 # the probe of the attach, at 115200
+        fcntl.ioctl(ln.fd, TIOCSLCKTRMIOS,
+                    struct.pack('IIIIB19s', 0, 0, CBAUD, 0, 0, bytes(19)))
+        before = kernel_log().count('cannot set 115200 baud: no fast sync')
+        sent = counters(ln.address)['tx_speed']
+        slow = ev3_sensor.SensorDef(29, 'lego-ev3-color', 3, ev3_sensor.COLOR.modes,
+                                    speed=2400)
+        emu = ln.plug(slow)
+        path = find_sensor(ln.address, timeout=15)
+        assert path, emu.events
+        emu.set_values(0, [9])
+        assert wait_value(path, 0, 9) == 9
+        # Lost, and back: the probes after the loss and the break are skipped.
+        emu.unplug()
+        assert ev3.wait_gone(path, 5.0)
+        emu.plug()
+        assert find_sensor(ln.address, timeout=15), emu.events
+        assert kernel_log().count('cannot set 115200 baud: no fast sync') == before + 1
+        assert counters(ln.address)['tx_speed'] == sent
+    finally:
+        fcntl.ioctl(ln.fd, TIOCSLCKTRMIOS, struct.pack('IIIIB19s', 0, 0, 0, 0, 0, bytes(19)))
+        ln.close()
