@@ -133,11 +133,16 @@ maintainers() {
 }
 
 # commit MSG: commit everything with tools/upstream/msg/MSG, signed off.
+# @EV3_CASES@ and @NXT_CASES@ in a message are the KUnit suites' case counts.
 commit() {
+	local ev3 nxt
 	maintainers
 	# -f: Debian's .gitignore ignores everything at the top level.
 	up_git add -A -f .
-	up_git commit -q -s --no-verify -F "$here/msg/$1"
+	ev3=$(grep -c '^[[:space:]]*KUNIT_CASE' "$top/drivers/lego/ev3/ev3_uart_proto_test.c")
+	nxt=$(grep -c '^[[:space:]]*KUNIT_CASE' "$top/drivers/lego/nxt/nxt_proto_test.c")
+	sed -e "s/@EV3_CASES@/$ev3/g" -e "s/@NXT_CASES@/$nxt/g" "$here/msg/$1" |
+		up_git commit -q -s --no-verify -F -
 }
 
 # 1. The line discipline number: the next free one.
