@@ -42,7 +42,8 @@ up_base() {
 		return 0
 	fi
 	echo "$prog: unpacking $up_tarball ($(up_pkgver)) into $up_repo" >&2
-	rm -rf "$up_repo"
+	# The check's worktree belongs to the old repository: it goes too.
+	rm -rf "$up_repo" "$up_out/check-$series"
 	mkdir -p "$up_repo"
 	tar -xf "$up_tarball" -C "$up_repo" --strip-components=1
 	up_git init -q -b "base-$series"
