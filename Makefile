@@ -24,6 +24,11 @@
 #   make dkms-remove   dkms remove --all, and remove those sources
 #   make dkms-source   only copy the sources DKMS builds (DESTDIR= honoured)
 #   make deb           Debian packages into .build/deb/ (tests/packaging/make-deb.sh)
+#   make upstream-series  the drivers as an in-tree patch series against Debian's
+#                      linux-source-6.12, into .build/upstream/6.12/ (tools/upstream)
+#   make upstream-check   that series applied to the kernel source and checked:
+#                      checkpatch per patch, kernel-doc, ABI, in-tree W=1 builds
+#                      (long, not in make check; UPSTREAM_STEPS= picks steps)
 #
 # Documentation/lego/install.rst describes installing in detail.
 
@@ -76,6 +81,14 @@ soak:
 
 help:
 	@sed -n '3,/^$$/p' Makefile
+
+# Documentation/lego/testing.rst, "The in-tree series".
+.PHONY: upstream-series upstream-check
+upstream-series:
+	@tools/upstream/series.sh
+
+upstream-check:
+	@tests/upstream/check.sh $(UPSTREAM_STEPS)
 
 # --- Installing -----------------------------------------------------------
 #

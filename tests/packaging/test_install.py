@@ -162,9 +162,15 @@ def test_dkms_conf_names_the_built_modules(src):
     locs = dict(re.findall(r'^BUILT_MODULE_LOCATION\[(\d)\]="([^"]+)"', conf, re.M))
     assert {n for _, n in names} == {'lego_ev3_uart', 'lego_nxt_usb'}
     for i, n in names:
+        # The Makefile (shared with the in-tree build) builds the module
+        # when its option is set; the out-of-tree Kbuild sets it to m.
         path = os.path.join(src, locs[i])
+        makefile = open(os.path.join(path, 'Makefile')).read()
+        m = re.search(r'^obj-\$\((CONFIG_\w+)\) \+= %s\.o$' % n, makefile, re.M)
+        assert m, (n, path)
         kbuild = open(os.path.join(path, 'Kbuild')).read()
-        assert 'obj-m += %s.o' % n in kbuild, (n, path)
+        assert re.search(r'^%s := m$' % m.group(1), kbuild, re.M), (n, path)
+        assert re.search(r'^include \$\(\w+\)$', kbuild, re.M), (n, path)
     assert re.search(r'^MAKE\[0\]=".*KDIR=\$\{kernel_source_dir\}', conf, re.M)
     assert re.search(r'^AUTOINSTALL="yes"', conf, re.M)
 

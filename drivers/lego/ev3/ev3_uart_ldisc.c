@@ -2,7 +2,7 @@
 /*
  * LEGO MINDSTORMS EV3 UART sensors: tty line discipline.
  *
- * Attach it to any tty a sensor is wired to (`ldattach 29 /dev/ttyUSB0`).
+ * Attach it to any tty a sensor is wired to (N_LEGOEV3, e.g. with ldattach).
  * This file is the transport glue: it owns the tty, the work items and the
  * sensor's lifetime. The protocol itself lives in ev3_uart_proto.c, the
  * lego-sensor class in ev3_uart_class.c; locking is described in ev3_uart.h.
@@ -70,12 +70,11 @@
 #define EV3_UART_PROBE_HOLDOFF	(HZ / 10)	/* between probes breaks ask for */
 
 /*
- * The discipline takes N_DEVELOPMENT (29), as ev3dev's did: the one number
- * the kernel leaves for disciplines outside the tree. There is no parameter
- * to choose another: tty_register_ldisc() does not check that a number is
- * free, so any other would replace a discipline in use (30 is N_CAN327).
+ * N_LEGOEV3 from <linux/lego_ev3_uart.h>. There is no parameter to choose
+ * another number: tty_register_ldisc() does not check that a number is
+ * free, so any other would replace a discipline in use.
  */
-#define EV3_UART_LDISC_NUM	N_DEVELOPMENT
+#define EV3_UART_LDISC_NUM	N_LEGOEV3
 
 /* lego_ev3_uart in debugfs, with a directory per port (ev3_uart_open()). */
 static struct dentry *ev3_uart_debugfs_root;

@@ -3,26 +3,34 @@
  * LEGO MINDSTORMS EV3 UART sensors: userspace interface of the
  * lego_ev3_uart line discipline.
  *
- * Attach the discipline with TIOCSETD (or `ldattach 29 /dev/ttyX`), then
- * use these ioctls on the same tty.
+ * Attach the discipline with TIOCSETD to N_LEGOEV3 (or ldattach), then use
+ * these ioctls on the same tty.
  */
 #ifndef _UAPI_LINUX_LEGO_EV3_UART_H
 #define _UAPI_LINUX_LEGO_EV3_UART_H
 
 #include <linux/ioctl.h>
+#include <linux/tty.h>
 #include <linux/types.h>
 
-/** N_LEGOEV3 - the discipline's default number (the kernel's N_DEVELOPMENT) */
+#ifndef N_LEGOEV3
+/*
+ * N_LEGOEV3 - the discipline's number. A kernel that has the driver in its
+ * tree reserves one in <linux/tty.h>; the out-of-tree module takes
+ * N_DEVELOPMENT (29), the number kept for disciplines outside the tree, as
+ * ev3dev's did. tools/upstream/series.sh drops this block (unifdef).
+ */
 #define N_LEGOEV3		29
+#endif
 
 /** LEGO_EV3_LABEL_LEN - size of a port label, NUL included */
 #define LEGO_EV3_LABEL_LEN	16
 
 /**
  * struct lego_ev3_port_label - the label of the port a tty serves
- * @label: NUL-terminated, at most 15 characters from [A-Za-z0-9_.-], e.g.
- *	"in1"; empty for none. A sensor's address is "<tty>:<label>", or the
- *	tty name alone without a label.
+ * @label: NUL-terminated, at most 15 characters from ``[A-Za-z0-9_.-]``,
+ *	e.g. "in1"; empty for none. A sensor's address is "<tty>:<label>", or
+ *	the tty name alone without a label.
  */
 struct lego_ev3_port_label {
 	char label[LEGO_EV3_LABEL_LEN];

@@ -1,0 +1,400 @@
+#!/usr/bin/env bash
+# SPDX-License-Identifier: GPL-2.0
+#
+# `make upstream-check`: the in-tree patch series (tools/upstream/series.sh),
+# checked as a maintainer would check it. Not part of `make check`: the
+# first run builds four small kernel configurations (about 15 minutes on two
+# busy cores), later runs take a few minutes.
+#
+#   tests/upstream/check.sh [SERIES] [STEP...]
+#
+# SERIES: 6.12 (default). STEPS (default: all): series am checkpatch
+# kernel-doc refs abi headers htmldocs lego-docs build-x86_64-m build-x86_64-y
+# build-arm64-m build-arm64-y bisect kunit.
+#
+# 1. series: `make upstream-series` writes the series from this checkout;
+# 2. am: a clean copy of the base (a worktree of the scratch repository,
+#    .build/upstream/check-SERIES, reset to the base commit and cleaned)
+#    takes the patches with git am; the result must be the series' tree;
+# 3. checkpatch: scripts/checkpatch.pl --strict on every patch: no error,
+#    warning or check (nor any other output);
+# 4. kernel-doc: scripts/kernel-doc -none -Wall on every C file and header
+#    the series adds: no output;
+#    refs: every path the series' added lines name exists in the tree;
+# 5. abi: scripts/get_abi.pl validate: no line about our ABI files;
+# 6. headers: make headers, then each uapi header the series adds compiled
+#    alone in userspace with -Wall -Wextra -Werror;
+# 7. htmldocs: make SPHINXDIRS=userspace-api htmldocs (the series adds rows
+#    to ioctl-number.rst and a page with the uapi headers' kernel-doc): no
+#    warning about them, and the pages list what they should;
+#    lego-docs: this checkout's Documentation/lego (not part of the series)
+#    through sphinx-build -W;
+# 8. build-ARCH-MODE: allnoconfig plus tests/upstream/build.config and the
+#    drivers and their KUnit suites as MODE (m or y), checked after
+#    olddefconfig (IIO_BUFFER and IIO_KFIFO_BUF must be selected); vmlinux
+#    built and linked, for m the modules too (modpost: undefined symbols,
+#    section mismatches), then the drivers' directories again with W=1.
+#    Any warning about our files fails. ARCH x86_64 natively, arm64 with
+#    aarch64-linux-gnu-. Each configuration builds in
+#    .build/upstream/build-SERIES-ARCH-MODE (O=), kept for the next run:
+#    only what changed is rebuilt;
+# 9. bisect: each commit of the series checked out in turn, and the
+#    drivers' directories that have a Makefile by then built in with W=1
+#    (build-x86_64-y's configuration): no patch breaks the build;
+# 10. kunit: tools/testing/kunit/kunit.py run (UML) with both drivers'
+#    .kunitconfig; both suites must run and every case pass. The UML
+#    build is kept in .build/upstream/kunit-SERIES-um.
+#
+# Logs go to .build/upstream/check-SERIES.log/; the last line is
+# "N passed, N failed" and the exit status is 1 if any step failed.
+set -uo pipefail
+top=$(cd "$(dirname "$0")/../.." && pwd)
+series=6.12
+if [ $# -gt 0 ] && [[ "$1" =~ ^[0-9]+\.[0-9]+$ ]]; then
+	series=$1
+	shift
+fi
+prog=upstream-check
+# shellcheck source=tools/upstream/lib.sh
+. "$top/tools/upstream/lib.sh"
+# shellcheck source=tests/kernel/lib.sh
+. "$top/tests/kernel/lib.sh"
+
+steps=("$@")
+[ ${#steps[@]} -gt 0 ] || steps=(series am checkpatch kernel-doc refs abi headers htmldocs lego-docs
+	build-x86_64-m build-x86_64-y build-arm64-m build-arm64-y bisect kunit)
+work=$up_out/check-$series
+logs=$up_out/check-$series.log
+mkdir -p "$logs"
+jobs=${LEGO_UPSTREAM_JOBS:-2}
+# checkpatch's SPDX check runs scripts/spdxcheck.py with the first python3
+# in PATH; it needs Debian's python3-ply and python3-git.
+export PATH=/usr/bin:/bin:$PATH
+passed=0
+failed=0
+failures=()
+
+# result STEP SECONDS STATUS: count and print one step's result.
+result() {
+	if [ "$3" = 0 ]; then
+		passed=$((passed + 1))
+		echo "$prog: PASS $1 ($2 s)"
+	else
+		failed=$((failed + 1))
+		echo "$prog: FAIL $1 ($2 s; log: $logs/$1.log)"
+	fi
+}
+
+want() {
+	local s
+	for s in "${steps[@]}"; do [ "$s" = "$1" ] && return 0; done
+	return 1
+}
+
+# The series' patches, without the cover letter.
+patches() {
+	find "$up_patches" -name '[0-9][0-9][0-9][0-9]-*.patch' ! -name '0000-*' | sort
+}
+
+# Files the series adds, of the given patterns, in the applied tree.
+added() {
+	git -C "$work" diff --name-only --diff-filter=A "$(up_base_tag)" HEAD -- "$@"
+}
+
+step_series() {
+	"$top/tools/upstream/series.sh" "$series"
+}
+
+step_am() {
+	local tag
+	up_base || return 1
+	tag=$(up_base_tag)
+	if [ ! -e "$work/.git" ]; then
+		rm -rf "$work"
+		up_git worktree prune
+		up_git worktree add -q --detach "$work" "$tag" || return 1
+	fi
+	git -C "$work" am --abort >/dev/null 2>&1
+	git -C "$work" checkout -q -f --detach "$tag" &&
+		git -C "$work" clean -q -fdx &&
+		git -C "$work" -c user.name="$up_name" -c user.email="$up_email" am -q $(patches) ||
+		return 1
+	# The patches must give exactly the series' tree.
+	git -C "$work" diff --quiet HEAD "$up_branch" || { echo "git am gave another tree than $up_branch"; return 1; }
+	echo "$(patches | wc -l) patches applied to $tag"
+}
+
+step_checkpatch() {
+	local p out bad=0
+	for p in $(patches); do
+		out=$(cd "$work" && scripts/checkpatch.pl --strict --quiet --show-types "$p" 2>&1)
+		if [ -n "$out" ]; then
+			echo "== $(basename "$p")"
+			echo "$out"
+			bad=1
+		else
+			echo "clean: $(basename "$p")"
+		fi
+	done
+	return $bad
+}
+
+step_kernel_doc() {
+	local out
+	mapfile -t files < <(added '*.c' '*.h')
+	[ ${#files[@]} -gt 0 ] || { echo "no files"; return 1; }
+	out=$(cd "$work" && scripts/kernel-doc -none -Wall "${files[@]}" 2>&1)
+	echo "${#files[@]} files: ${files[*]}"
+	[ -z "$out" ] || { echo "$out"; return 1; }
+}
+
+step_abi() {
+	local out
+	mapfile -t files < <(added 'Documentation/ABI/*')
+	[ ${#files[@]} -gt 0 ] || { echo "no ABI files"; return 1; }
+	out=$(cd "$work" && scripts/get_abi.pl validate --dir Documentation/ABI 2>&1) || { echo "$out"; return 1; }
+	echo "${#files[@]} files: ${files[*]}"
+	# It did read them.
+	(cd "$work" && scripts/get_abi.pl search '/sys/class/lego-sensor/sensor<N>/mode$') |
+		grep 'sysfs-class-lego-sensor' >/dev/null || { echo "get_abi.pl does not find the lego-sensor class"; return 1; }
+	# The tree's own ABI files have warnings of their own; ours have none.
+	out=$(echo "$out" | grep -F -e lego -e LEGO)
+	[ -z "$out" ] || { echo "$out"; return 1; }
+}
+
+# kmake ARCH MODE ARGS...: make in the build directory of ARCH and MODE.
+kmake() {
+	local arch=$1 mode=$2 cross=()
+	shift 2
+	[ "$arch" = arm64 ] && cross=(CROSS_COMPILE=aarch64-linux-gnu-)
+	make -C "$work" O="$up_out/build-$series-$arch-$mode" ARCH="$arch" "${cross[@]}" "$@"
+}
+
+step_headers() {
+	local h bad=0 usr=$up_out/build-$series-x86_64-m/usr/include
+	kmake x86_64 m -s headers || return 1
+	mapfile -t files < <(added 'include/uapi/*.h')
+	[ ${#files[@]} -gt 0 ] || { echo "no uapi headers"; return 1; }
+	for h in "${files[@]}"; do
+		h=${h#include/uapi/}
+		echo "#include <$h>" | gcc -Wall -Wextra -Werror -fsyntax-only -I "$usr" -x c - ||
+			{ echo "$h does not compile alone"; bad=1; continue; }
+		echo "compiles alone: $h"
+	done
+	return $bad
+}
+
+# step_build ARCH MODE
+step_build() {
+	local arch=$1 mode=$2 out frag log2 dirs sym d k targets
+	out=$up_out/build-$series-$arch-$mode
+	frag=$out/lego.config
+	dirs=(drivers/iio/common/lego_ev3_uart/ drivers/usb/misc/lego_nxt/)
+	mkdir -p "$out"
+	{
+		cat "$top/tests/upstream/build.config"
+		[ "$arch" = x86_64 ] && echo "CONFIG_64BIT=y"
+		for sym in LEGO_EV3_UART LEGO_EV3_UART_KUNIT_TEST USB_LEGO_NXT USB_LEGO_NXT_KUNIT_TEST; do
+			echo "CONFIG_$sym=$mode"
+		done
+		# Selected by LEGO_EV3_UART, not set by the fragment: Kconfig must
+		# (IIO_BUFFER is a bool, IIO_KFIFO_BUF takes the driver's value).
+		echo "CONFIG_IIO_BUFFER=y"
+		echo "CONFIG_IIO_KFIFO_BUF=$mode"
+	} >"$frag.new"
+	# Configure again only when the fragment or the tree's Kconfig changed.
+	if ! cmp -s "$frag.new" "$frag" || [ ! -f "$out/.config" ] ||
+		[ -n "$(find "$work" -name 'Kconfig*' -newer "$out/.config" -print -quit)" ]; then
+		grep -v 'IIO_BUFFER\|IIO_KFIFO_BUF' "$frag.new" >"$out/lego-request.config"
+		kmake "$arch" "$mode" -s allnoconfig &&
+			(cd "$out" && ARCH=$arch "$work/scripts/kconfig/merge_config.sh" -m -O "$out" \
+				"$out/.config" "$out/lego-request.config" >/dev/null) &&
+			kmake "$arch" "$mode" -s olddefconfig || return 1
+		mv "$frag.new" "$frag"
+	else
+		rm -f "$frag.new"
+	fi
+	kconfig_verify "$out/.config" "" "$frag" || return 1
+	log2=$(mktemp)
+	# The whole kernel of this configuration, linked (the built-in
+	# drivers), and for m the modules with modpost (undefined symbols,
+	# section mismatches) against it; without W=1, which the tree's own
+	# files are not clean with. No line about our files may be a warning.
+	targets=(vmlinux)
+	[ "$mode" = m ] && targets+=(modules)
+	if ! kmake "$arch" "$mode" -j"$jobs" "${targets[@]}" >"$log2" 2>&1; then
+		tail -n 60 "$log2"
+		rm -f "$log2"
+		return 1
+	fi
+	grep -E 'warning:|error:|WARNING:|ERROR:' "$log2" | grep -E 'lego|ev3_uart|nxt_' && { rm -f "$log2"; return 1; }
+	grep -c '' "$log2" | sed 's/^/lines of the vmlinux build log: /'
+	# Then our objects again, with W=1: any warning fails.
+	find "$out/drivers/iio/common/lego_ev3_uart" "$out/drivers/usb/misc/lego_nxt" \
+		-name '*.o' -delete 2>/dev/null
+	kmake "$arch" "$mode" -j"$jobs" W=1 "${dirs[@]}" >"$log2" 2>&1 || { cat "$log2"; rm -f "$log2"; return 1; }
+	cat "$log2"
+	if grep -E 'warning:|error:|WARNING:|ERROR:' "$log2"; then
+		rm -f "$log2"
+		return 1
+	fi
+	rm -f "$log2"
+	if [ "$mode" = m ]; then
+		for k in lego_ev3_uart lego_ev3_uart_test lego_nxt_usb lego_nxt_usb_test; do
+			[ -n "$(find "$out/drivers" -name "$k.ko")" ] || { echo "$k.ko not built"; return 1; }
+		done
+	else
+		for d in "${dirs[@]}"; do
+			[ -s "$out/${d}built-in.a" ] || { echo "${d}built-in.a is empty"; return 1; }
+		done
+		# Linked in: both drivers' init functions are in vmlinux.
+		for k in ev3_uart_init nxt_usb_init; do
+			nm "$out/vmlinux" | grep " $k\$" >/dev/null || { echo "$k is not in vmlinux"; return 1; }
+		done
+	fi
+}
+
+# Every path the series' lines name (Documentation/..., drivers/...,
+# tests/...) exists in the tree: a comment or an ABI entry must not point
+# at a file that stays out of the tree. nxt-python's own tests/test_brick.py
+# is another project's file.
+step_refs() {
+	local out
+	out=$(git -C "$work" diff "$(up_base_tag)" HEAD | grep '^+[^+]' |
+		grep -oP '(?<![\w/.<-])(Documentation|drivers|include|scripts|tests|tools)/[\w./-]*\w' |
+		grep -vxF 'tests/test_brick.py' | sort -u |
+		while read -r f; do [ -e "$work/$f" ] || echo "$f"; done)
+	[ -z "$out" ] || { echo "paths named by the series that are not in the tree:"; echo "$out"; return 1; }
+	echo "every path the series names is in the tree"
+}
+
+# This checkout's own pages (Documentation/lego, which stay out of the
+# tree) through Sphinx with warnings as errors, as htmldocs would.
+step_lego_docs() {
+	local out=$up_out/lego-docs
+	rm -rf "$out"
+	sphinx-build -q -W --keep-going -C -D master_doc=index -D project="LEGO MINDSTORMS" \
+		-b html "$top/Documentation/lego" "$out" || return 1
+	echo "$(find "$out" -maxdepth 1 -name '*.html' | wc -l) pages in $out"
+}
+
+# Every patch builds (git bisect): at each commit of the series, the
+# drivers' directories that have a Makefile by then, built in with W=1, in
+# the configuration of build-x86_64-y (its .config, olddefconfig: the
+# options of a driver not there yet drop out).
+step_bisect() {
+	local out=$up_out/build-$series-x86_64-bisect cfg=$up_out/build-$series-x86_64-y/.config
+	local c d n=0 dirs log2 rc=0
+	[ -f "$cfg" ] || { echo "no $cfg: run build-x86_64-y first"; return 1; }
+	local tip
+	tip=$(git -C "$work" rev-parse HEAD)
+	mkdir -p "$out"
+	log2=$(mktemp)
+	for c in $(git -C "$work" rev-list --reverse "$(up_base_tag)..HEAD"); do
+		n=$((n + 1))
+		git -C "$work" checkout -q --detach "$c" || { rc=1; break; }
+		dirs=()
+		for d in drivers/iio/common/lego_ev3_uart drivers/usb/misc/lego_nxt; do
+			[ -f "$work/$d/Makefile" ] && dirs+=("$d/")
+		done
+		if [ ${#dirs[@]} = 0 ]; then
+			echo "patch $n: nothing of ours is built yet"
+			continue
+		fi
+		cp "$cfg" "$out/.config"
+		find "$out/drivers/iio/common/lego_ev3_uart" "$out/drivers/usb/misc/lego_nxt" \
+			-name '*.o' -delete 2>/dev/null
+		if ! make -C "$work" O="$out" -s olddefconfig >"$log2" 2>&1 ||
+			! make -C "$work" O="$out" -j"$jobs" W=1 "${dirs[@]}" >>"$log2" 2>&1 ||
+			grep -E 'warning:|error:' "$log2"; then
+			cat "$log2"
+			echo "patch $n ($(git -C "$work" log -1 --format=%s "$c")): FAILED"
+			rc=1
+			break
+		fi
+		for d in "${dirs[@]}"; do
+			[ -n "$(find "$out/$d" -name '*.o' ! -name 'built-in*')" ] ||
+				{ echo "patch $n: nothing was compiled in $d"; rc=1; }
+		done
+		[ "$rc" = 0 ] || break
+		echo "patch $n: ${dirs[*]} built with W=1"
+	done
+	rm -f "$log2"
+	# Back to the whole series.
+	git -C "$work" checkout -q --detach "$tip" || rc=1
+	return $rc
+}
+
+# Both KUnit suites under UML with kunit.py and the drivers' .kunitconfig.
+step_kunit() {
+	local out dirs=(drivers/iio/common/lego_ev3_uart drivers/usb/misc/lego_nxt) args=() d
+	for d in "${dirs[@]}"; do args+=(--kunitconfig="$d"); done
+	out=$(cd "$work" && tools/testing/kunit/kunit.py run "${args[@]}" \
+		--build_dir="$up_out/kunit-$series-um" --jobs="$jobs" 2>&1)
+	rc=$?
+	echo "$out"
+	[ "$rc" = 0 ] || return 1
+	# Both suites ran, and every case passed.
+	for d in lego_ev3_uart_proto lego_nxt_proto; do
+		echo "$out" | grep -E "^\[[0-9:]+\] =+ $d \(" >/dev/null || { echo "suite $d did not run"; return 1; }
+	done
+	echo "$out" | grep -E 'Testing complete\. Ran [0-9]+ tests: passed: [0-9]+$' ||
+		{ echo "not every test passed"; return 1; }
+}
+
+# The documentation the series touches (ioctl-number.rst, its page) built
+# by Sphinx.
+step_htmldocs() {
+	local log=$up_out/htmldocs-$series.log
+	kmake x86_64 m SPHINXDIRS=userspace-api htmldocs >"$log" 2>&1 || { tail -n 40 "$log"; return 1; }
+	grep -c '' "$log" | sed 's/^/lines of the htmldocs log: /'
+	# No warning about what the series changed.
+	if grep -E 'WARNING|ERROR' "$log" | grep -E 'ioctl-number|lego'; then
+		return 1
+	fi
+	local html=$up_out/build-$series-x86_64-m/Documentation/output/userspace-api
+	grep -q 'LEGO MINDSTORMS' "$html/ioctl/ioctl-number.html" ||
+		{ echo "ioctl-number.html does not list the LEGO drivers"; return 1; }
+	# The page of the series, with the kernel-doc of both uapi headers.
+	for w in 'struct lego_ev3_port_label' 'LEGO_EV3_SET_PORT_LABEL' 'struct nxt_transaction' 'NXT_IOC_TRANSACT'; do
+		grep -q "$w" "$html/lego.html" || { echo "lego.html has no $w"; return 1; }
+	done
+	echo "ioctl-number.html and lego.html checked"
+}
+
+for s in "${steps[@]}"; do
+	case "$s" in
+	series | am | checkpatch | kernel-doc | abi | headers | build-x86_64-[my] | build-arm64-[my] | bisect | kunit | htmldocs | lego-docs | refs) ;;
+	*) echo "$prog: unknown step $s" >&2; exit 2 ;;
+	esac
+done
+
+start=$(date +%s)
+for s in "${steps[@]}"; do
+	t=$(date +%s)
+	case "$s" in
+	series) step_series >"$logs/$s.log" 2>&1 ;;
+	am) step_am >"$logs/$s.log" 2>&1 ;;
+	checkpatch) step_checkpatch >"$logs/$s.log" 2>&1 ;;
+	kernel-doc) step_kernel_doc >"$logs/$s.log" 2>&1 ;;
+	abi) step_abi >"$logs/$s.log" 2>&1 ;;
+	headers) step_headers >"$logs/$s.log" 2>&1 ;;
+	kunit) step_kunit >"$logs/$s.log" 2>&1 ;;
+	bisect) step_bisect >"$logs/$s.log" 2>&1 ;;
+	lego-docs) step_lego_docs >"$logs/$s.log" 2>&1 ;;
+	refs) step_refs >"$logs/$s.log" 2>&1 ;;
+	htmldocs) step_htmldocs >"$logs/$s.log" 2>&1 ;;
+	build-*-*)
+		a=${s#build-}
+		step_build "${a%-*}" "${a##*-}" >"$logs/$s.log" 2>&1
+		;;
+	esac
+	rc=$?
+	result "$s" "$(( $(date +%s) - t ))" "$rc"
+	# Nothing can be checked without the series applied.
+	if [ "$rc" != 0 ] && { [ "$s" = series ] || [ "$s" = am ]; }; then
+		break
+	fi
+done
+echo "$prog: $passed passed, $failed failed in $(( $(date +%s) - start )) s"
+[ "$failed" = 0 ]

@@ -1,0 +1,150 @@
+#!/usr/bin/env python3
+# SPDX-License-Identifier: GPL-2.0
+"""Write one source file of this repository as it goes into a kernel tree.
+
+    intree.py --have "FLAG ..." SRC DST
+
+The out-of-tree build keeps every difference between the kernels it
+supports in drivers/lego/lego_compat.h, chosen by the LEGO_HAVE_* flags the
+top-level Kbuild probes. A kernel tree needs none of it, so each shim is
+replaced by what it stands for in the target tree, whose flags are given
+with --have (tools/upstream/probe.mk runs the same probes on it):
+
+- the line '#include "lego_compat.h"' goes; the headers it supplied that
+  the file uses are included instead, in the file's first block of
+  '#include <...>' lines, in order: <kunit/visibility.h> for
+  EXPORT_SYMBOL_IF_KUNIT(), <linux/unaligned.h> (<asm/unaligned.h> before
+  6.12) for the unaligned accessors;
+- LEGO_TTY_FLAG, LEGO_TTY_COUNT, LEGO_TTY_WRITE_RET, LEGO_UEVENT_CONST,
+  LEGO_IMPORT_KUNIT_NS() and lego_assign_str() become the kernel's types
+  and macros, as lego_compat.h defines them for those flags;
+- the current kernel API the code is written against is turned back into
+  the target's where the target predates it: hrtimer_setup() into
+  hrtimer_init() and a ->function assignment (before 6.13),
+  timer_container_of() into from_timer() (before 6.16), timer_delete*()
+  into del_timer*() (before 6.2);
+- unifdef -DN_LEGOEV3: the uapi header's fallback ldisc number goes, the
+  tree reserves one in <linux/tty.h>.
+
+Anything left that belongs to the shims (a LEGO_HAVE_, LEGO_TTY_ or
+LEGO_UEVENT_ name, lego_compat, lego_assign_str) is an error: a new shim
+needs a rule here.
+"""
+import argparse
+import re
+import subprocess
+import sys
+
+LEFTOVER = re.compile(r'lego_compat|\bLEGO_(HAVE|TTY|UEVENT|IMPORT)_?\w*|lego_assign_str|lego_hrtimer')
+
+
+def die(msg):
+    sys.exit('intree.py: ' + msg)
+
+
+def add_includes(text, headers):
+    """Insert '#include <h>' lines into the first block of angle includes."""
+    lines = text.split('\n')
+    block = [i for i, ln in enumerate(lines) if ln.startswith('#include <')]
+    for h in headers:
+        inc = '#include <%s>' % h
+        if inc in lines:
+            continue
+        if not block:
+            die('no #include <...> block to put <%s> in' % h)
+        # The first block: consecutive lines from the first angle include.
+        first = block[0]
+        end = first
+        while end + 1 < len(lines) and lines[end + 1].startswith('#include <'):
+            end += 1
+        at = end + 1
+        for i in range(first, end + 1):
+            name = lines[i][len('#include <'):].rstrip('>')
+            # kunit/ sorts before linux/; within linux/, alphabetically,
+            # ahead of an out-of-order uapi header at the end.
+            if name > h:
+                at = i
+                break
+        lines.insert(at, inc)
+        block = [i for i, ln in enumerate(lines) if ln.startswith('#include <')]
+    return '\n'.join(lines)
+
+
+def drop_compat_include(text, have):
+    text = '\n'.join(ln for ln in text.split('\n')
+                     if ln.strip() != '#include "lego_compat.h"')
+    need = []
+    if re.search(r'\b(EXPORT_SYMBOL_IF_KUNIT|VISIBLE_IF_KUNIT)\b', text):
+        need.append('kunit/visibility.h')
+    if re.search(r'\b(get|put)_unaligned', text):
+        need.append('linux/unaligned.h' if 'LINUX_UNALIGNED' in have else 'asm/unaligned.h')
+    return add_includes(text, need)
+
+
+def hrtimer_init_back(m):
+    indent, timer, func, clock, mode = (m.group(i).strip() if i > 1 else m.group(i)
+                                        for i in range(1, 6))
+    if not timer.startswith('&'):
+        die('hrtimer_setup() on something other than &timer: ' + timer)
+    call = '%shrtimer_init(%s, %s, %s);' % (indent, timer, clock, mode)
+    if len(call.expandtabs(8)) > 100:
+        die('hrtimer_init() line too long: ' + call)
+    return '%s\n%s%s.function = %s;' % (call, indent, timer[1:], func)
+
+
+def transform(text, have):
+    if 'KUNIT_MEMEQ' not in have:
+        die('the target tree predates KUNIT_EXPECT_MEMEQ (6.2): not supported')
+    text = drop_compat_include(text, have)
+    rx = 'TTY_RX_SIZE_T' in have
+    subs = [
+        (r'\bLEGO_TTY_FLAG\b', 'u8' if rx else 'char'),
+        (r'\bLEGO_TTY_COUNT\b', 'size_t' if rx else 'int'),
+        (r'\bLEGO_TTY_WRITE_RET\b', 'ssize_t' if 'TTY_WRITE_SSIZE_T' in have else 'int'),
+        (r'\bLEGO_UEVENT_CONST ', 'const ' if 'CONST_UEVENT' in have else ''),
+        (r'\bLEGO_IMPORT_KUNIT_NS\(\)',
+         'MODULE_IMPORT_NS("EXPORTED_FOR_KUNIT_TESTING")' if 'STRING_NS' in have
+         else 'MODULE_IMPORT_NS(EXPORTED_FOR_KUNIT_TESTING)'),
+        (r'\blego_assign_str\((\w+), *(\w+)\)',
+         r'__assign_str(\1)' if 'ASSIGN_STR_1' in have else r'__assign_str(\1, \2)'),
+    ]
+    if 'TIMER_CONTAINER_OF' not in have:
+        subs.append((r'\btimer_container_of\(', 'from_timer('))
+    if 'TIMER_DELETE' not in have:
+        subs += [(r'\btimer_delete_sync\(', 'del_timer_sync('), (r'\btimer_delete\(', 'del_timer(')]
+    for pat, rep in subs:
+        text = re.sub(pat, rep, text)
+    if 'HRTIMER_SETUP' not in have:
+        text = re.sub(r'^([ \t]*)hrtimer_setup\(([^,]+),([^,]+),([^,]+),([^;]+)\);',
+                      hrtimer_init_back, text, flags=re.M)
+    return text
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
+    ap.add_argument('--have', default='', help='the target tree\'s LEGO_HAVE_* flags, without the prefix')
+    ap.add_argument('src')
+    ap.add_argument('dst')
+    a = ap.parse_args()
+    have = set(a.have.split())
+    with open(a.src, encoding='utf-8') as f:
+        text = f.read()
+    if a.src.endswith(('.c', '.h')):
+        text = transform(text, have)
+        # unifdef exits 0 (unchanged), 1 (changed) or 2 (trouble).
+        r = subprocess.run(['unifdef', '-DN_LEGOEV3'], input=text, capture_output=True,
+                           text=True, check=False)
+        if r.returncode not in (0, 1):
+            die('unifdef on %s: %s' % (a.src, r.stderr.strip()))
+        # No two blank lines where a line or a block was taken out (kernel
+        # style has none anyway).
+        text = re.sub(r'\n\n\n+', '\n\n', r.stdout)
+        m = LEFTOVER.search(text)
+        if m:
+            die('%s: "%s" left after the in-tree rules: add a rule' % (a.src, m.group(0)))
+    with open(a.dst, 'w', encoding='utf-8') as f:
+        f.write(text)
+
+
+if __name__ == '__main__':
+    main()

@@ -1,0 +1,261 @@
+#!/usr/bin/env bash
+# SPDX-License-Identifier: GPL-2.0
+#
+# `make upstream-series`: the drivers as a patch series against the kernel
+# source of Debian's linux-source-SERIES package (default 6.12), written with
+# git format-patch --cover-letter into .build/upstream/SERIES/.
+#
+#   tools/upstream/series.sh [SERIES]
+#
+# The kernel source is committed once as the base of a scratch repository,
+# .build/upstream/linux-SERIES (tagged with the package's version: it is
+# unpacked again only when the package changes). The series is built on the
+# branch lego-SERIES from this checkout's files, copied at generation time:
+# there is no second copy of any source. What differs in-tree is either a
+# file of this repository that the out-of-tree build does not read
+# (drivers/lego/*/Kconfig, .kunitconfig, the Makefile that the out-of-tree
+# Kbuild includes, tools/upstream/MAINTAINERS, the userspace API page
+# tools/upstream/doc/lego.rst, the commit messages in tools/upstream/msg/)
+# or a mechanical rule:
+#
+# - files move to their mainline places (see PLACES below);
+# - C sources and headers go through tools/upstream/intree.py, which drops
+#   drivers/lego/lego_compat.h's shims for what they mean in the target tree
+#   (its LEGO_HAVE_* flags come from the top-level Kbuild's own probes, run
+#   on the tree by tools/upstream/probe.mk) and runs unifdef -DN_LEGOEV3;
+# - hooks into existing kernel files, each inserted at a fixed or sorted
+#   place and checked: N_LEGOEV3 in include/uapi/linux/tty.h (the next free
+#   number, NR_LDISCS raised), the ioctl magic numbers in
+#   Documentation/userspace-api/ioctl/ioctl-number.rst, the Kconfig
+#   "source" lines and Makefile lines of drivers/iio/common and
+#   drivers/usb/misc, the page in Documentation/userspace-api/index.rst,
+#   the MAINTAINERS entries (each patch adds the F: lines
+#   of the files it adds).
+#
+# Commits carry the author and Signed-off-by of this checkout's HEAD, and
+# HEAD's commit date, so the same checkout gives the same patches.
+set -euo pipefail
+top=$(cd "$(dirname "$0")/../.." && pwd)
+here=$top/tools/upstream
+series=${1:-6.12}
+prog=upstream-series
+# shellcheck source=tools/upstream/lib.sh
+. "$here/lib.sh"
+
+command -v unifdef >/dev/null || { echo "$prog: unifdef missing (tests/install-deps.sh installs it)" >&2; exit 1; }
+up_base
+tag=$(up_base_tag)
+tree=$up_repo
+have=$(make -s -f "$here/probe.mk" LEGO_SRC="$top" srctree="$tree")
+date=$(git -C "$top" log -1 --format=%cI HEAD)
+export GIT_AUTHOR_DATE=$date GIT_COMMITTER_DATE=$date
+
+# The mainline place of each directory of this repository.
+EV3=drivers/iio/common/lego_ev3_uart
+NXT=drivers/usb/misc/lego_nxt
+
+up_git checkout -q -f -B "$up_branch" "$tag"
+up_git clean -q -fdx
+
+die() { echo "$prog: $*" >&2; exit 1; }
+
+# put SRC DST: copy a file of this checkout into the tree: C through
+# intree.py; an ABI file's Contact: becomes the mailing list of its
+# MAINTAINERS entry (the out-of-tree package names its own address).
+put() {
+	local list
+	mkdir -p "$(dirname "$tree/$2")"
+	case "$1" in
+	*.c | *.h) "$here/intree.py" --have "$have" "$top/$1" "$tree/$2" ;;
+	Documentation/ABI/*)
+		list=$(awk -v f="F:\t$2" '/^L:/ { l = $2 } $0 == f { print l; exit }' "$here/MAINTAINERS")
+		[ -n "$list" ] || die "$2: not in tools/upstream/MAINTAINERS"
+		sed "s/^Contact:.*/Contact:\t$list/" "$top/$1" >"$tree/$2"
+		;;
+	*) cp "$top/$1" "$tree/$2" ;;
+	esac
+}
+
+# put_dir SRCDIR DSTDIR FILE...: put several files of one directory.
+put_dir() {
+	local src=$1 dst=$2 f
+	shift 2
+	for f in "$@"; do put "$src/$f" "$dst/$f"; done
+}
+
+# insert_sorted FILE REGEX LINE: among the lines matching REGEX, insert LINE
+# before the first that sorts after it (after the last if none does).
+insert_sorted() {
+	local file=$tree/$1
+	grep -qxF -- "$3" "$file" && return 0
+	grep -qE -- "$2" "$file" || die "$1: no line matches $2"
+	LC_ALL=C awk -v re="$2" -v new="$3" '
+	!done && $0 ~ re && $0 > new { print new; done = 1 }
+	{ print }
+	$0 ~ re { last = NR }
+	' "$file" >"$file.new"
+	if ! grep -qxF -- "$3" "$file.new"; then
+		# None sorted after it: after the last matching line.
+		LC_ALL=C awk -v re="$2" -v new="$3" '
+		{ lines[NR] = $0; if ($0 ~ re) last = NR }
+		END { for (i = 1; i <= NR; i++) { print lines[i]; if (i == last) print new } }
+		' "$file" >"$file.new"
+	fi
+	mv "$file.new" "$file"
+}
+
+# insert_before FILE ANCHOR TEXT: insert TEXT (lines) before the line ANCHOR.
+insert_before() {
+	local file=$tree/$1
+	grep -qxF -- "$2" "$file" || die "$1: no line \"$2\""
+	awk -v anchor="$2" -v text="$3" '
+	$0 == anchor && !done { print text; done = 1 }
+	{ print }' "$file" >"$file.new"
+	mv "$file.new" "$file"
+}
+
+# maintainers: MAINTAINERS as in the base plus our entries, with only the
+# F: lines of paths the tree has by now (an entry with none is left out),
+# before the first entry that sorts after them.
+maintainers() {
+	local entries
+	entries=$(awk -v tree="$tree" -v author="$up_name <$up_email>" '
+	function flush() { if (nf) printf "%s%s", (n++ ? "\n" : ""), buf; buf = ""; nf = 0 }
+	/^$/ { flush(); next }
+	/^F:/ { p = $0; sub(/^F:[ \t]*/, "", p); if (system("test -e \"" tree "/" p "\"")) next; nf++ }
+	{ gsub(/@AUTHOR@/, author); buf = buf $0 "\n" }
+	END { flush() }' "$here/MAINTAINERS")
+	up_git show "$tag:MAINTAINERS" >"$tree/MAINTAINERS"
+	[ -n "$entries" ] || return 0
+	# Our titles sort between "LEGO MINDSTORMS EV3" and "LEGO USB Tower driver".
+	insert_before MAINTAINERS "LEGO USB Tower driver" "$entries
+"
+}
+
+# commit MSG: commit everything with tools/upstream/msg/MSG, signed off.
+# @EV3_CASES@ and @NXT_CASES@ in a message are the KUnit suites' case counts.
+commit() {
+	local ev3 nxt
+	maintainers
+	# -f: Debian's .gitignore ignores everything at the top level.
+	up_git add -A -f .
+	ev3=$(grep -c '^[[:space:]]*KUNIT_CASE' "$top/drivers/lego/ev3/ev3_uart_proto_test.c")
+	nxt=$(grep -c '^[[:space:]]*KUNIT_CASE' "$top/drivers/lego/nxt/nxt_proto_test.c")
+	sed -e "s/@EV3_CASES@/$ev3/g" -e "s/@NXT_CASES@/$nxt/g" "$here/msg/$1" |
+		up_git commit -q -s --no-verify -F -
+}
+
+# 1. The line discipline number: the next free one.
+piece_ldisc() {
+	local f=include/uapi/linux/tty.h nr
+	nr=$(sed -n 's/^#define NR_LDISCS[[:space:]]*\([0-9]*\).*/\1/p' "$tree/$f")
+	[ -n "$nr" ] || die "$f: no NR_LDISCS"
+	awk -v nr="$nr" '
+	/^#define N_[A-Z0-9_]+[ \t]/ { last = NR }
+	{ lines[NR] = $0 }
+	END {
+		for (i = 1; i <= NR; i++) {
+			if (lines[i] ~ /^#define NR_LDISCS/)
+				lines[i] = "#define NR_LDISCS\t" nr + 1
+			print lines[i]
+			if (i == last)
+				printf "#define N_LEGOEV3\t%d\t/* LEGO MINDSTORMS EV3 UART sensors */\n", nr
+		}
+	}' "$tree/$f" >"$tree/$f.new"
+	mv "$tree/$f.new" "$tree/$f"
+	grep -q "^#define N_LEGOEV3" "$tree/$f" || die "$f: N_LEGOEV3 not added"
+	commit 1-tty.txt
+}
+
+# 2. The uapi headers and their ioctl magic numbers.
+piece_uapi() {
+	local f=Documentation/userspace-api/ioctl/ioctl-number.rst
+	put include/uapi/linux/lego_ev3_uart.h include/uapi/linux/lego_ev3_uart.h
+	put include/uapi/linux/lego_nxt.h include/uapi/linux/lego_nxt.h
+	grep -q '^0xE[34] ' "$tree/$f" && die "$f: 0xE3 or 0xE4 is taken"
+	insert_sorted "$f" '^0x[0-9A-F][0-9A-F] ' \
+		'0xE3  01-02  uapi/linux/lego_ev3_uart.h                                LEGO MINDSTORMS EV3 UART sensors'
+	insert_sorted "$f" '^0x[0-9A-F][0-9A-F] ' \
+		'0xE4  00-23  uapi/linux/lego_nxt.h                                     LEGO MINDSTORMS NXT bricks'
+	commit 2-uapi.txt
+}
+
+# 3. The EV3 protocol core and its KUnit suite (built from 4 on).
+piece_ev3_proto() {
+	put_dir drivers/lego/ev3 $EV3 ev3_uart_proto.h ev3_uart_proto.c ev3_uart_chan.h \
+		ev3_uart_chan.c ev3_uart_proto_test.c
+	commit 3-ev3-proto.txt
+}
+
+# 4. The line discipline, the lego-sensor class and IIO; Kconfig, Makefile,
+# the ABI they add.
+piece_ev3_ldisc() {
+	put_dir drivers/lego/ev3 $EV3 ev3_uart.h ev3_uart_ldisc.c ev3_uart_class.c \
+		ev3_uart_iio.c ev3_uart_trace.h ev3_uart_trace.c Kconfig Makefile .kunitconfig
+	put_dir Documentation/ABI/testing Documentation/ABI/testing \
+		sysfs-class-lego-sensor sysfs-bus-iio-lego-ev3-uart
+	insert_sorted drivers/iio/common/Kconfig '^source "drivers/iio/common/' \
+		"source \"$EV3/Kconfig\""
+	insert_sorted drivers/iio/common/Makefile '^obj-y \+= ' 'obj-y += lego_ev3_uart/'
+	commit 4-ev3-ldisc.txt
+}
+
+# 5. The NXT telegram core and its KUnit suite (built from 6 on).
+piece_nxt_proto() {
+	put_dir drivers/lego/nxt $NXT nxt_proto.h nxt_proto.c nxt_proto_test.c
+	commit 5-nxt-proto.txt
+}
+
+# 6. The USB driver; Kconfig, Makefile, the ABI it adds.
+piece_nxt_usb() {
+	put_dir drivers/lego/nxt $NXT nxt_usb.h nxt_usb.c nxt_cdev.c nxt_sysfs.c \
+		nxt_usb_trace.h nxt_usb_trace.c Kconfig Makefile .kunitconfig
+	put Documentation/ABI/testing/sysfs-driver-lego-nxt-usb \
+		Documentation/ABI/testing/sysfs-driver-lego-nxt-usb
+	# Beside the LEGO USB tower's entries.
+	insert_before drivers/usb/misc/Kconfig "config USB_LCD" "source \"$NXT/Kconfig\"
+"
+	grep -q '^obj-$(CONFIG_USB_LEGOTOWER)' "$tree/drivers/usb/misc/Makefile" ||
+		die "drivers/usb/misc/Makefile: no USB_LEGOTOWER line"
+	sed -i '/^obj-$(CONFIG_USB_LEGOTOWER)/a obj-$(CONFIG_USB_LEGO_NXT)\t\t+= lego_nxt/' \
+		"$tree/drivers/usb/misc/Makefile"
+	commit 6-nxt-usb.txt
+}
+
+# 7. The userspace API guide's page: the uapi headers' kernel-doc.
+piece_docs() {
+	local f=Documentation/userspace-api/index.rst
+	put tools/upstream/doc/lego.rst Documentation/userspace-api/lego.rst
+	# In "Devices and I/O".
+	grep -qxF '   isapnp' "$tree/$f" || die "$f: no isapnp entry"
+	sed -i '/^   isapnp$/a\   lego' "$tree/$f"
+	commit 7-docs.txt
+}
+
+piece_ldisc
+piece_uapi
+piece_ev3_proto
+piece_ev3_ldisc
+piece_nxt_proto
+piece_nxt_usb
+piece_docs
+
+# Nothing of this checkout's drivers or their ABI may be left out of the series.
+for f in "$top"/Documentation/ABI/testing/*lego*; do
+	[ -e "$tree/Documentation/ABI/testing/$(basename "$f")" ] || die "$f is in no patch"
+done
+for f in "$top"/drivers/lego/ev3/* "$top"/drivers/lego/ev3/.kunitconfig \
+	"$top"/drivers/lego/nxt/* "$top"/drivers/lego/nxt/.kunitconfig; do
+	b=$(basename "$f")
+	[ "$b" = Kbuild ] && continue
+	case "$f" in */ev3/*) d=$EV3 ;; *) d=$NXT ;; esac
+	[ -e "$tree/$d/$b" ] || die "$f is in no patch"
+done
+
+# The cover letter: subject and body from tools/upstream/cover-letter.txt.
+up_git config "branch.$up_branch.description" "$(cat "$here/cover-letter.txt")"
+rm -rf "$up_patches"
+up_git format-patch -q --cover-letter --cover-from-description=subject \
+	--base="$tag" -o "$up_patches" "$tag..$up_branch" >/dev/null
+n=$(find "$up_patches" -name '0*.patch' ! -name '0000-*' | wc -l)
+echo "$prog: $n patches and a cover letter against linux-source-$series $(up_pkgver) in $up_patches" >&2
