@@ -12,8 +12,6 @@ probe (on a pty, which has no break).
 """
 import fcntl
 import os
-import re
-import shlex
 import struct
 import subprocess
 import termios
@@ -22,52 +20,23 @@ import time
 import pytest
 
 import ev3
+import tracing
 from ev3 import ev3_sensor, find_sensor, wait_value
 
 N_LEGOEV3 = 29
 TIOCSLCKTRMIOS = 0x5457
 CBAUD = 0o010017
-DEBUGFS = '/sys/kernel/debug'
-LINE = re.compile(r'^\s*\S.*?\s+\[\d+\].*?\s(\d+\.\d+): (\w+): (.*)$')
 
 
-def tracefs():
-    path = '/sys/kernel/tracing'
-    if not os.path.isdir(path + '/events'):
-        subprocess.run(['mount', '-t', 'tracefs', 'tracefs', path], check=True)
-    return path
-
-
-def write(path, value):
-    with open(path, 'w') as f:
-        f.write(value)
-
-
-class Trace:
+class Trace(tracing.Trace):
     """The lego_ev3_uart events of one tty, with their timestamps."""
 
     def __init__(self):
-        self.root = tracefs()
-        write(self.root + '/buffer_size_kb', '4096')
-        write(self.root + '/trace', '')
-        write(self.root + '/events/lego_ev3_uart/enable', '1')
-        write(self.root + '/tracing_on', '1')
+        super().__init__('lego_ev3_uart')
 
-    def stop(self):
-        write(self.root + '/events/lego_ev3_uart/enable', '0')
-
-    def events(self, tty):
+    def of(self, tty):
         """[(time, name, fields)] of `tty`, in order."""
-        out = []
-        with open(self.root + '/trace') as f:
-            for line in f:
-                m = LINE.match(line)
-                if not m:
-                    continue
-                fields = dict(kv.split('=', 1) for kv in shlex.split(m.group(3)) if '=' in kv)
-                if fields.get('tty') == tty:
-                    out.append((float(m.group(1)), m.group(2), fields))
-        return out
+        return [e for e in self.timed() if e[2].get('tty') == tty]
 
 
 @pytest.fixture
@@ -78,8 +47,7 @@ def trace():
 
 
 def counters(tty):
-    with open('%s/lego_ev3_uart/%s/counters' % (DEBUGFS, tty)) as f:
-        return {k: int(v) for k, v in (line.split() for line in f)}
+    return tracing.counters('%s/lego_ev3_uart/%s/counters' % (tracing.DEBUGFS, tty))
 
 
 def last_handshake(events):
@@ -119,7 +87,7 @@ def test_spike_registers_by_fast_sync(trace, line, kind):
     # ACK in vain, resets, and the next probe but one catches it.
     assert emu.handshakes == 1 and emu.sync_speeds[-1] == 115200, emu.events
     assert set(emu.sync_speeds) == {115200} and emu.fast_syncs == len(emu.sync_speeds)
-    ev = trace.events(line.address)
+    ev = trace.of(line.address)
     hs_time, hs = last_handshake(ev)
     names = [(n, f.get('msg') or f.get('to') or f.get('speed')) for _, n, f in hs]
     # The line went to 115200 for the probe, SPEED went out, the ACK came...
@@ -151,14 +119,14 @@ def test_spike_registers_by_fast_sync(trace, line, kind):
 def test_fast_sync_is_much_faster_than_2400(trace, line):
     """The same SPIKE colour sensor, its probe answered, then ignored."""
     emu, path, took_fast = plug_and_find(line, 'spike-color')
-    fast, _ = last_handshake(trace.events(line.address))
+    fast, _ = last_handshake(trace.of(line.address))
     assert emu.handshakes == 1 and emu.sync_speeds[-1] == 115200, emu.events
     emu.unplug()
     assert ev3.wait_gone(path, 5.0)
     emu.stop()
     time.sleep(0.3)
     emu, path, took_slow = plug_and_find(line, 'spike-color', fast_sync=False)
-    slow, hs = last_handshake(trace.events(line.address))
+    slow, hs = last_handshake(trace.of(line.address))
     assert emu.sync_speeds == [2400], emu.events
     # The probe went out at the plug's break, unanswered: back to 2400.
     assert [f for _, n, f in hs if n == 'ev3_uart_state' and f['from'] == 'PROBE'
@@ -180,9 +148,9 @@ def test_others_register_at_2400_on_a_probing_port(trace, line, kind):
     sdef = ev3_sensor.SENSORS[kind]
     assert ev3.read_attr(path, 'driver_name') == sdef.driver
     assert emu.fast_syncs == 0 and emu.sync_speeds[-1] == 2400, emu.events
-    hs_time, hs = last_handshake(trace.events(line.address))
+    hs_time, hs = last_handshake(trace.of(line.address))
     assert hs_time > 1.0, hs_time                # 311 or 716 bytes at 2400
-    ev = trace.events(line.address)
+    ev = trace.of(line.address)
     probes = [f for _, n, f in ev if n == 'ev3_uart_tx' and f['msg'] == 'SPEED']
     assert probes, 'no probe on the port'
     assert [f for _, n, f in ev if n == 'ev3_uart_state' and f['from'] == 'PROBE'

@@ -10,7 +10,6 @@ import errno
 import fcntl
 import os
 import re
-import shlex
 import struct
 import subprocess
 import termios
@@ -20,10 +19,10 @@ import pytest
 
 import nxtdev as nxt
 from conftest import wait_for
+from tracing import DEBUGFS, Trace, counters, tracefs, write
 
 SERIAL = '0016530E1F2A'
 N_LEGOEV3 = 29
-DEBUGFS = '/sys/kernel/debug'
 
 EV3_EVENTS = {
     'ev3_uart_rx': {'tty', 'msg', 'hdr', 'arg', 'info', 'len', 'accept', 'mode_changed'},
@@ -43,63 +42,6 @@ NXT_EVENTS = {
     'nxt_usb_drain': {'dev', 'ms', 'orphan', 'orphan_op'},
     'nxt_usb_drop': {'dev', 'why', 'type', 'opcode', 'len', 'drain_end'},
 }
-
-LINE = re.compile(r'^\s*\S.*?\s+\[\d+\].*?\s(\d+\.\d+): (\w+): (.*)$')
-
-
-def tracefs():
-    """The tracefs mount: /sys/kernel/tracing, mounted if need be."""
-    path = '/sys/kernel/tracing'
-    if not os.path.isdir(path + '/events'):
-        subprocess.run(['mount', '-t', 'tracefs', 'tracefs', path], check=True)
-    return path
-
-
-def write(path, value):
-    with open(path, 'w') as f:
-        f.write(value)
-
-
-class Trace:
-    """One trace system's events, enabled for a test, read back parsed."""
-
-    def __init__(self, system):
-        self.root = tracefs()
-        self.system = system
-        write(self.root + '/buffer_size_kb', '4096')
-        write(self.root + '/trace', '')
-        write(self.root + '/events/%s/enable' % system, '1')
-        write(self.root + '/tracing_on', '1')
-
-    def stop(self):
-        write(self.root + '/events/%s/enable' % self.system, '0')
-
-    def events(self, name=None, **match):
-        """The events recorded so far, as (name, fields) in order; only
-        those called name with fields equal to match, if given."""
-        out = []
-        with open(self.root + '/trace') as f:
-            for line in f:
-                m = LINE.match(line)
-                if not m:
-                    continue
-                fields = dict(kv.split('=', 1) for kv in shlex.split(m.group(3)) if '=' in kv)
-                if name and m.group(2) != name:
-                    continue
-                if any(fields.get(k) != str(v) for k, v in match.items()):
-                    continue
-                out.append((m.group(2), fields))
-        return out
-
-    def wait(self, name, timeout=5.0, **match):
-        wait_for(lambda: self.events(name, **match), timeout)
-        return self.events(name, **match)
-
-
-def counters(path):
-    with open(path) as f:
-        return {k: int(v) for k, v in (line.split() for line in f)}
-
 
 def event_fields(system, name):
     with open('%s/events/%s/%s/format' % (tracefs(), system, name)) as f:
