@@ -377,10 +377,24 @@ s32 ev3_uart_scale_value(const struct ev3_uart_mode *mode, s32 raw)
 }
 EXPORT_SYMBOL_IF_KUNIT(ev3_uart_scale_value);
 
-static const struct {
+/* A driver name by sensor type: ev3_uart_names[], ev3_uart_lump_names[]. */
+struct ev3_uart_type_name {
 	u8 type;
 	const char *name;
-} ev3_uart_names[] = {
+};
+
+static const char *ev3_uart_find_name(const struct ev3_uart_type_name *names,
+				      size_t n, u8 type)
+{
+	size_t i;
+
+	for (i = 0; i < n; i++)
+		if (names[i].type == type)
+			return names[i].name;
+	return NULL;
+}
+
+static const struct ev3_uart_type_name ev3_uart_names[] = {
 	{ EV3_UART_TYPE_COLOR,	"lego-ev3-color" },
 	{ EV3_UART_TYPE_US,	"lego-ev3-us" },
 	{ EV3_UART_TYPE_GYRO,	"lego-ev3-gyro" },
@@ -403,12 +417,8 @@ static const struct {
  */
 const char *ev3_uart_driver_name(u8 type)
 {
-	unsigned int i;
-
-	for (i = 0; i < ARRAY_SIZE(ev3_uart_names); i++)
-		if (ev3_uart_names[i].type == type)
-			return ev3_uart_names[i].name;
-	return NULL;
+	return ev3_uart_find_name(ev3_uart_names, ARRAY_SIZE(ev3_uart_names),
+				  type);
 }
 EXPORT_SYMBOL_IF_KUNIT(ev3_uart_driver_name);
 
@@ -418,10 +428,7 @@ EXPORT_SYMBOL_IF_KUNIT(ev3_uart_driver_name);
  * register as sensors (their speed, position and power modes): there is
  * no motor control here.
  */
-static const struct {
-	u8 type;
-	const char *name;
-} ev3_uart_lump_names[] = {
+static const struct ev3_uart_type_name ev3_uart_lump_names[] = {
 	{ 34, "lego-wedo2-tilt" },
 	{ 35, "lego-wedo2-motion" },
 	{ 37, "lego-boost-color-dist" },
@@ -448,12 +455,8 @@ static const struct {
  */
 const char *ev3_uart_lump_driver_name(u8 type)
 {
-	unsigned int i;
-
-	for (i = 0; i < ARRAY_SIZE(ev3_uart_lump_names); i++)
-		if (ev3_uart_lump_names[i].type == type)
-			return ev3_uart_lump_names[i].name;
-	return NULL;
+	return ev3_uart_find_name(ev3_uart_lump_names,
+				  ARRAY_SIZE(ev3_uart_lump_names), type);
 }
 EXPORT_SYMBOL_IF_KUNIT(ev3_uart_lump_driver_name);
 
