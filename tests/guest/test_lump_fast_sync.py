@@ -21,6 +21,7 @@ import pytest
 
 import ev3
 import tracing
+from conftest import wait_for
 from ev3 import ev3_sensor, find_sensor, wait_value
 
 N_LEGOEV3 = 29
@@ -37,6 +38,13 @@ class Trace(tracing.Trace):
     def of(self, tty):
         """[(time, name, fields)] of `tty`, in order."""
         return [e for e in self.timed() if e[2].get('tty') == tty]
+
+    def registered(self, tty, timeout=5.0):
+        """of(tty) once it holds a registration: the driver traces it just
+        after the sensor's device appears, which find_sensor() waits for."""
+        wait_for(lambda: any(n == 'ev3_uart_sensor' and f['event'] == 'registered'
+                             for _, n, f in self.of(tty)), timeout)
+        return self.of(tty)
 
 
 @pytest.fixture
@@ -87,7 +95,7 @@ def test_spike_registers_by_fast_sync(trace, line, kind):
     # ACK in vain, resets, and the next probe but one catches it.
     assert emu.handshakes == 1 and emu.sync_speeds[-1] == 115200, emu.events
     assert set(emu.sync_speeds) == {115200} and emu.fast_syncs == len(emu.sync_speeds)
-    ev = trace.of(line.address)
+    ev = trace.registered(line.address)
     hs_time, hs = last_handshake(ev)
     names = [(n, f.get('msg') or f.get('to') or f.get('speed')) for _, n, f in hs]
     # The line went to 115200 for the probe, SPEED went out, the ACK came...
@@ -119,14 +127,14 @@ def test_spike_registers_by_fast_sync(trace, line, kind):
 def test_fast_sync_is_much_faster_than_2400(trace, line):
     """The same SPIKE colour sensor, its probe answered, then ignored."""
     emu, path, took_fast = plug_and_find(line, 'spike-color')
-    fast, _ = last_handshake(trace.of(line.address))
+    fast, _ = last_handshake(trace.registered(line.address))
     assert emu.handshakes == 1 and emu.sync_speeds[-1] == 115200, emu.events
     emu.unplug()
     assert ev3.wait_gone(path, 5.0)
     emu.stop()
     time.sleep(0.3)
     emu, path, took_slow = plug_and_find(line, 'spike-color', fast_sync=False)
-    slow, hs = last_handshake(trace.of(line.address))
+    slow, hs = last_handshake(trace.registered(line.address))
     assert emu.sync_speeds == [2400], emu.events
     # The probe went out at the plug's break, unanswered: back to 2400.
     assert [f for _, n, f in hs if n == 'ev3_uart_state' and f['from'] == 'PROBE'
@@ -148,7 +156,7 @@ def test_others_register_at_2400_on_a_probing_port(trace, line, kind):
     sdef = ev3_sensor.SENSORS[kind]
     assert ev3.read_attr(path, 'driver_name') == sdef.driver
     assert emu.fast_syncs == 0 and emu.sync_speeds[-1] == 2400, emu.events
-    hs_time, hs = last_handshake(trace.of(line.address))
+    hs_time, hs = last_handshake(trace.registered(line.address))
     assert hs_time > 1.0, hs_time                # 311 or 716 bytes at 2400
     ev = trace.of(line.address)
     probes = [f for _, n, f in ev if n == 'ev3_uart_tx' and f['msg'] == 'SPEED']
