@@ -7,7 +7,8 @@
 #     then cross-compiles them and the tools for arm64 and armhf
 #     (tests/cross-build.sh),
 #  4. runs checkpatch --strict, a short fuzzing run of the protocol cores
-#     (tests/fuzz/run.sh --short), the packaging tests of tests/packaging and
+#     (tests/fuzz/run.sh --short), the packaging tests of tests/packaging,
+#     the in-tree series' rules (tests/upstream/test_intree.py) and
 #     dkms (on the host) for the guest's packaging test, `make deb` (with
 #     lintian) and the dkms package's installation (on the host) for the
 #     guest's tests/guest/test_deb.py,
@@ -43,6 +44,8 @@ phase "checkpatch --strict" tests/checkpatch.sh
 phase "fuzz (short, 2 x 30 s)" tests/fuzz/run.sh --short
 phase "make install, dkms-source (host)" env LEGO_KERNEL_TREE="$tree" \
 	python3 -m pytest -q -p no:cacheprovider tests/packaging
+phase "upstream series: in-tree rules (host)" \
+	python3 -m pytest -q -p no:cacheprovider tests/upstream
 # For tests/guest/test_packaging.py: a dkms build in the emulated guest is slow.
 phase "dkms build for $kver (host)" tests/packaging/dkms-prepare.sh "$tree" "$build/dkms-$kver"
 # For tests/guest/test_deb.py: the packages, and lego-mindstorms-dkms

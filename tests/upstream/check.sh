@@ -24,9 +24,11 @@
 # 5. abi: scripts/get_abi.pl validate: no line about our ABI files;
 # 6. headers: make headers, then each uapi header the series adds compiled
 #    alone in userspace with -Wall -Wextra -Werror;
-# 7. htmldocs: make SPHINXDIRS=userspace-api htmldocs (the series adds rows
-#    to ioctl-number.rst and a page with the uapi headers' kernel-doc): no
-#    warning about them, and the pages list what they should;
+# 7. htmldocs: make SPHINXDIRS="userspace-api iio usb trace" htmldocs (the
+#    series adds rows to ioctl-number.rst, a page with the uapi headers'
+#    kernel-doc, the drivers' pages and the trace events' page): no warning
+#    about them, and the pages say what they should, and nothing of this
+#    repository's package;
 #    lego-docs: this checkout's Documentation/lego (not part of the series)
 #    through sphinx-build -W;
 # 8. build-ARCH-MODE: allnoconfig plus tests/upstream/build.config and the
@@ -342,24 +344,45 @@ step_kunit() {
 		{ echo "not every test passed"; return 1; }
 }
 
-# The documentation the series touches (ioctl-number.rst, its page) built
-# by Sphinx.
+# The documentation the series touches built by Sphinx: the directories of
+# its pages (the drivers' pages in iio and usb, the trace events' page, the
+# userspace API page and ioctl-number.rst).
 step_htmldocs() {
-	local log=$up_out/htmldocs-$series.log
-	kmake x86_64 m SPHINXDIRS=userspace-api htmldocs >"$log" 2>&1 || { tail -n 40 "$log"; return 1; }
+	local log=$up_out/htmldocs-$series.log out w page
+	kmake x86_64 m "SPHINXDIRS=userspace-api iio usb trace" htmldocs >"$log" 2>&1 ||
+		{ tail -n 40 "$log"; return 1; }
 	grep -c '' "$log" | sed 's/^/lines of the htmldocs log: /'
 	# No warning about what the series changed.
 	if grep -E 'WARNING|ERROR' "$log" | grep -E 'ioctl-number|lego'; then
 		return 1
 	fi
-	local html=$up_out/build-$series-x86_64-m/Documentation/output/userspace-api
-	grep -q 'LEGO MINDSTORMS' "$html/ioctl/ioctl-number.html" ||
+	out=$up_out/build-$series-x86_64-m/Documentation/output
+	grep -q 'LEGO MINDSTORMS' "$out/userspace-api/ioctl/ioctl-number.html" ||
 		{ echo "ioctl-number.html does not list the LEGO drivers"; return 1; }
-	# The page of the series, with the kernel-doc of both uapi headers.
-	for w in 'struct lego_ev3_port_label' 'LEGO_EV3_SET_PORT_LABEL' 'struct nxt_transaction' 'NXT_IOC_TRANSACT'; do
-		grep -q "$w" "$html/lego.html" || { echo "lego.html has no $w"; return 1; }
-	done
-	echo "ioctl-number.html and lego.html checked"
+	# Each page, with what it must say: the uapi headers' kernel-doc, the
+	# number the tree gives the line discipline, the channel table, the
+	# status table, the events of both drivers.
+	while read -r page w; do
+		[ -f "$out/$page" ] || { echo "no $page"; return 1; }
+		grep -qF -- "$w" "$out/$page" || { echo "$page has no \"$w\""; return 1; }
+		echo "$page: \"$w\""
+	done <<-EOF
+		userspace-api/lego.html struct lego_ev3_port_label
+		userspace-api/lego.html LEGO_EV3_SET_PORT_LABEL
+		userspace-api/lego.html struct nxt_transaction
+		userspace-api/lego.html NXT_IOC_TRANSACT
+		iio/lego_ev3_uart.html ldattach $(sed -n 's/^#define N_LEGOEV3[[:space:]]*\([0-9]*\).*/\1/p' "$work/include/uapi/linux/tty.h")
+		iio/lego_ev3_uart.html intensity_red
+		usb/lego_nxt.html ECONNREFUSED
+		trace/events-lego.html ev3_uart_handshake
+		trace/events-lego.html nxt_usb_drain
+	EOF
+	# What stays out of the tree is not in it.
+	if grep -lE 'udev/[0-9]+-lego|lego-sensors --trace|nxtctl|tests/emulator' \
+		"$out/iio/lego_ev3_uart.html" "$out/usb/lego_nxt.html" "$out/trace/events-lego.html"; then
+		echo "the pages above name this repository's package"
+		return 1
+	fi
 }
 
 for s in "${steps[@]}"; do

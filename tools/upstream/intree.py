@@ -26,14 +26,35 @@ with --have (tools/upstream/probe.mk runs the same probes on it):
 - unifdef -DN_LEGOEV3: the uapi header's fallback ldisc number goes, the
   tree reserves one in <linux/tty.h>.
 
+A documentation page (.rst) keeps what it says about the drivers and loses
+what it says about this repository's package (its tools, udev rules,
+tests): the lines from '.. out-of-tree-begin' to '.. out-of-tree-end' go,
+and a comment '.. in-tree' is replaced by its indented block, dedented
+(both are comments to Sphinx, so the package's own pages show the
+out-of-tree text and not the in-tree one). @N_LEGOEV3@ is the number the
+tree gives the line discipline (--ldisc), and :doc:`page` a link to another
+page of Documentation/lego, which must have a place in the tree.
+
+In every file, each path that tools/upstream/places.py gives a place in the
+tree (a directory of drivers/lego, a page of Documentation/lego) is
+replaced by that place. A page of Documentation/lego that has none must
+not be named: it stays out of the tree.
+
 Anything left that belongs to the shims (a LEGO_HAVE_, LEGO_TTY_ or
 LEGO_UEVENT_ name, lego_compat, lego_assign_str) is an error: a new shim
 needs a rule here.
 """
 import argparse
+import os
 import re
 import subprocess
 import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from places import map_paths, place  # noqa: E402
+
+LEGO_DOCS = os.path.join(os.path.dirname(os.path.abspath(__file__)), '..', '..',
+                         'Documentation', 'lego')
 
 LEFTOVER = re.compile(r'lego_compat|\bLEGO_(HAVE|TTY|UEVENT|IMPORT)_?\w*|lego_assign_str|lego_hrtimer')
 
@@ -120,9 +141,72 @@ def transform(text, have):
     return text
 
 
+def indent_of(line):
+    return len(line) - len(line.lstrip(' '))
+
+
+def rst_transform(text, ldisc):
+    """A page of Documentation/lego as it goes into the tree."""
+    lines = text.split('\n')
+    out = []
+    skipping = False
+    i = 0
+    while i < len(lines):
+        ln = lines[i]
+        s = ln.strip()
+        i += 1
+        if s == '.. out-of-tree-begin':
+            if skipping:
+                die('line %d: out-of-tree-begin inside another' % i)
+            skipping = True
+        elif s == '.. out-of-tree-end':
+            if not skipping:
+                die('line %d: out-of-tree-end without a begin' % i)
+            skipping = False
+        elif skipping:
+            pass
+        elif s == '.. in-tree':
+            base = indent_of(ln)
+            block = []
+            while i < len(lines) and (not lines[i].strip() or indent_of(lines[i]) > base):
+                block.append(lines[i])
+                i += 1
+            body = [b for b in block if b.strip()]
+            if not body:
+                die('line %d: an empty in-tree block' % i)
+            cut = min(indent_of(b) for b in body) - base
+            out.extend(b[cut:] if b.strip() else '' for b in block)
+        else:
+            out.append(ln)
+    if skipping:
+        die('an out-of-tree-begin without its end')
+    text = '\n'.join(out)
+    if ldisc is not None:
+        text = text.replace('@N_LEGOEV3@', str(ldisc))
+
+    def doc(m):
+        p = place('Documentation/lego/%s.rst' % m.group(1))
+        if p is None:
+            die(':doc:`%s` in the tree: that page stays out of it' % m.group(1))
+        return p
+    text = re.sub(r':doc:`([\w-]+)`', doc, text)
+    # Nothing of the package is left: no placeholder, no :doc: link, no
+    # page of Documentation/lego named by its file name alone ("see
+    # tracing.rst"), which means nothing in the tree.
+    m = re.search(r'@\w+@|:doc:`', text)
+    if m:
+        die('"%s" left in the page' % m.group(0))
+    ours = set(os.listdir(LEGO_DOCS))
+    for m in re.finditer(r'(?<![\w/.-])([\w-]+\.rst)\b', text):
+        if m.group(1) in ours:
+            die('"%s" named in the page: name it with :doc:' % m.group(1))
+    return re.sub(r'\n\n\n+', '\n\n', text).rstrip('\n') + '\n'
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     ap.add_argument('--have', default='', help='the target tree\'s LEGO_HAVE_* flags, without the prefix')
+    ap.add_argument('--ldisc', type=int, help='the line discipline number the tree reserves')
     ap.add_argument('src')
     ap.add_argument('dst')
     a = ap.parse_args()
@@ -142,6 +226,11 @@ def main():
         m = LEFTOVER.search(text)
         if m:
             die('%s: "%s" left after the in-tree rules: add a rule' % (a.src, m.group(0)))
+    elif a.src.endswith('.rst'):
+        text = rst_transform(text, a.ldisc)
+    text = map_paths(text)
+    if 'Documentation/lego/' in text:
+        die('%s names a page of Documentation/lego that stays out of the tree' % a.src)
     with open(a.dst, 'w', encoding='utf-8') as f:
         f.write(text)
 

@@ -18,7 +18,12 @@
 # tools/upstream/doc/lego.rst, the commit messages in tools/upstream/msg/)
 # or a mechanical rule:
 #
-# - files move to their mainline places (see PLACES below);
+# - files move to their mainline places (tools/upstream/places.py), and
+#   every path a file names is mapped to its place;
+# - the documentation pages (the drivers' and the trace events' pages of
+#   Documentation/lego) drop what is about this repository's package, between
+#   ".. out-of-tree-begin" and ".. out-of-tree-end", and take the blocks of
+#   their ".. in-tree" comments (tools/upstream/intree.py);
 # - C sources and headers go through tools/upstream/intree.py, which drops
 #   drivers/lego/lego_compat.h's shims for what they mean in the target tree
 #   (its LEGO_HAVE_* flags come from the top-level Kbuild's own probes, run
@@ -28,8 +33,8 @@
 #   number, NR_LDISCS raised), the ioctl magic numbers in
 #   Documentation/userspace-api/ioctl/ioctl-number.rst, the Kconfig
 #   "source" lines and Makefile lines of drivers/iio/common and
-#   drivers/usb/misc, the page in Documentation/userspace-api/index.rst,
-#   the MAINTAINERS entries (each patch adds the F: lines
+#   drivers/usb/misc, the pages in the index.rst of Documentation/iio,
+#   usb, trace and userspace-api, the MAINTAINERS entries (each patch adds the F: lines
 #   of the files it adds).
 #
 # Commits carry the author and Signed-off-by of this checkout's HEAD, and
@@ -51,26 +56,32 @@ date=$(git -C "$top" log -1 --format=%cI HEAD)
 export GIT_AUTHOR_DATE=$date GIT_COMMITTER_DATE=$date
 
 # The mainline place of each directory of this repository.
-EV3=drivers/iio/common/lego_ev3_uart
-NXT=drivers/usb/misc/lego_nxt
+EV3=$("$here/places.py" drivers/lego/ev3)
+NXT=$("$here/places.py" drivers/lego/nxt)
+
+# The line discipline's number in the tree (piece_ldisc).
+ldisc=
 
 up_git checkout -q -f -B "$up_branch" "$tag"
 up_git clean -q -fdx
 
 die() { echo "$prog: $*" >&2; exit 1; }
 
-# put SRC DST: copy a file of this checkout into the tree: C through
-# intree.py; an ABI file's Contact: becomes the mailing list of its
-# MAINTAINERS entry (the out-of-tree package names its own address).
+# put SRC DST: copy a file of this checkout into the tree: C, headers,
+# documentation pages and ABI files through intree.py (which also maps the
+# paths they name to their places); an ABI file's Contact: becomes the
+# mailing list of its MAINTAINERS entry (the out-of-tree package names its
+# own address).
 put() {
 	local list
 	mkdir -p "$(dirname "$tree/$2")"
 	case "$1" in
-	*.c | *.h) "$here/intree.py" --have "$have" "$top/$1" "$tree/$2" ;;
+	*.c | *.h | *.rst) "$here/intree.py" --have "$have" --ldisc "$ldisc" "$top/$1" "$tree/$2" ;;
 	Documentation/ABI/*)
 		list=$(awk -v f="F:\t$2" '/^L:/ { l = $2 } $0 == f { print l; exit }' "$here/MAINTAINERS")
 		[ -n "$list" ] || die "$2: not in tools/upstream/MAINTAINERS"
-		sed "s/^Contact:.*/Contact:\t$list/" "$top/$1" >"$tree/$2"
+		"$here/intree.py" "$top/$1" "$tree/$2"
+		sed -i "s/^Contact:.*/Contact:\t$list/" "$tree/$2"
 		;;
 	*) cp "$top/$1" "$tree/$2" ;;
 	esac
@@ -164,6 +175,7 @@ piece_ldisc() {
 	}' "$tree/$f" >"$tree/$f.new"
 	mv "$tree/$f.new" "$tree/$f"
 	grep -q "^#define N_LEGOEV3" "$tree/$f" || die "$f: N_LEGOEV3 not added"
+	ldisc=$nr
 	commit 1-tty.txt
 }
 
@@ -222,14 +234,47 @@ piece_nxt_usb() {
 	commit 6-nxt-usb.txt
 }
 
-# 7. The userspace API guide's page: the uapi headers' kernel-doc.
+# 7. The documentation: each driver's page in its subsystem's guide, the
+# trace events' page, and the userspace API guide's page with the uapi
+# headers' kernel-doc. Each page goes into its directory's index, sorted
+# among the pages there.
 piece_docs() {
-	local f=Documentation/userspace-api/index.rst
+	local src dst dir
+	for src in Documentation/lego/ev3-uart.rst Documentation/lego/nxt-usb.rst \
+		Documentation/lego/tracing.rst; do
+		dst=$("$here/places.py" "$src")
+		put "$src" "$dst"
+		index_add "$dst"
+	done
 	put tools/upstream/doc/lego.rst Documentation/userspace-api/lego.rst
 	# In "Devices and I/O".
-	grep -qxF '   isapnp' "$tree/$f" || die "$f: no isapnp entry"
-	sed -i '/^   isapnp$/a\   lego' "$tree/$f"
+	dir=Documentation/userspace-api/index.rst
+	grep -qxF '   isapnp' "$tree/$dir" || die "$dir: no isapnp entry"
+	sed -i '/^   isapnp$/a\   lego' "$tree/$dir"
 	commit 7-docs.txt
+}
+
+# index_add PAGE: PAGE's entry in the toctree of its directory's index.rst,
+# indented as the entries there are, before the first entry that sorts
+# after it in the toctree of the pages of its kind: drivers' pages in
+# Documentation/iio and usb (after any entry of iio's first toctree, the
+# framework's), events-* pages in Documentation/trace.
+index_add() {
+	local page=$1 index entry re after=
+	index=$(dirname "$page")/index.rst
+	entry=$(basename "$page" .rst)
+	case "$index" in
+	Documentation/iio/*) re='^   [a-z0-9][a-z0-9_-]*$'; after='Industrial I/O Kernel Drivers' ;;
+	Documentation/usb/*) re='^    [a-z0-9][a-z0-9_-]*$' ;;
+	Documentation/trace/*) re='^   events(-[a-z0-9]+)?$' ;;
+	*) die "$page: no rule for its index" ;;
+	esac
+	# The same indentation as the entries.
+	insert_sorted "$index" "$re" "$(grep -m1 -E "$re" "$tree/$index" | sed 's/[^ ].*//')$entry"
+	if [ -n "$after" ]; then
+		awk -v a="$after" -v e="$entry" '$0 == a { seen = 1 } seen && $1 == e { ok = 1 } END { exit !ok }' \
+			"$tree/$index" || die "$index: $entry is not after \"$after\""
+	fi
 }
 
 piece_ldisc
@@ -244,8 +289,8 @@ piece_docs
 for f in "$top"/Documentation/ABI/testing/*lego*; do
 	[ -e "$tree/Documentation/ABI/testing/$(basename "$f")" ] || die "$f is in no patch"
 done
-for f in "$top"/drivers/lego/ev3/* "$top"/drivers/lego/ev3/.kunitconfig \
-	"$top"/drivers/lego/nxt/* "$top"/drivers/lego/nxt/.kunitconfig; do
+# (The files git tracks: not what a build left there.)
+for f in $(git -C "$top" ls-files drivers/lego/ev3 drivers/lego/nxt); do
 	b=$(basename "$f")
 	[ "$b" = Kbuild ] && continue
 	case "$f" in */ev3/*) d=$EV3 ;; *) d=$NXT ;; esac

@@ -42,9 +42,10 @@
 enum { EV3_UART_STASH_RAW, EV3_UART_STASH_PCT, EV3_UART_STASH_SI };
 
 /*
- * tests/fuzz/ev3_ref.c builds this file without the data phase's fast path
- * (the byte loop and ev3_uart_data_msg() alone), for the fuzzer to check
- * the fast path against.
+ * With EV3_UART_PROTO_REFERENCE defined, this file builds without the data
+ * phase's fast path (the byte loop and ev3_uart_data_msg() alone): the
+ * userspace fuzzer builds it so beside the real one, and checks the fast
+ * path against it.
  */
 #ifdef EV3_UART_PROTO_REFERENCE
 #define EV3_UART_FAST_PATH	0
