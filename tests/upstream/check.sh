@@ -3,14 +3,14 @@
 #
 # `make upstream-check`: the in-tree patch series (tools/upstream/series.sh),
 # checked as a maintainer would check it. Not part of `make check`: the
-# first run builds four small kernel configurations (about 15 minutes on two
-# busy cores), later runs take a few minutes.
+# first run builds four small kernel configurations and two KUnit kernels
+# (about 20 minutes on two busy cores), later runs take a few minutes.
 #
 #   tests/upstream/check.sh [SERIES] [STEP...]
 #
 # SERIES: 6.12 (default). STEPS (default: all): series am checkpatch
 # kernel-doc refs abi headers htmldocs lego-docs build-x86_64-m build-x86_64-y
-# build-arm64-m build-arm64-y bisect kunit.
+# build-arm64-m build-arm64-y bisect kunit kunit-arm64.
 #
 # 1. series: `make upstream-series` writes the series from this checkout;
 # 2. am: a clean copy of the base (a worktree of the scratch repository,
@@ -44,8 +44,9 @@
 #    drivers' directories that have a Makefile by then built in with W=1
 #    (build-x86_64-y's configuration): no patch breaks the build;
 # 10. kunit: tools/testing/kunit/kunit.py run (UML) with both drivers'
-#    .kunitconfig; both suites must run and every case pass. The UML
-#    build is kept in .build/upstream/kunit-SERIES-um.
+#    .kunitconfig; both suites must run and every case their sources list
+#    pass. kunit-arm64: the same on an arm64 kernel under QEMU (TCG). The
+#    builds are kept in .build/upstream/kunit-SERIES-ARCH.
 #
 # Logs go to .build/upstream/check-SERIES.log/; the last line is
 # "N passed, N failed" and the exit status is 1 if any step failed.
@@ -64,7 +65,7 @@ prog=upstream-check
 
 steps=("$@")
 [ ${#steps[@]} -gt 0 ] || steps=(series am checkpatch kernel-doc refs abi headers htmldocs lego-docs
-	build-x86_64-m build-x86_64-y build-arm64-m build-arm64-y bisect kunit)
+	build-x86_64-m build-x86_64-y build-arm64-m build-arm64-y bisect kunit kunit-arm64)
 work=$up_out/check-$series
 logs=$up_out/check-$series.log
 mkdir -p "$logs"
@@ -327,21 +328,27 @@ step_bisect() {
 	return $rc
 }
 
-# Both KUnit suites under UML with kunit.py and the drivers' .kunitconfig.
+# step_kunit ARCH: both KUnit suites with kunit.py and the drivers'
+# .kunitconfig, under UML (um) or QEMU (arm64, with Debian's
+# aarch64-linux-gnu- and qemu-system-aarch64, no KVM needed).
 step_kunit() {
-	local out dirs=(drivers/iio/common/lego_ev3_uart drivers/usb/misc/lego_nxt) args=() d
+	local arch=$1 out dirs=(drivers/iio/common/lego_ev3_uart drivers/usb/misc/lego_nxt) args=() d n
 	for d in "${dirs[@]}"; do args+=(--kunitconfig="$d"); done
+	[ "$arch" = um ] || args+=(--arch="$arch" --cross_compile=aarch64-linux-gnu- --timeout=900)
 	out=$(cd "$work" && tools/testing/kunit/kunit.py run "${args[@]}" \
-		--build_dir="$up_out/kunit-$series-um" --jobs="$jobs" 2>&1)
+		--build_dir="$up_out/kunit-$series-$arch" --jobs="$jobs" 2>&1)
 	rc=$?
 	echo "$out"
 	[ "$rc" = 0 ] || return 1
-	# Both suites ran, and every case passed.
+	# Both suites ran, and every case of both passed: as many as the
+	# suites' sources list.
 	for d in lego_ev3_uart_proto lego_nxt_proto; do
 		echo "$out" | grep -E "^\[[0-9:]+\] =+ $d \(" >/dev/null || { echo "suite $d did not run"; return 1; }
 	done
-	echo "$out" | grep -E 'Testing complete\. Ran [0-9]+ tests: passed: [0-9]+$' ||
-		{ echo "not every test passed"; return 1; }
+	n=$(cat "$top"/drivers/lego/ev3/ev3_uart_proto_test.c "$top"/drivers/lego/nxt/nxt_proto_test.c |
+		grep -c '^[[:space:]]*KUNIT_CASE')
+	echo "$out" | grep -E "Testing complete\. Ran $n tests: passed: $n\$" ||
+		{ echo "not all $n cases ran and passed"; return 1; }
 }
 
 # The documentation the series touches built by Sphinx: the directories of
@@ -387,7 +394,7 @@ step_htmldocs() {
 
 for s in "${steps[@]}"; do
 	case "$s" in
-	series | am | checkpatch | kernel-doc | abi | headers | build-x86_64-[my] | build-arm64-[my] | bisect | kunit | htmldocs | lego-docs | refs) ;;
+	series | am | checkpatch | kernel-doc | abi | headers | build-x86_64-[my] | build-arm64-[my] | bisect | kunit | kunit-arm64 | htmldocs | lego-docs | refs) ;;
 	*) echo "$prog: unknown step $s" >&2; exit 2 ;;
 	esac
 done
@@ -402,7 +409,8 @@ for s in "${steps[@]}"; do
 	kernel-doc) step_kernel_doc >"$logs/$s.log" 2>&1 ;;
 	abi) step_abi >"$logs/$s.log" 2>&1 ;;
 	headers) step_headers >"$logs/$s.log" 2>&1 ;;
-	kunit) step_kunit >"$logs/$s.log" 2>&1 ;;
+	kunit) step_kunit um >"$logs/$s.log" 2>&1 ;;
+	kunit-arm64) step_kunit arm64 >"$logs/$s.log" 2>&1 ;;
 	bisect) step_bisect >"$logs/$s.log" 2>&1 ;;
 	lego-docs) step_lego_docs >"$logs/$s.log" 2>&1 ;;
 	refs) step_refs >"$logs/$s.log" 2>&1 ;;
