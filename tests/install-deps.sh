@@ -26,9 +26,10 @@ debs+=(libiio-dev)
 # tests/fuzz (libFuzzer, ASan, UBSan) and tests/bench/proto (callgrind)
 debs+=(clang-14 libclang-rt-14-dev valgrind)
 # make upstream-series and upstream-check (tools/upstream, tests/upstream):
-# unifdef for the in-tree sources, python3-ply and python3-git for
-# checkpatch's SPDX check, Sphinx for the kernel's documentation build
-debs+=(unifdef python3-ply python3-git python3-sphinx python3-sphinx-rtd-theme python3-yaml)
+# unifdef for the in-tree sources, coccinelle for coccicheck, python3-ply
+# and python3-git for checkpatch's SPDX check, Sphinx for the kernel's
+# documentation build
+debs+=(unifdef coccinelle python3-ply python3-git python3-sphinx python3-sphinx-rtd-theme python3-yaml)
 # make deb (tests/packaging/make-deb.sh) and its lintian run
 debs+=(dpkg-dev debhelper dh-dkms dh-python pybuild-plugin-pyproject python3-all
 	python3-setuptools fakeroot lintian)

@@ -9,7 +9,7 @@
 #   tests/upstream/check.sh [SERIES] [STEP...]
 #
 # SERIES: 6.12 (default). STEPS (default: all): series am checkpatch
-# kernel-doc refs abi headers htmldocs lego-docs build-x86_64-m build-x86_64-y
+# kernel-doc refs abi headers coccicheck htmldocs lego-docs build-x86_64-m build-x86_64-y
 # build-arm64-m build-arm64-y bisect kunit kunit-arm64.
 #
 # 1. series: `make upstream-series` writes the series from this checkout;
@@ -24,6 +24,8 @@
 # 5. abi: scripts/get_abi.pl validate: no line about our ABI files;
 # 6. headers: make headers, then each uapi header the series adds compiled
 #    alone in userspace with -Wall -Wextra -Werror;
+#    coccicheck: make coccicheck MODE=report on both drivers' directories:
+#    no report;
 # 7. htmldocs: make SPHINXDIRS="userspace-api iio usb trace" htmldocs (the
 #    series adds rows to ioctl-number.rst, a page with the uapi headers'
 #    kernel-doc, the drivers' pages and the trace events' page): no warning
@@ -35,7 +37,8 @@
 #    drivers and their KUnit suites as MODE (m or y), checked after
 #    olddefconfig (IIO_BUFFER and IIO_KFIFO_BUF must be selected); vmlinux
 #    built and linked, for m the modules too (modpost: undefined symbols,
-#    section mismatches), then the drivers' directories again with W=1.
+#    section mismatches), then the drivers' directories again with W=1 and
+#    sparse (C=1).
 #    Any warning about our files fails. ARCH x86_64 natively, arm64 with
 #    aarch64-linux-gnu-. Each configuration builds in
 #    .build/upstream/build-SERIES-ARCH-MODE (O=), kept for the next run:
@@ -64,7 +67,7 @@ prog=upstream-check
 . "$top/tests/kernel/lib.sh"
 
 steps=("$@")
-[ ${#steps[@]} -gt 0 ] || steps=(series am checkpatch kernel-doc refs abi headers htmldocs lego-docs
+[ ${#steps[@]} -gt 0 ] || steps=(series am checkpatch kernel-doc refs abi headers coccicheck htmldocs lego-docs
 	build-x86_64-m build-x86_64-y build-arm64-m build-arm64-y bisect kunit kunit-arm64)
 work=$up_out/check-$series
 logs=$up_out/check-$series.log
@@ -232,10 +235,11 @@ step_build() {
 	fi
 	grep -E 'warning:|error:|WARNING:|ERROR:' "$log2" | grep -E 'lego|ev3_uart|nxt_' && { rm -f "$log2"; return 1; }
 	grep -c '' "$log2" | sed 's/^/lines of the vmlinux build log: /'
-	# Then our objects again, with W=1: any warning fails.
+	# Then our objects again, with W=1 and sparse (C=1): any warning fails.
 	find "$out/drivers/iio/common/lego_ev3_uart" "$out/drivers/usb/misc/lego_nxt" \
 		-name '*.o' -delete 2>/dev/null
-	kmake "$arch" "$mode" -j"$jobs" W=1 "${dirs[@]}" >"$log2" 2>&1 || { cat "$log2"; rm -f "$log2"; return 1; }
+	kmake "$arch" "$mode" -j"$jobs" W=1 C=1 "${dirs[@]}" >"$log2" 2>&1 || { cat "$log2"; rm -f "$log2"; return 1; }
+	grep -c '^  CHECK ' "$log2" | sed 's/^/files checked by sparse: /' 
 	cat "$log2"
 	if grep -E 'warning:|error:|WARNING:|ERROR:' "$log2"; then
 		rm -f "$log2"
@@ -328,6 +332,29 @@ step_bisect() {
 	return $rc
 }
 
+# Coccinelle's semantic patches of the tree (scripts/coccinelle, as the
+# kernel test robot runs them) on both drivers' directories, in report mode:
+# any report fails. In the source tree: with O=, coccicheck's M= would look
+# for the sources in the build directory and find none.
+step_coccicheck() {
+	local d out bad=0
+	command -v spatch >/dev/null || { echo "spatch missing (tests/install-deps.sh installs coccinelle)"; return 1; }
+	for d in drivers/iio/common/lego_ev3_uart drivers/usb/misc/lego_nxt; do
+		out=$(make -C "$work" coccicheck MODE=report M="$d" J="$jobs" 2>&1) || { echo "$out"; return 1; }
+		# spatch's own notes: the commands, "N files match", and
+		# warnings about the semantic patches themselves.
+		out=$(echo "$out" | grep -vE '^(/usr/bin/spatch|make|Please check|When using)|^$|files match$|^warning: line [0-9]+: ')
+		if [ -n "$out" ]; then
+			echo "$d:"
+			echo "$out"
+			bad=1
+		else
+			echo "$d: no report"
+		fi
+	done
+	return $bad
+}
+
 # step_kunit ARCH: both KUnit suites with kunit.py and the drivers'
 # .kunitconfig, under UML (um) or QEMU (arm64, with Debian's
 # aarch64-linux-gnu- and qemu-system-aarch64, no KVM needed).
@@ -394,7 +421,7 @@ step_htmldocs() {
 
 for s in "${steps[@]}"; do
 	case "$s" in
-	series | am | checkpatch | kernel-doc | abi | headers | build-x86_64-[my] | build-arm64-[my] | bisect | kunit | kunit-arm64 | htmldocs | lego-docs | refs) ;;
+	series | am | checkpatch | kernel-doc | abi | headers | build-x86_64-[my] | build-arm64-[my] | bisect | kunit | kunit-arm64 | coccicheck | htmldocs | lego-docs | refs) ;;
 	*) echo "$prog: unknown step $s" >&2; exit 2 ;;
 	esac
 done
@@ -411,6 +438,7 @@ for s in "${steps[@]}"; do
 	headers) step_headers >"$logs/$s.log" 2>&1 ;;
 	kunit) step_kunit um >"$logs/$s.log" 2>&1 ;;
 	kunit-arm64) step_kunit arm64 >"$logs/$s.log" 2>&1 ;;
+	coccicheck) step_coccicheck >"$logs/$s.log" 2>&1 ;;
 	bisect) step_bisect >"$logs/$s.log" 2>&1 ;;
 	lego-docs) step_lego_docs >"$logs/$s.log" 2>&1 ;;
 	refs) step_refs >"$logs/$s.log" 2>&1 ;;
