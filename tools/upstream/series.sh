@@ -114,6 +114,19 @@ insert_before() {
 	mv "$file.new" "$file"
 }
 
+# toctree_append FILE MEMBER ENTRY: add ENTRY to FILE's toctree that lists
+# MEMBER, after its last entry (where a tree has one toctree or several).
+toctree_append() {
+	local file=$tree/$1
+	grep -qxF -- "   $2" "$file" || die "$1: no toctree entry $2"
+	awk -v member="   $2" -v new="   $3" '
+	$0 == member { in_toc = 1 }
+	in_toc && !/^   [^ :]/ { print new; in_toc = 0 }
+	{ print }
+	END { if (in_toc) print new }' "$file" >"$file.new"
+	mv "$file.new" "$file"
+}
+
 # maintainers: MAINTAINERS as in the base plus our entries, with only the
 # F: lines of paths the tree has by now (an entry with none is left out),
 # before the first entry that sorts after them.
@@ -226,9 +239,8 @@ piece_nxt_usb() {
 piece_docs() {
 	local f=Documentation/userspace-api/index.rst
 	put tools/upstream/doc/lego.rst Documentation/userspace-api/lego.rst
-	# In "Devices and I/O".
-	grep -qxF '   isapnp' "$tree/$f" || die "$f: no isapnp entry"
-	sed -i '/^   isapnp$/a\   lego' "$tree/$f"
+	# Last in the toctree of media/index ("Devices and I/O" since 6.8).
+	toctree_append "$f" media/index lego
 	commit 7-docs.txt
 }
 
