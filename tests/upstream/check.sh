@@ -7,8 +7,9 @@
 # busy cores), later runs take a few minutes.
 #
 #   tests/upstream/check.sh [SERIES] [STEP...]
+#   make upstream-check UPSTREAM_SERIES=SERIES UPSTREAM_STEPS="STEP..."
 #
-# SERIES: 6.12 (default). STEPS (default: all): series am checkpatch
+# SERIES: 6.12 (default) or 6.1. STEPS (default: all): series am checkpatch
 # kernel-doc refs abi headers htmldocs lego-docs build-x86_64-m build-x86_64-y
 # build-arm64-m build-arm64-y bisect kunit.
 #

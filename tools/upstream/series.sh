@@ -2,7 +2,8 @@
 # SPDX-License-Identifier: GPL-2.0
 #
 # `make upstream-series`: the drivers as a patch series against the kernel
-# source of Debian's linux-source-SERIES package (default 6.12), written with
+# source of Debian's linux-source-SERIES package (default 6.12; 6.1 too,
+# `make upstream-series UPSTREAM_SERIES=6.1`), written with
 # git format-patch --cover-letter into .build/upstream/SERIES/.
 #
 #   tools/upstream/series.sh [SERIES]
