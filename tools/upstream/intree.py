@@ -13,8 +13,9 @@ with --have (tools/upstream/probe.mk runs the same probes on it):
 - the line '#include "lego_compat.h"' goes; the headers it supplied that
   the file uses are included instead, in the file's first block of
   '#include <...>' lines, in order: <kunit/visibility.h> for
-  EXPORT_SYMBOL_IF_KUNIT(), <linux/unaligned.h> (<asm/unaligned.h> before
-  6.12) for the unaligned accessors;
+  EXPORT_SYMBOL_IF_KUNIT(), <linux/unaligned.h> for the unaligned
+  accessors (before 6.12 <asm/unaligned.h>, in a block of its own after
+  that one, as IIO drivers have it);
 - LEGO_TTY_FLAG, LEGO_TTY_COUNT, LEGO_TTY_WRITE_RET, LEGO_UEVENT_CONST,
   LEGO_IMPORT_KUNIT_NS() and lego_assign_str() become the kernel's types
   and macros, as lego_compat.h defines them for those flags;
@@ -59,6 +60,11 @@ def add_includes(text, headers):
         while end + 1 < len(lines) and lines[end + 1].startswith('#include <'):
             end += 1
         at = end + 1
+        if h.startswith('asm/'):
+            # After the block, apart.
+            lines[at:at] = ['', inc]
+            block = [i for i, ln in enumerate(lines) if ln.startswith('#include <')]
+            continue
         for i in range(first, end + 1):
             name = lines[i][len('#include <'):].rstrip('>')
             # kunit/ sorts before linux/; within linux/, alphabetically,
