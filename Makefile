@@ -25,10 +25,12 @@
 #   make dkms-source   only copy the sources DKMS builds (DESTDIR= honoured)
 #   make deb           Debian packages into .build/deb/ (tests/packaging/make-deb.sh)
 #   make upstream-series  the drivers as an in-tree patch series against Debian's
-#                      linux-source-6.12, into .build/upstream/6.12/ (tools/upstream)
+#                      linux-source-6.12, into .build/upstream/6.12/ (tools/upstream;
+#                      UPSTREAM_SERIES=6.1: against linux-source-6.1, into 6.1/)
 #   make upstream-check   that series applied to the kernel source and checked:
 #                      checkpatch per patch, kernel-doc, ABI, in-tree W=1 builds
-#                      (long, not in make check; UPSTREAM_STEPS= picks steps)
+#                      (long, not in make check; UPSTREAM_STEPS= picks steps,
+#                      UPSTREAM_SERIES= the series)
 #
 # Documentation/lego/install.rst describes installing in detail.
 
@@ -84,11 +86,12 @@ help:
 
 # Documentation/lego/testing.rst, "The in-tree series".
 .PHONY: upstream-series upstream-check
+UPSTREAM_SERIES ?= 6.12
 upstream-series:
-	@tools/upstream/series.sh
+	@tools/upstream/series.sh $(UPSTREAM_SERIES)
 
 upstream-check:
-	@tests/upstream/check.sh $(UPSTREAM_STEPS)
+	@tests/upstream/check.sh $(UPSTREAM_SERIES) $(UPSTREAM_STEPS)
 
 # --- Installing -----------------------------------------------------------
 #

@@ -13,8 +13,9 @@ with --have (tools/upstream/probe.mk runs the same probes on it):
 - the line '#include "lego_compat.h"' goes; the headers it supplied that
   the file uses are included instead, in the file's first block of
   '#include <...>' lines, in order: <kunit/visibility.h> for
-  EXPORT_SYMBOL_IF_KUNIT(), <linux/unaligned.h> (<asm/unaligned.h> before
-  6.12) for the unaligned accessors;
+  EXPORT_SYMBOL_IF_KUNIT(), <linux/unaligned.h> for the unaligned
+  accessors (before 6.12 <asm/unaligned.h>, in a block of its own after
+  that one, as IIO drivers have it);
 - LEGO_TTY_FLAG, LEGO_TTY_COUNT, LEGO_TTY_WRITE_RET, LEGO_UEVENT_CONST,
   LEGO_IMPORT_KUNIT_NS() and lego_assign_str() become the kernel's types
   and macros, as lego_compat.h defines them for those flags;
@@ -22,7 +23,8 @@ with --have (tools/upstream/probe.mk runs the same probes on it):
   the target's where the target predates it: hrtimer_setup() into
   hrtimer_init() and a ->function assignment (before 6.13),
   timer_container_of() into from_timer() (before 6.16), timer_delete*()
-  into del_timer*() (before 6.2);
+  into del_timer*() (before 6.2), KUNIT_EXPECT_MEMEQ(test, a, b, n) into
+  KUNIT_EXPECT_EQ(test, memcmp(a, b, n), 0) (before 6.2);
 - unifdef -DN_LEGOEV3: the uapi header's fallback ldisc number goes, the
   tree reserves one in <linux/tty.h>.
 
@@ -79,6 +81,11 @@ def add_includes(text, headers):
         while end + 1 < len(lines) and lines[end + 1].startswith('#include <'):
             end += 1
         at = end + 1
+        if h.startswith('asm/'):
+            # After the block, apart.
+            lines[at:at] = ['', inc]
+            block = [i for i, ln in enumerate(lines) if ln.startswith('#include <')]
+            continue
         for i in range(first, end + 1):
             name = lines[i][len('#include <'):].rstrip('>')
             # kunit/ sorts before linux/; within linux/, alphabetically,
@@ -113,9 +120,40 @@ def hrtimer_init_back(m):
     return '%s\n%s%s.function = %s;' % (call, indent, timer[1:], func)
 
 
+def memeq_back(text):
+    """KUNIT_EXPECT_MEMEQ(test, a, b, n) as KUNIT_EXPECT_EQ() of a memcmp()."""
+    out = []
+    pos = 0
+    for m in re.finditer(r'\bKUNIT_EXPECT_MEMEQ\(', text):
+        if m.start() < pos:
+            continue
+        # The arguments, split at the commas outside parentheses.
+        depth, args, arg, i = 1, [], '', m.end()
+        while depth:
+            if i == len(text):
+                die('KUNIT_EXPECT_MEMEQ( without its closing parenthesis')
+            ch = text[i]
+            i += 1
+            depth += {'(': 1, '[': 1, ')': -1, ']': -1}.get(ch, 0)
+            if depth == 1 and ch == ',':
+                args.append(arg.strip())
+                arg = ''
+            elif depth:
+                arg += ch
+        args.append(arg.strip())
+        if len(args) != 4 or '\n' in text[m.start():i]:
+            die('KUNIT_EXPECT_MEMEQ() other than on one line with 4 arguments')
+        out += [text[pos:m.start()],
+                'KUNIT_EXPECT_EQ(%s, memcmp(%s), 0)' % (args[0], ', '.join(args[1:]))]
+        pos = i
+    text = ''.join(out) + text[pos:]
+    for ln in text.split('\n'):
+        if 'KUNIT_EXPECT_EQ' in ln and 'memcmp' in ln and len(ln.expandtabs(8)) > 100:
+            die('KUNIT_EXPECT_EQ(memcmp()) line too long: ' + ln.strip())
+    return text
+
+
 def transform(text, have):
-    if 'KUNIT_MEMEQ' not in have:
-        die('the target tree predates KUNIT_EXPECT_MEMEQ (6.2): not supported')
     text = drop_compat_include(text, have)
     rx = 'TTY_RX_SIZE_T' in have
     subs = [
@@ -135,6 +173,8 @@ def transform(text, have):
         subs += [(r'\btimer_delete_sync\(', 'del_timer_sync('), (r'\btimer_delete\(', 'del_timer(')]
     for pat, rep in subs:
         text = re.sub(pat, rep, text)
+    if 'KUNIT_MEMEQ' not in have:
+        text = memeq_back(text)
     if 'HRTIMER_SETUP' not in have:
         text = re.sub(r'^([ \t]*)hrtimer_setup\(([^,]+),([^,]+),([^,]+),([^;]+)\);',
                       hrtimer_init_back, text, flags=re.M)

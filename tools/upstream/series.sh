@@ -2,7 +2,8 @@
 # SPDX-License-Identifier: GPL-2.0
 #
 # `make upstream-series`: the drivers as a patch series against the kernel
-# source of Debian's linux-source-SERIES package (default 6.12), written with
+# source of Debian's linux-source-SERIES package (default 6.12; 6.1 too,
+# `make upstream-series UPSTREAM_SERIES=6.1`), written with
 # git format-patch --cover-letter into .build/upstream/SERIES/.
 #
 #   tools/upstream/series.sh [SERIES]
@@ -125,6 +126,19 @@ insert_before() {
 	mv "$file.new" "$file"
 }
 
+# toctree_append FILE MEMBER ENTRY: add ENTRY to FILE's toctree that lists
+# MEMBER, after its last entry (where a tree has one toctree or several).
+toctree_append() {
+	local file=$tree/$1
+	grep -qxF -- "   $2" "$file" || die "$1: no toctree entry $2"
+	awk -v member="   $2" -v new="   $3" '
+	$0 == member { in_toc = 1 }
+	in_toc && !/^   [^ :]/ { print new; in_toc = 0 }
+	{ print }
+	END { if (in_toc) print new }' "$file" >"$file.new"
+	mv "$file.new" "$file"
+}
+
 # maintainers: MAINTAINERS as in the base plus our entries, with only the
 # F: lines of paths the tree has by now (an entry with none is left out),
 # before the first entry that sorts after them.
@@ -239,7 +253,7 @@ piece_nxt_usb() {
 # headers' kernel-doc. Each page goes into its directory's index, sorted
 # among the pages there.
 piece_docs() {
-	local src dst dir
+	local src dst
 	for src in Documentation/lego/ev3-uart.rst Documentation/lego/nxt-usb.rst \
 		Documentation/lego/tracing.rst; do
 		dst=$("$here/places.py" "$src")
@@ -247,10 +261,8 @@ piece_docs() {
 		index_add "$dst"
 	done
 	put tools/upstream/doc/lego.rst Documentation/userspace-api/lego.rst
-	# In "Devices and I/O".
-	dir=Documentation/userspace-api/index.rst
-	grep -qxF '   isapnp' "$tree/$dir" || die "$dir: no isapnp entry"
-	sed -i '/^   isapnp$/a\   lego' "$tree/$dir"
+	# Last in the toctree of media/index ("Devices and I/O" since 6.8).
+	toctree_append Documentation/userspace-api/index.rst media/index lego
 	commit 7-docs.txt
 }
 
