@@ -1068,7 +1068,8 @@ int ev3_uart_set_mode(struct ev3_uart_sensor_dev *sd, u8 mode)
 		ret = ev3_uart_settle(sd, mode, settle, wait);
 out:
 	mutex_unlock(&port->select_mutex);
-	return ret < 0 ? ret : 0;
+	/* An error, or success: 1 (nothing to send) or the bytes the tty took. */
+	return min(ret, 0);
 }
 
 /**
