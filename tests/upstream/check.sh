@@ -79,7 +79,6 @@ jobs=${LEGO_UPSTREAM_JOBS:-2}
 export PATH=/usr/bin:/bin:$PATH
 passed=0
 failed=0
-failures=()
 
 # result STEP SECONDS STATUS: count and print one step's result.
 result() {
@@ -113,7 +112,7 @@ step_series() {
 }
 
 step_am() {
-	local tag
+	local tag p
 	up_base || return 1
 	tag=$(up_base_tag)
 	if [ ! -e "$work/.git" ]; then
@@ -122,9 +121,10 @@ step_am() {
 		up_git worktree add -q --detach "$work" "$tag" || return 1
 	fi
 	git -C "$work" am --abort >/dev/null 2>&1
+	mapfile -t p < <(patches)
 	git -C "$work" checkout -q -f --detach "$tag" &&
 		git -C "$work" clean -q -fdx &&
-		git -C "$work" -c user.name="$up_name" -c user.email="$up_email" am -q $(patches) ||
+		git -C "$work" -c user.name="$up_name" -c user.email="$up_email" am -q "${p[@]}" ||
 		return 1
 	# The patches must give exactly the series' tree.
 	git -C "$work" diff --quiet HEAD "$up_branch" || { echo "git am gave another tree than $up_branch"; return 1; }

@@ -208,7 +208,7 @@ piece_uapi() {
 
 # 3. The EV3 protocol core and its KUnit suite (built from 4 on).
 piece_ev3_proto() {
-	put_dir drivers/lego/ev3 $EV3 ev3_uart_proto.h ev3_uart_proto.c ev3_uart_chan.h \
+	put_dir drivers/lego/ev3 "$EV3" ev3_uart_proto.h ev3_uart_proto.c ev3_uart_chan.h \
 		ev3_uart_chan.c ev3_uart_proto_test.c
 	commit 3-ev3-proto.txt
 }
@@ -216,7 +216,7 @@ piece_ev3_proto() {
 # 4. The line discipline, the lego-sensor class and IIO; Kconfig, Makefile,
 # the ABI they add.
 piece_ev3_ldisc() {
-	put_dir drivers/lego/ev3 $EV3 ev3_uart.h ev3_uart_ldisc.c ev3_uart_class.c \
+	put_dir drivers/lego/ev3 "$EV3" ev3_uart.h ev3_uart_ldisc.c ev3_uart_class.c \
 		ev3_uart_iio.c ev3_uart_trace.h ev3_uart_trace.c Kconfig Makefile .kunitconfig
 	put_dir Documentation/ABI/testing Documentation/ABI/testing \
 		sysfs-class-lego-sensor sysfs-bus-iio-lego-ev3-uart
@@ -228,21 +228,23 @@ piece_ev3_ldisc() {
 
 # 5. The NXT telegram core and its KUnit suite (built from 6 on).
 piece_nxt_proto() {
-	put_dir drivers/lego/nxt $NXT nxt_proto.h nxt_proto.c nxt_proto_test.c
+	put_dir drivers/lego/nxt "$NXT" nxt_proto.h nxt_proto.c nxt_proto_test.c
 	commit 5-nxt-proto.txt
 }
 
 # 6. The USB driver; Kconfig, Makefile, the ABI it adds.
 piece_nxt_usb() {
-	put_dir drivers/lego/nxt $NXT nxt_usb.h nxt_usb.c nxt_cdev.c nxt_sysfs.c \
+	put_dir drivers/lego/nxt "$NXT" nxt_usb.h nxt_usb.c nxt_cdev.c nxt_sysfs.c \
 		nxt_usb_trace.h nxt_usb_trace.c Kconfig Makefile .kunitconfig
 	put Documentation/ABI/testing/sysfs-driver-lego-nxt-usb \
 		Documentation/ABI/testing/sysfs-driver-lego-nxt-usb
 	# Beside the LEGO USB tower's entries.
 	insert_before drivers/usb/misc/Kconfig "config USB_LCD" "source \"$NXT/Kconfig\"
 "
+	# shellcheck disable=SC2016 # make's $(CONFIG_...), not the shell's
 	grep -q '^obj-$(CONFIG_USB_LEGOTOWER)' "$tree/drivers/usb/misc/Makefile" ||
 		die "drivers/usb/misc/Makefile: no USB_LEGOTOWER line"
+	# shellcheck disable=SC2016
 	sed -i '/^obj-$(CONFIG_USB_LEGOTOWER)/a obj-$(CONFIG_USB_LEGO_NXT)\t\t+= lego_nxt/' \
 		"$tree/drivers/usb/misc/Makefile"
 	commit 6-nxt-usb.txt
