@@ -8,7 +8,8 @@
 #     (tests/cross-build.sh),
 #  4. runs checkpatch --strict, a short fuzzing run of the protocol cores
 #     (tests/fuzz/run.sh --short), the packaging tests of tests/packaging,
-#     the in-tree series' rules (tests/upstream/test_intree.py) and
+#     the in-tree series' rules (tests/upstream/test_intree.py) and the
+#     series' quick checks (tests/upstream/check.sh without its builds), and
 #     dkms (on the host) for the guest's packaging test, `make deb` (with
 #     lintian) and the dkms package's installation (on the host) for the
 #     guest's tests/guest/test_deb.py,
@@ -20,7 +21,7 @@
 # phase against it); LEGO_CACHE moves the kernel cache.
 set -uo pipefail
 top=$(cd "$(dirname "$0")/.." && pwd)
-cd "$top"
+cd "$top" || exit 1
 
 kver=${KVER:-6.12}
 build=${LEGO_BUILD_DIR:-$top/.build}
@@ -28,6 +29,9 @@ results=$build/results
 console=$build/console.log
 # shellcheck source=tests/lib/phases.sh
 . "$top/tests/lib/phases.sh"
+
+# The steps of tests/upstream/check.sh that take no kernel build.
+upstream_quick=(series am checkpatch kernel-doc refs abi headers coccicheck htmldocs lego-docs)
 
 newest_61_headers() {
 	ls -d /usr/src/linux-headers-6.1.*-amd64 2>/dev/null | sort -V | tail -n 1
@@ -46,6 +50,10 @@ phase "make install, dkms-source (host)" env LEGO_KERNEL_TREE="$tree" \
 	python3 -m pytest -q -p no:cacheprovider tests/packaging
 phase "upstream series: in-tree rules (host)" \
 	python3 -m pytest -q -p no:cacheprovider tests/upstream
+# The in-tree series' quick checks (about 2 minutes cold, 1 warm); the
+# kernel builds and kunit.py runs are `make upstream-check`'s.
+phase "upstream series: git am, checkpatch, docs" env LEGO_UPSTREAM_OUT="$build/upstream" \
+	tests/upstream/check.sh "$kver" "${upstream_quick[@]}"
 # For tests/guest/test_packaging.py: a dkms build in the emulated guest is slow.
 phase "dkms build for $kver (host)" tests/packaging/dkms-prepare.sh "$tree" "$build/dkms-$kver"
 # For tests/guest/test_deb.py: the packages, and lego-mindstorms-dkms

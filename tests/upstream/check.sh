@@ -2,9 +2,10 @@
 # SPDX-License-Identifier: GPL-2.0
 #
 # `make upstream-check`: the in-tree patch series (tools/upstream/series.sh),
-# checked as a maintainer would check it. Not part of `make check`: the
-# first run builds four small kernel configurations and two KUnit kernels
-# (about 20 minutes on two busy cores), later runs take a few minutes.
+# checked as a maintainer would check it. The first run builds four small
+# kernel configurations and two KUnit kernels (about 20 minutes on two busy
+# cores), later runs take a few minutes; `make check` runs the steps that
+# build no kernel (tests/check.sh).
 #
 #   tests/upstream/check.sh [SERIES] [STEP...]
 #   make upstream-check UPSTREAM_SERIES=SERIES UPSTREAM_STEPS="STEP..."
