@@ -416,8 +416,23 @@ int ev3_uart_find_mode(const struct ev3_uart_sensor *desc, const char *str)
 
 	if (len && str[len - 1] == '\n')
 		len--;
-	if (len == 2 && str[0] == '#' && str[1] >= '0' && str[1] < '0' + n)
-		return str[1] - '0';
+	/*
+	 * "#" and the number, as ev3_uart_mode_token() writes it: one or two
+	 * digits (Powered Up devices have up to 16 modes), no leading zero.
+	 * No mode name starts with '#'.
+	 */
+	if (len && str[0] == '#') {
+		unsigned int m = 0;
+
+		if (len < 2 || len > 3 || (len == 3 && str[1] == '0'))
+			return -EINVAL;
+		for (i = 1; i < len; i++) {
+			if (str[i] < '0' || str[i] > '9')
+				return -EINVAL;
+			m = m * 10 + str[i] - '0';
+		}
+		return m < n ? m : -EINVAL;
+	}
 	for (i = 0; i < n; i++) {
 		if (ev3_uart_mode_token(desc, i, tok, sizeof(tok)) >= 0 &&
 		    ev3_uart_streq(str, len, tok))

@@ -2257,6 +2257,23 @@ static void test_mode_tokens(struct kunit *test)
 	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(s, "COL"), -EINVAL);
 	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(s, ""), -EINVAL);
 	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(s, "\n"), -EINVAL);
+	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(s, "#"), -EINVAL);
+	/* '0' + 10: not a digit, not mode 10 */
+	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(s, "#:"), -EINVAL);
+
+	/* A Powered Up device's 16 modes: two digits, no leading zero. */
+	s->num_modes = EV3_UART_MAX_MODES;
+	for (i = ARRAY_SIZE(names); i < EV3_UART_MAX_MODES; i++)
+		snprintf(s->modes[i].name, sizeof(s->modes[i].name), "M%u", i);
+	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(s, "#10\n"), 10);
+	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(s, "#15"), 15);
+	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(s, "#7"), 7);
+	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(s, "#16"), -EINVAL);
+	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(s, "#:"), -EINVAL);
+	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(s, "#07"), -EINVAL);
+	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(s, "#100"), -EINVAL);
+	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(s, "#1a"), -EINVAL);
+	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(s, "M12"), 12);
 }
 
 static struct kunit_case ev3_uart_proto_cases[] = {
