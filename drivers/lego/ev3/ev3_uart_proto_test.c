@@ -2219,6 +2219,47 @@ static void test_version_string(struct kunit *test)
 	KUNIT_EXPECT_EQ(test, ev3_uart_version_string(0, buf, EV3_UART_VERSION_LEN), -EINVAL);
 }
 
+/* What ev3_uart_find_mode() makes of a mode attribute's write. */
+struct find_mode_case {
+	const char *str;
+	int mode;
+};
+
+static const struct find_mode_case seven_modes[] = {
+	{ "COL_O\n", 0 },
+	{ "COL O\n", 0 },		/* as sent */
+	{ "B C", 5 },
+	{ "B_C", 4 },
+	{ "A", -EINVAL },		/* two */
+	{ "#6", 6 },
+	{ "#7", -EINVAL },
+	{ "COL", -EINVAL },
+	{ "", -EINVAL },
+	{ "\n", -EINVAL },
+	{ "#", -EINVAL },
+	{ "#:", -EINVAL },		/* '0' + 10: not a digit, not mode 10 */
+};
+
+static const struct find_mode_case sixteen_modes[] = {
+	{ "#10\n", 10 },
+	{ "#15", 15 },
+	{ "#7", 7 },
+	{ "#16", -EINVAL },
+	{ "#:", -EINVAL },
+	{ "#07", -EINVAL },
+	{ "#100", -EINVAL },
+	{ "#1a", -EINVAL },
+	{ "M12", 12 },
+};
+
+static void expect_find_mode(struct kunit *test, const struct ev3_uart_sensor *s,
+			     const struct find_mode_case *c, size_t n)
+{
+	for (; n; n--, c++)
+		KUNIT_EXPECT_EQ_MSG(test, ev3_uart_find_mode(s, c->str), c->mode,
+				    "mode \"%s\"", c->str);
+}
+
 static void test_mode_tokens(struct kunit *test)
 {
 	static const char * const names[] = { "COL O", "IR Tx", "A", "A", "B_C", "B C",
@@ -2247,33 +2288,13 @@ static void test_mode_tokens(struct kunit *test)
 	KUNIT_EXPECT_EQ(test, ev3_uart_mode_token(s, 7, tok, sizeof(tok)), -EINVAL);
 	KUNIT_EXPECT_EQ(test, ev3_uart_mode_token(s, 0, tok, 4), -EINVAL);
 
-	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(s, "COL_O\n"), 0);
-	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(s, "COL O\n"), 0);	/* as sent */
-	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(s, "B C"), 5);
-	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(s, "B_C"), 4);
-	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(s, "A"), -EINVAL);	/* two */
-	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(s, "#6"), 6);
-	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(s, "#7"), -EINVAL);
-	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(s, "COL"), -EINVAL);
-	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(s, ""), -EINVAL);
-	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(s, "\n"), -EINVAL);
-	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(s, "#"), -EINVAL);
-	/* '0' + 10: not a digit, not mode 10 */
-	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(s, "#:"), -EINVAL);
+	expect_find_mode(test, s, seven_modes, ARRAY_SIZE(seven_modes));
 
 	/* A Powered Up device's 16 modes: two digits, no leading zero. */
 	s->num_modes = EV3_UART_MAX_MODES;
 	for (i = ARRAY_SIZE(names); i < EV3_UART_MAX_MODES; i++)
 		snprintf(s->modes[i].name, sizeof(s->modes[i].name), "M%u", i);
-	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(s, "#10\n"), 10);
-	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(s, "#15"), 15);
-	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(s, "#7"), 7);
-	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(s, "#16"), -EINVAL);
-	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(s, "#:"), -EINVAL);
-	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(s, "#07"), -EINVAL);
-	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(s, "#100"), -EINVAL);
-	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(s, "#1a"), -EINVAL);
-	KUNIT_EXPECT_EQ(test, ev3_uart_find_mode(s, "M12"), 12);
+	expect_find_mode(test, s, sixteen_modes, ARRAY_SIZE(sixteen_modes));
 }
 
 static struct kunit_case ev3_uart_proto_cases[] = {
