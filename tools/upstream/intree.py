@@ -52,11 +52,11 @@ import re
 import subprocess
 import sys
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
 from places import map_paths, place  # noqa: E402
 
-LEGO_DOCS = os.path.join(os.path.dirname(os.path.abspath(__file__)), '..', '..',
-                         'Documentation', 'lego')
+LEGO_DOCS = os.path.join(HERE, '..', '..', 'Documentation', 'lego')
 
 LEFTOVER = re.compile(r'lego_compat|\bLEGO_(HAVE|TTY|UEVENT|IMPORT)_?\w*|lego_assign_str|lego_hrtimer')
 

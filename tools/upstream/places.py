@@ -27,10 +27,10 @@ _PATH = re.compile('|'.join(re.escape(src) for src, _ in PLACES))
 def place(path):
     """PATH's place in the tree, or None if it has none."""
     for src, dst in PLACES:
-        if path == src or path == src.rstrip('/'):
-            return dst.rstrip('/') if path == src.rstrip('/') else dst
-        if src.endswith('/') and path.startswith(src):
+        if path == src or (src.endswith('/') and path.startswith(src)):
             return dst + path[len(src):]
+        if path == src.rstrip('/'):  # the directory, named without its /
+            return dst.rstrip('/')
     return None
 
 

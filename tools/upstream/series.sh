@@ -35,8 +35,8 @@
 #   Documentation/userspace-api/ioctl/ioctl-number.rst, the Kconfig
 #   "source" lines and Makefile lines of drivers/iio/common and
 #   drivers/usb/misc, the pages in the index.rst of Documentation/iio,
-#   usb, trace and userspace-api, the MAINTAINERS entries (each patch adds the F: lines
-#   of the files it adds).
+#   usb, trace and userspace-api, the MAINTAINERS entries (each patch adds
+#   the F: lines of the files it adds).
 #
 # Commits carry the author and Signed-off-by of this checkout's HEAD, and
 # HEAD's commit date, so the same checkout gives the same patches.
