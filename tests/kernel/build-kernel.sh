@@ -3,7 +3,9 @@
 #
 #   tests/kernel/build-kernel.sh [--tree-only] [--arch ARCH] [--variant bench] [SERIES]
 #
-# SERIES: 6.12 (default) or 6.1. ARCH: x86 (default) or arm64; arm64 is
+# SERIES: 6.12 (default), 6.1, any X.Y that Debian serves, or newest (the
+# newest linux-source-X.Y of trixie-backports and sid; tests/kernel/fetch-source.sh).
+# ARCH: x86 (default) or arm64; arm64 is
 # cross-compiled (CROSS_COMPILE=aarch64-linux-gnu-) with test.config plus
 # arm64.config, and cached as kernel-arm64-SERIES-<key>.
 # --variant bench (x86): test.config plus bench.config, the debug checks off,
@@ -12,7 +14,8 @@
 # KASAN, for `make soak`; cached as kernel-kcsan-SERIES-<key>.
 # --tree-only prints the cached tree if it is complete and builds nothing.
 #
-# The source comes from Debian's linux-source-SERIES package. The build lives in
+# The source comes from Debian's linux-source-SERIES package (installed, or
+# fetched into the cache by fetch-source.sh). The build lives in
 #   $LEGO_CACHE/kernel-SERIES-<key>/linux
 # where <key> hashes the package version, the config fragment and the recipe number, so
 # the kernel is rebuilt only when one of them changes. Prints the build directory
@@ -58,11 +61,10 @@ x86/bench) fragments+=("$here/bench.config") ;;
 x86/kcsan) fragments+=("$here/kcsan.config") ;;
 *) echo "build-kernel: unknown --variant $variant for $arch (x86: bench, kcsan)" >&2; exit 2 ;;
 esac
-tarball=/usr/src/linux-source-$series.tar.xz
 cache=$(kcache_dir)
-
-[ -r "$tarball" ] || { echo "build-kernel: $tarball missing (apt-get install linux-source-$series)" >&2; exit 1; }
-pkgver=$(dpkg-query -W -f '${Version}' "linux-source-$series")
+# The series' source (newest: the newest Debian serves), its package version
+# and tarball: tests/kernel/fetch-source.sh.
+read -r series pkgver tarball < <("$here/fetch-source.sh" "$series") || exit 1
 # Bump when the steps below change in a way that changes the result.
 recipe=1
 if [ -n "$variant" ]; then
