@@ -264,6 +264,129 @@ static const u8 nxt_system_reply_len[] = {
 	[0x24] = 3,	/* BTFactoryReset */
 };
 
+/*
+ * What the firmware reads of a command's arguments: the whole telegram's
+ * length up to the last argument it reads at a fixed offset, and where a
+ * NUL-terminated string starts, if the command has one at its end (a file
+ * or brick name, BootCommand's password). The firmware takes the bytes it
+ * reads from its 64-byte receive buffer whatever the packet's length, so a
+ * shorter telegram would run with the bytes that earlier telegrams, of any
+ * process, left there (nxt_request_complete()).
+ */
+struct nxt_request_shape {
+	u8 len;
+	u8 string_at;
+};
+
+/* Direct commands; { 0, 0 } for opcodes the firmware does not know. */
+static const struct nxt_request_shape nxt_direct_req[] = {
+	[NXT_START_PROGRAM]		= { .len = 3, .string_at = 2 },	/* name */
+	[NXT_STOP_PROGRAM]		= { .len = 2 },
+	[NXT_PLAY_SOUND_FILE]		= { .len = 4, .string_at = 3 },	/* loop, name */
+	[NXT_PLAY_TONE]			= { .len = 6 },
+	[NXT_SET_OUTPUT_STATE]		= { .len = 12 },	/* the BDK says 13 */
+	[NXT_SET_INPUT_MODE]		= { .len = 5 },
+	[NXT_GET_OUTPUT_STATE]		= { .len = 3 },
+	[NXT_GET_INPUT_VALUES]		= { .len = 3 },
+	[NXT_RESET_INPUT_SCALED_VALUE]	= { .len = 3 },
+	[NXT_MESSAGE_WRITE]		= { .len = 4 },	/* and the message */
+	[NXT_RESET_MOTOR_POSITION]	= { .len = 4 },
+	[NXT_GET_BATTERY_LEVEL]		= { .len = 2 },
+	[NXT_STOP_SOUND_PLAYBACK]	= { .len = 2 },
+	[NXT_KEEP_ALIVE]		= { .len = 2 },
+	[NXT_LS_GET_STATUS]		= { .len = 3 },
+	[NXT_LS_WRITE]			= { .len = 5 },	/* and the bytes to send */
+	[NXT_LS_READ]			= { .len = 3 },
+	[NXT_GET_CURRENT_PROGRAM_NAME]	= { .len = 2 },
+	[NXT_MESSAGE_READ]		= { .len = 5 },
+	[0x19]	= { .len = 3 },	/* DatalogRead */
+	[0x1a]	= { .len = 6 },	/* DatalogSetTimes */
+	[0x1b]	= { .len = 2 },	/* BTGetContactCount */
+	[0x1c]	= { .len = 3 },	/* BTGetContactName */
+	[0x1d]	= { .len = 2 },	/* BTGetConnCount */
+	[0x1e]	= { .len = 3 },	/* BTGetConnName */
+	[0x1f]	= { .len = 4 },	/* SetProperty: 7 for property 2 */
+	[0x20]	= { .len = 3 },	/* GetProperty */
+	[0x21]	= { .len = 3 },	/* UpdateResetCount */
+};
+
+/* System commands (opcode - 0x80); { 0, 0 } for unknown ones. */
+static const struct nxt_request_shape nxt_system_req[] = {
+	[0x00] = { .len = 3, .string_at = 2 },	/* OpenRead: name */
+	[0x01] = { .len = 26 },	/* OpenWrite: name[20], size */
+	[0x02] = { .len = 5 },		/* Read */
+	[0x03] = { .len = 3 },		/* Write: the data is the rest */
+	[0x04] = { .len = 3 },		/* Close */
+	[0x05] = { .len = 3, .string_at = 2 },	/* Delete: name */
+	[0x06] = { .len = 3, .string_at = 2 },	/* FindFirst: pattern */
+	[0x07] = { .len = 3 },		/* FindNext */
+	[0x08] = { .len = 2 },		/* GetVersions */
+	[0x09] = { .len = 26 },	/* OpenWriteLinear */
+	[0x0b] = { .len = 26 },	/* OpenWriteData */
+	[0x0c] = { .len = 3, .string_at = 2 },	/* OpenAppendData: name */
+	[0x0d] = { .len = 3 },		/* CropDataFile */
+	[0x10] = { .len = 3, .string_at = 2 },	/* FindFirstModule: pattern */
+	[0x11] = { .len = 3 },		/* FindNextModule */
+	[0x12] = { .len = 3 },		/* CloseModuleHandle */
+	[0x14] = { .len = 10 },	/* ReadIOMap */
+	[0x15] = { .len = 10 },	/* WriteIOMap: and the data */
+	[0x17] = { .len = 3, .string_at = 2 },	/* BootCommand: "Let's dance: SAMBA" */
+	[0x18] = { .len = 3, .string_at = 2 },	/* SetBrickName: name */
+	[0x1a] = { .len = 2 },		/* GetBTAddress */
+	[0x1b] = { .len = 2 },		/* GetDeviceInfo */
+	[0x20] = { .len = 2 },		/* DeleteUserFlash */
+	[0x21] = { .len = 3 },		/* PollCommandLength */
+	[0x22] = { .len = 4 },		/* PollCommand */
+	[0x24] = { .len = 2 },		/* BTFactoryReset */
+};
+
+/**
+ * nxt_request_complete() - whether a telegram holds all that its command reads
+ * @tg: a telegram of a command type (direct or system, reply or not)
+ * @len: its length, 2 or more
+ *
+ * Quirk: the firmware never checks a command's length. It reads each
+ * argument at its offset in a 64-byte receive buffer that is not cleared
+ * between packets, so the arguments a short telegram lacks are bytes of
+ * earlier telegrams, another process's perhaps: a short SetOutputState
+ * drives a motor with them. A telegram must therefore hold every argument
+ * of its command, the data that a count in it announces (MessageWrite,
+ * LSWrite, WriteIOMap), and the NUL of a string at its end. Opcodes the
+ * firmware does not know are not checked: it answers them with an error.
+ *
+ * Return: true if the telegram may be sent.
+ */
+bool nxt_request_complete(const u8 *tg, size_t len)
+{
+	const struct nxt_request_shape *shape = NULL;
+	size_t need;
+	u8 op = tg[1];
+
+	if ((tg[0] & ~0x80) == NXT_DIRECT_CMD && op < ARRAY_SIZE(nxt_direct_req))
+		shape = &nxt_direct_req[op];
+	else if ((tg[0] & ~0x80) == NXT_SYSTEM_CMD && op >= 0x80 &&
+		 op - 0x80 < ARRAY_SIZE(nxt_system_req))
+		shape = &nxt_system_req[op - 0x80];
+	if (!shape || !shape->len)
+		return true;
+	if (len < shape->len)
+		return false;
+	if (shape->string_at)
+		return memchr(tg + shape->string_at, 0, len - shape->string_at);
+
+	need = shape->len;
+	if ((tg[0] & ~0x80) == NXT_DIRECT_CMD) {
+		if (op == NXT_MESSAGE_WRITE || op == NXT_LS_WRITE)
+			need += tg[3];		/* size, tx_length */
+		else if (op == 0x1f && tg[2] == 2)
+			need = 7;		/* the sleep time, a u32 */
+	} else if (op == 0x95) {
+		need += get_unaligned_le16(tg + 8);	/* WriteIOMap's count */
+	}
+	return len >= need;
+}
+EXPORT_SYMBOL_IF_KUNIT(nxt_request_complete);
+
 /* Data bytes that fit a USB reply after the fixed part of these commands. */
 #define NXT_READ_DATA_MAX	58
 #define NXT_IOMAP_DATA_MAX	55
@@ -275,11 +398,13 @@ static const u8 nxt_system_reply_len[] = {
  * @len: its length in bytes
  *
  * Return: 1 if the brick will reply to it, 0 if it will not, -%EMSGSIZE if it
- * does not fit one USB packet, -%EINVAL if it is too short or its type byte
- * is not a command.
+ * does not fit one USB packet, -%EINVAL if it is too short, shorter than its
+ * command (nxt_request_complete()) or its type byte is not a command.
  */
 int nxt_telegram_check(const u8 *tg, size_t len)
 {
+	int want;
+
 	if (len > NXT_TELEGRAM_MAX)
 		return -EMSGSIZE;
 	if (len < NXT_TELEGRAM_MIN)
@@ -288,13 +413,16 @@ int nxt_telegram_check(const u8 *tg, size_t len)
 	switch (tg[0]) {
 	case NXT_DIRECT_CMD:
 	case NXT_SYSTEM_CMD:
-		return 1;
+		want = 1;
+		break;
 	case NXT_DIRECT_CMD_NOREPLY:
 	case NXT_SYSTEM_CMD_NOREPLY:
-		return 0;
+		want = 0;
+		break;
 	default:
 		return -EINVAL;
 	}
+	return nxt_request_complete(tg, len) ? want : -EINVAL;
 }
 EXPORT_SYMBOL_IF_KUNIT(nxt_telegram_check);
 
@@ -1115,3 +1243,68 @@ int nxt_decode_device_info(const u8 *reply, size_t len,
 	return 0;
 }
 EXPORT_SYMBOL_IF_KUNIT(nxt_decode_device_info);
+
+/**
+ * nxt_info_note_sent() - note a telegram sent to the brick
+ * @info: what the brick last said about itself
+ * @tg: the telegram, which passed nxt_telegram_check()
+ * @len: its length
+ *
+ * A system command that may change the brick's name or its free flash
+ * (SetBrickName, file writes and deletions, DeleteUserFlash) makes the
+ * GetDeviceInfo values unknown until the next reply to GetDeviceInfo.
+ */
+void nxt_info_note_sent(struct nxt_brick_info *info, const u8 *tg, size_t len)
+{
+	if (len < NXT_TELEGRAM_MIN || (tg[0] & ~0x80) != NXT_SYSTEM_CMD)
+		return;
+	switch (tg[1]) {
+	case 0x81:	/* OpenWrite */
+	case 0x83:	/* Write */
+	case 0x85:	/* Delete */
+	case 0x89:	/* OpenWriteLinear */
+	case 0x8b:	/* OpenWriteData */
+	case 0x8c:	/* OpenAppendData */
+	case 0x8d:	/* CropDataFile */
+	case 0x98:	/* SetBrickName */
+	case 0xa0:	/* DeleteUserFlash */
+	case 0xa4:	/* BTFactoryReset */
+		info->have_device = false;
+		break;
+	}
+}
+EXPORT_SYMBOL_IF_KUNIT(nxt_info_note_sent);
+
+/**
+ * nxt_info_note_reply() - learn from a reply what the brick says about itself
+ * @info: what the brick last said about itself
+ * @tg: the telegram that was answered
+ * @tg_len: its length
+ * @reply: its reply, which passed nxt_reply_check() for it
+ * @len: the reply's length
+ *
+ * Successful replies to GetVersions, GetDeviceInfo and GetBatteryLevel
+ * replace the values they carry; every other reply changes nothing.
+ */
+void nxt_info_note_reply(struct nxt_brick_info *info, const u8 *tg,
+			 size_t tg_len, const u8 *reply, size_t len)
+{
+	const struct nxt_reply_battery *battery = (const void *)reply;
+
+	if (tg_len < NXT_TELEGRAM_MIN || len < NXT_REPLY_MIN ||
+	    reply[0] != NXT_REPLY || reply[1] != tg[1] ||
+	    reply[2] != NXT_STATUS_SUCCESS)
+		return;
+	if (tg[0] == NXT_SYSTEM_CMD && tg[1] == NXT_GET_VERSIONS) {
+		if (!nxt_decode_versions(reply, len, info->protocol, info->firmware))
+			info->have_versions = true;
+	} else if (tg[0] == NXT_SYSTEM_CMD && tg[1] == NXT_GET_DEVICE_INFO) {
+		if (!nxt_decode_device_info(reply, len, &info->device))
+			info->have_device = true;
+	} else if (tg[0] == NXT_DIRECT_CMD && tg[1] == NXT_GET_BATTERY_LEVEL &&
+		   len == sizeof(*battery)) {
+		info->battery_mv = le16_to_cpu(battery->millivolts);
+		info->have_battery = true;
+	}
+}
+EXPORT_SYMBOL_IF_KUNIT(nxt_info_note_reply);

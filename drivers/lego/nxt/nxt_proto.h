@@ -86,7 +86,31 @@ struct nxt_device_info {
 	u32 free_flash;
 };
 
-/* System commands the driver sends itself, for the sysfs attributes. */
+/**
+ * struct nxt_brick_info - what the brick last said about itself
+ * @have_versions: @protocol and @firmware hold a reply to GetVersions
+ * @have_device: @device holds a reply to GetDeviceInfo, and no command that
+ *	may change the name or the free flash was sent after it
+ * @have_battery: @battery_mv holds a reply to GetBatteryLevel
+ * @protocol: protocol version, major and minor
+ * @firmware: firmware version, major and minor
+ * @battery_mv: battery voltage in millivolts
+ * @device: name, Bluetooth address and free flash
+ *
+ * Filled from the replies to the telegrams that the users of the brick send
+ * (nxt_info_note_reply()); the driver never asks the brick for it itself.
+ */
+struct nxt_brick_info {
+	bool have_versions;
+	bool have_device;
+	bool have_battery;
+	u8 protocol[2];
+	u8 firmware[2];
+	u16 battery_mv;
+	struct nxt_device_info device;
+};
+
+/* System commands whose replies fill struct nxt_brick_info. */
 #define NXT_GET_VERSIONS	0x88
 #define NXT_GET_DEVICE_INFO	0x9b
 /* The system command the brick is slow to answer. */
@@ -108,6 +132,7 @@ unsigned int nxt_reply_late_ms(const u8 *tg, size_t len);
 unsigned int nxt_stall_backoff_ms(unsigned int stalls);
 u64 nxt_time_left(u64 now, u64 until, u64 max);
 bool nxt_time_fresh(u64 now, u64 then, u64 max_age);
+bool nxt_request_complete(const u8 *tg, size_t len);
 
 const struct nxt_command *nxt_command_find(unsigned int ioctl);
 int nxt_command_encode(const struct nxt_command *cmd, const void *arg, u8 *tg);
@@ -117,5 +142,8 @@ int nxt_decode_versions(const u8 *reply, size_t len, u8 protocol[2],
 			u8 firmware[2]);
 int nxt_decode_device_info(const u8 *reply, size_t len,
 			   struct nxt_device_info *info);
+void nxt_info_note_sent(struct nxt_brick_info *info, const u8 *tg, size_t len);
+void nxt_info_note_reply(struct nxt_brick_info *info, const u8 *tg,
+			 size_t tg_len, const u8 *reply, size_t len);
 
 #endif /* _NXT_PROTO_H */
