@@ -31,8 +31,12 @@
  * struct nxt_file - an open /dev/nxtN
  * @nxt: the brick, referenced while the file is open
  * @lock: one operation of this file at a time; protects the members below
- * @timeout_ms: reply timeout of this file's transactions
- * @pending: @xfer was started and its result has not been read
+ * @timeout_ms: reply timeout of this file's transactions; written with
+ *	WRITE_ONCE() under @lock, read under @lock or with READ_ONCE()
+ *	(NXT_IOC_GET_TIMEOUT)
+ * @pending: @xfer was started and its result has not been read; written
+ *	with WRITE_ONCE() under @lock, read under @lock or with READ_ONCE()
+ *	(poll())
  * @xfer: this file's transaction
  */
 struct nxt_file {
@@ -107,7 +111,7 @@ static int nxt_file_settle(struct nxt_file *f, bool nonblock)
 	ret = nxt_xfer_wait(f->nxt, &f->xfer, nonblock);
 	if (ret == -EAGAIN || ret == -ERESTARTSYS)
 		return ret;
-	f->pending = false;
+	WRITE_ONCE(f->pending, false);
 	return 0;
 }
 
@@ -139,8 +143,7 @@ static ssize_t nxt_write(struct file *file, const char __user *buf,
 	ret = nxt_xfer_start(f->nxt, &f->xfer, tg, count, f->timeout_ms, nonblock);
 	if (ret)
 		goto out;
-	f->pending = f->xfer.want_reply;
-	nxt_info_telegram_sent(&f->nxt->info, tg);
+	WRITE_ONCE(f->pending, f->xfer.want_reply);
 	ret = count;
 out:
 	mutex_unlock(&f->lock);
@@ -166,7 +169,7 @@ static ssize_t nxt_read(struct file *file, char __user *buf, size_t count,
 	if (ret == -EAGAIN || ret == -ERESTARTSYS)
 		goto out;
 	if (ret) {
-		f->pending = false;
+		WRITE_ONCE(f->pending, false);
 		goto out;
 	}
 	if (count < f->xfer.reply_len) {
@@ -174,7 +177,7 @@ static ssize_t nxt_read(struct file *file, char __user *buf, size_t count,
 		ret = -EMSGSIZE;
 		goto out;
 	}
-	f->pending = false;
+	WRITE_ONCE(f->pending, false);
 	ret = f->xfer.reply_len;
 	if (copy_to_user(buf, f->xfer.reply, f->xfer.reply_len))
 		ret = -EFAULT;
@@ -194,7 +197,11 @@ static __poll_t nxt_poll(struct file *file, poll_table *wait)
 	if (nxt_gone(nxt))
 		return EPOLLERR | EPOLLHUP;
 
-	/* Lockless: a transaction in @xfer only moves from pending to done. */
+	/*
+	 * Without @lock: a transaction in @xfer only moves from pending to
+	 * done, and its status is read under the brick's lock, under which
+	 * it is always written (even when the transaction is set up).
+	 */
 	pending = READ_ONCE(f->pending);
 	done = nxt_xfer_done(nxt, &f->xfer);
 	if (pending && done)
@@ -239,7 +246,6 @@ static long nxt_ioctl_transact(struct nxt_file *f, void __user *argp,
 		return ret;
 	ret = nxt_file_transact(f, t.telegram, t.length, nonblock);
 	if (!ret) {
-		nxt_info_telegram_sent(&f->nxt->info, t.telegram);
 		/* Zero past the reply's length. */
 		memcpy(t.reply, f->xfer.reply, sizeof(t.reply));
 		t.reply_length = f->xfer.reply_len;
@@ -298,6 +304,23 @@ static long nxt_ioctl_command(struct nxt_file *f, const struct nxt_command *cmd,
 	return nxt_status_to_errno(status);
 }
 
+/*
+ * Every ioctl that sends a telegram needs a file opened for writing, as
+ * write() does: a read-only file must not make the brick act (erase its
+ * flash, start its firmware update, drive its motors). The timeout ioctls
+ * send nothing.
+ */
+static bool nxt_may_send(struct file *file, unsigned int cmd)
+{
+	struct nxt_file *f = file->private_data;
+
+	if (file->f_mode & FMODE_WRITE)
+		return true;
+	dev_dbg_ratelimited(&f->nxt->udev->dev,
+			    "ioctl 0x%08x needs a file opened for writing\n", cmd);
+	return false;
+}
+
 static long nxt_ioctl(struct file *file, unsigned int cmd, unsigned long arg)
 {
 	struct nxt_file *f = file->private_data;
@@ -308,6 +331,8 @@ static long nxt_ioctl(struct file *file, unsigned int cmd, unsigned long arg)
 
 	switch (cmd) {
 	case NXT_IOC_TRANSACT:
+		if (!nxt_may_send(file, cmd))
+			return -EBADF;
 		return nxt_ioctl_transact(f, argp, nonblock);
 	case NXT_IOC_SET_TIMEOUT:
 		if (get_user(ms, (u32 __user *)argp))
@@ -316,7 +341,7 @@ static long nxt_ioctl(struct file *file, unsigned int cmd, unsigned long arg)
 			return -EINVAL;
 		if (mutex_lock_interruptible(&f->lock))
 			return -ERESTARTSYS;
-		f->timeout_ms = ms;
+		WRITE_ONCE(f->timeout_ms, ms);
 		mutex_unlock(&f->lock);
 		return 0;
 	case NXT_IOC_GET_TIMEOUT:
@@ -326,6 +351,8 @@ static long nxt_ioctl(struct file *file, unsigned int cmd, unsigned long arg)
 	c = nxt_command_find(cmd);
 	if (!c)
 		return -ENOTTY;
+	if (!nxt_may_send(file, cmd))
+		return -EBADF;
 	return nxt_ioctl_command(f, c, argp, nonblock);
 }
 

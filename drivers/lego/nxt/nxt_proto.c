@@ -612,20 +612,6 @@ u64 nxt_time_left(u64 now, u64 until, u64 max)
 EXPORT_SYMBOL_IF_KUNIT(nxt_time_left);
 
 /**
- * nxt_time_fresh() - whether something taken at @then is younger than @max_age
- * @now: the clock now (get_jiffies_64(), say)
- * @then: when the thing was taken, on the same clock, not after @now
- * @max_age: its lifetime
- *
- * Return: true while @now is before @then + @max_age.
- */
-bool nxt_time_fresh(u64 now, u64 then, u64 max_age)
-{
-	return now >= then && now - then < max_age;
-}
-EXPORT_SYMBOL_IF_KUNIT(nxt_time_fresh);
-
-/**
  * nxt_status_to_errno() - the errno a status byte of the brick maps to
  * @status: the status byte of a reply
  *

@@ -131,7 +131,6 @@ int nxt_status_to_errno(u8 status);
 unsigned int nxt_reply_late_ms(const u8 *tg, size_t len);
 unsigned int nxt_stall_backoff_ms(unsigned int stalls);
 u64 nxt_time_left(u64 now, u64 until, u64 max);
-bool nxt_time_fresh(u64 now, u64 then, u64 max_age);
 bool nxt_request_complete(const u8 *tg, size_t len);
 
 const struct nxt_command *nxt_command_find(unsigned int ioctl);

@@ -264,6 +264,7 @@ static void nxt_take_packet(struct nxt_usb *nxt, const u8 *buf, unsigned int len
 	}
 	memcpy(x->reply, buf, len);
 	x->reply_len = len;
+	nxt_info_note_reply(&nxt->info, x->tg, x->len, buf, len);
 	nxt->stats.replies++;
 	trace_nxt_usb_rx(nxt_name(nxt), x, buf[0], buf[1], len > 2 ? buf[2] : 0, len);
 	nxt_finish(nxt, x, 0);
@@ -471,14 +472,16 @@ static int nxt_reader_start_locked(struct nxt_usb *nxt)
  * Called on open; the reader then runs until the brick is gone, and stale
  * packets are drained for NXT_DRAIN_MS when it starts.
  *
- * Return: 0, -%ENODEV if the brick is gone, or -%EINTR.
+ * Return: 0, -%ENODEV if the brick is gone, or -%ERESTARTSYS (a signal
+ * while waiting for @io_mutex: nothing was done, and the open may be
+ * restarted).
  */
 int nxt_reader_ensure(struct nxt_usb *nxt)
 {
 	int ret;
 
 	if (mutex_lock_interruptible(&nxt->io_mutex))
-		return -EINTR;
+		return -ERESTARTSYS;
 	if (nxt->intf) {
 		nxt->reader_wanted = true;
 		ret = nxt_reader_start_locked(nxt);
@@ -705,8 +708,10 @@ static int nxt_submit(struct nxt_usb *nxt, struct nxt_xfer *x, struct urb *urb,
 		x->sent = false;
 	else if (nxt->cur == x && x->status == -EINPROGRESS)
 		mod_timer(&nxt->timer, x->deadline);
-	if (!ret)
+	if (!ret) {
 		nxt->stats.telegrams++;
+		nxt_info_note_sent(&nxt->info, x->tg, x->len);
+	}
 	trace_nxt_usb_tx(nxt_name(nxt), x, x->tg[0], x->tg[1], x->len, ret);
 	spin_unlock_irq(&nxt->lock);
 	if (ret) {
@@ -775,6 +780,8 @@ static int nxt_xfer_run(struct nxt_usb *nxt, struct nxt_xfer *x, const u8 *tg,
 	if (want < 0)
 		return want;
 
+	/* poll() reads @x->status under @lock alone: write it under @lock. */
+	spin_lock_irq(&nxt->lock);
 	memset(x, 0, sizeof(*x));
 	x->nxt = nxt;
 	INIT_LIST_HEAD(&x->queue);
@@ -783,6 +790,7 @@ static int nxt_xfer_run(struct nxt_usb *nxt, struct nxt_xfer *x, const u8 *tg,
 	x->len = len;
 	x->want_reply = want;
 	x->reply_wait = reply_wait && want;
+	spin_unlock_irq(&nxt->lock);
 
 	urb = usb_alloc_urb(0, GFP_KERNEL);
 	if (!urb)
@@ -1072,7 +1080,6 @@ static int nxt_usb_probe(struct usb_interface *intf,
 	timer_setup(&nxt->timer, nxt_timer_fn, 0);
 	INIT_DELAYED_WORK(&nxt->recover_work, nxt_recover_work);
 	INIT_DELAYED_WORK(&nxt->drain_work, nxt_drain_work);
-	nxt_info_init(&nxt->info);
 	nxt->udev = usb_get_dev(interface_to_usbdev(intf));
 	nxt->intf = intf;
 	nxt->out_pipe = usb_sndbulkpipe(nxt->udev, usb_endpoint_num(out));
@@ -1100,7 +1107,10 @@ static int nxt_usb_probe(struct usb_interface *intf,
 	debugfs_create_file("counters", 0400, nxt->debugfs, nxt,
 			    &nxt_counters_fops);
 
-	/* Nothing is sent to the brick until someone opens it or reads sysfs. */
+	/*
+	 * Nothing is sent to the brick until a program that opened it for
+	 * writing sends a telegram: not at probe, not from sysfs.
+	 */
 	dev_info(&intf->dev, "LEGO NXT brick %s now at %s\n",
 		 nxt->udev->serial ?: "(no serial)", dev_name(intf->usb_dev));
 	return 0;
@@ -1183,7 +1193,6 @@ static int nxt_usb_post_reset(struct usb_interface *intf)
 	spin_unlock_irq(&nxt->lock);
 	nxt_forget_halts(nxt);
 	nxt->suspended = false;
-	nxt_info_invalidate(&nxt->info, true);
 	nxt_reader_start_locked(nxt);
 	mutex_unlock(&nxt->io_mutex);
 	return 0;
@@ -1234,7 +1243,6 @@ static int nxt_usb_reset_resume(struct usb_interface *intf)
 	/* The brick was reset: its endpoints are no longer halted. */
 	trace_nxt_usb_reset(nxt_name(nxt), NXT_USB_TRACE_RESET_RESUME);
 	nxt_forget_halts(nxt);
-	nxt_info_invalidate(&nxt->info, true);
 	return nxt_usb_resume(intf);
 }
 

@@ -37,7 +37,9 @@
  * @lock (spinlock, taken in URB completions and the timer) protects the
  * slot @cur and the state of the transaction in it, the @queue of waiters
  * for it, @reader_running, @drain_until, @orphan, @stalls, the halt flags,
- * @gone and the reply hand-off.
+ * @gone, @info and the reply hand-off. Every write of a transaction's
+ * @status is made under it, its first (nxt_xfer_run()) included, since
+ * poll() reads it without the open file's lock.
  * Order: @io_mutex, then @lock.
  *
  * Lifetime
@@ -69,42 +71,6 @@
 /* Reply timeout of a new open file, and its limit. */
 #define NXT_TIMEOUT_DEFAULT_MS	1000
 #define NXT_TIMEOUT_MAX_MS	60000
-
-/**
- * struct nxt_info - what the sysfs attributes show, cached
- * @lock: one query at a time; protects the values below. The valid flags
- *	are also cleared without it (nxt_info_invalidate()).
- * @versions_valid: GetVersions was asked since the last reset
- * @versions_err: its result: 0 (@protocol and @firmware hold the reply)
- *	or a negative errno, kept for NXT_INFO_MAX_AGE after @versions_time
- * @versions_time: 64-bit jiffies of the last GetVersions
- * @protocol: protocol version, major and minor
- * @firmware: firmware version, major and minor
- * @device_valid: GetDeviceInfo was asked at @device_time
- * @device_err: its result: 0 (@device holds the reply) or a negative errno
- * @device_time: 64-bit jiffies of the last GetDeviceInfo
- * @device: name, Bluetooth address and free flash
- * @battery_valid: GetBatteryLevel was asked at @battery_time
- * @battery_err: its result: 0 (@battery holds the reply) or a negative errno
- * @battery_time: 64-bit jiffies of the last GetBatteryLevel
- * @battery: battery voltage in millivolts
- */
-struct nxt_info {
-	struct mutex lock;	/* see above */
-	bool versions_valid;
-	int versions_err;
-	u64 versions_time;
-	u8 protocol[2];
-	u8 firmware[2];
-	bool device_valid;
-	int device_err;
-	u64 device_time;
-	struct nxt_device_info device;
-	bool battery_valid;
-	int battery_err;
-	u64 battery_time;
-	u16 battery;
-};
 
 /**
  * struct nxt_stats - a brick's counters, in debugfs (under &nxt_usb.lock)
@@ -180,7 +146,8 @@ struct nxt_stats {
  * @halted_in: the IN endpoint stalled (@lock)
  * @halted_out: the OUT endpoint stalled (@lock)
  * @stalls: IN stalls in a row, with no packet in between (@lock)
- * @info: the cached brick information behind the sysfs attributes
+ * @info: what the brick last said about itself, from the replies that
+ *	passed (@lock): what the sysfs attributes show
  * @stats: counters (@lock)
  * @debugfs: the brick's directory in debugfs (lego_nxt_usb/USBDEV)
  */
@@ -215,7 +182,7 @@ struct nxt_usb {
 	bool halted_out;
 	u8 stalls;
 
-	struct nxt_info info;
+	struct nxt_brick_info info;
 	struct nxt_stats stats;
 	struct dentry *debugfs;
 };
@@ -290,8 +257,5 @@ extern struct usb_class_driver nxt_usb_class;
 
 /* nxt_sysfs.c */
 extern const struct attribute_group *nxt_groups[];
-void nxt_info_init(struct nxt_info *info);
-void nxt_info_invalidate(struct nxt_info *info, bool all);
-void nxt_info_telegram_sent(struct nxt_info *info, const u8 *tg);
 
 #endif /* _NXT_USB_H */

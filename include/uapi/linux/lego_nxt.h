@@ -14,6 +14,10 @@
  *    NXT_IOC_MESSAGE_READ), which checks the arguments, builds the telegram,
  *    waits for the reply and decodes it.
  *
+ * All three need a file opened for writing (EBADF otherwise): a file
+ * opened O_RDONLY cannot make the brick act. NXT_IOC_SET_TIMEOUT and
+ * NXT_IOC_GET_TIMEOUT send nothing and work on any open file.
+ *
  * Every typed structure has a @status member: the brick's status byte
  * (enum nxt_status), copied back to userspace as is. When it is not
  * NXT_STATUS_SUCCESS, the ioctl still copies the structure back and then
@@ -571,14 +575,15 @@ struct nxt_ls_read {
 /**
  * NXT_IOC_TRANSACT - send any telegram and wait for its reply
  *
- * Errors: EINVAL (@length under NXT_TELEGRAM_MIN, or a type byte that is
- * not a command), EMSGSIZE (@length over NXT_TELEGRAM_MAX), ETIMEDOUT (no
- * reply within the file's timeout), EPROTO (only packets that were not the
- * reply came within the timeout: wrong type, opcode, length, or echoed port
- * or inbox), EPIPE (an endpoint stalled), EIO (a USB reset or suspend, or a
- * transfer error), ENODEV (the brick was unplugged), EAGAIN (O_NONBLOCK
- * and the brick busy: nothing was sent), EINTR (a signal after the
- * telegram was sent).
+ * Errors: EBADF (the file is not open for writing), EINVAL (@length under
+ * NXT_TELEGRAM_MIN or under what the telegram's command reads, or a type
+ * byte that is not a command), EMSGSIZE (@length over NXT_TELEGRAM_MAX),
+ * ETIMEDOUT (no reply within the file's timeout), EPROTO (only packets
+ * that were not the reply came within the timeout: wrong type, opcode,
+ * length, or echoed port or inbox), EPIPE (an endpoint stalled), EIO (a
+ * USB reset or suspend, or a transfer error), ENODEV (the brick was
+ * unplugged), EAGAIN (O_NONBLOCK and the brick busy: nothing was sent),
+ * EINTR (a signal after the telegram was sent).
  */
 #define NXT_IOC_TRANSACT	_IOWR(NXT_IOC_MAGIC, 0x00, struct nxt_transaction)
 
