@@ -9,8 +9,8 @@
 #         Documentation/lego/ev3-uart.rst), and for `echo MODE > mode`,
 #         write access to the sensor's mode (root, or the group "lego" with
 #         tools/udev/90-lego-ev3-sensors.rules); for the NXT part, the
-#         lego_nxt_usb module and a brick on USB. A part whose device is
-#         missing is skipped.
+#         lego_nxt_usb module, a brick on USB and nxtctl. A part whose
+#         device is missing is skipped.
 # Run:    sh shell-session.sh [MODE]
 #         MODE is a mode of the first sensor to switch to, e.g. COL-COLOR.
 
@@ -36,11 +36,14 @@ for s in /sys/class/lego-sensor/sensor*; do
 	break
 done
 
-# The NXT bricks: one node each, and their attributes in sysfs.
+# The NXT bricks: one node each, and their attributes in sysfs. Reading
+# them sends nothing to the brick: they show what it last answered a user
+# of its node (ENODATA before), so ask it first.
 for n in /dev/nxt[0-9]*; do
 	[ -c "$n" ] || break
 	set -x
 	ls -l /dev/nxt*
+	nxtctl -d "$n" info >/dev/null
 	cd /sys/class/usbmisc/"${n#/dev/}"/device
 	cat brick_name bt_address firmware_version battery_mv
 	set +x

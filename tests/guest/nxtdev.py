@@ -78,6 +78,46 @@ IOCTLS = {
 }
 
 
+# What the firmware reads of each known command (drivers/lego/nxt/nxt_proto.c,
+# nxt_request_complete()): opcode -> (shortest telegram, offset of a string
+# that must end in the telegram, or 0). Written out again here from the
+# firmware's handlers, so that the driver's table is checked, not copied.
+DIRECT_REQUEST = {
+    0x00: (3, 2), 0x01: (2, 0), 0x02: (4, 3), 0x03: (6, 0), 0x04: (12, 0), 0x05: (5, 0),
+    0x06: (3, 0), 0x07: (3, 0), 0x08: (3, 0), 0x09: (4, 0), 0x0a: (4, 0), 0x0b: (2, 0),
+    0x0c: (2, 0), 0x0d: (2, 0), 0x0e: (3, 0), 0x0f: (5, 0), 0x10: (3, 0), 0x11: (2, 0),
+    0x13: (5, 0), 0x19: (3, 0), 0x1a: (6, 0), 0x1b: (2, 0), 0x1c: (3, 0), 0x1d: (2, 0),
+    0x1e: (3, 0), 0x1f: (4, 0), 0x20: (3, 0), 0x21: (3, 0),
+}
+SYSTEM_REQUEST = {
+    0x80: (3, 2), 0x81: (26, 0), 0x82: (5, 0), 0x83: (3, 0), 0x84: (3, 0), 0x85: (3, 2),
+    0x86: (3, 2), 0x87: (3, 0), 0x88: (2, 0), 0x89: (26, 0), 0x8b: (26, 0), 0x8c: (3, 2),
+    0x8d: (3, 0), 0x90: (3, 2), 0x91: (3, 0), 0x92: (3, 0), 0x94: (10, 0), 0x95: (10, 0),
+    0x97: (3, 2), 0x98: (3, 2), 0x9a: (2, 0), 0x9b: (2, 0), 0xa0: (2, 0), 0xa1: (3, 0),
+    0xa2: (4, 0), 0xa4: (2, 0),
+}
+
+
+def request_complete(tg):
+    """Whether a command telegram (2 to 64 bytes, type 0x00/0x01/0x80/0x81)
+    holds every byte its command reads: else the driver refuses it (EINVAL)."""
+    table = DIRECT_REQUEST if tg[0] & 0x7f == 0x00 else SYSTEM_REQUEST
+    if tg[1] not in table:
+        return True
+    need, string_at = table[tg[1]]
+    if len(tg) < need:
+        return False
+    if string_at:
+        return 0 in tg[string_at:]
+    if tg[0] & 0x7f == 0x00 and tg[1] in (0x09, 0x0f):
+        need += tg[3]                   # MessageWrite size, LSWrite tx_length
+    elif tg[0] & 0x7f == 0x00 and tg[1] == 0x1f and tg[2] == 2:
+        need = 7                        # SetProperty: the sleep time
+    elif tg[0] & 0x7f == 0x01 and tg[1] == 0x95:
+        need += tg[8] | tg[9] << 8      # WriteIOMap's count
+    return len(tg) >= need
+
+
 def struct_size(name):
     return struct.calcsize(STRUCTS[name][0])
 

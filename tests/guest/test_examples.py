@@ -124,12 +124,16 @@ def test_nxt_python_example(brick):
 
 
 def test_shell_session_nxt_part(brick):
-    out = run(['sh', os.path.join(EXAMPLES, 'shell-session.sh')])
+    env = dict(os.environ)
+    env['PATH'] = os.path.join(os.environ.get('LEGO_BUILD', ''), 'tools') + os.pathsep + \
+        env.get('PATH', '')
+    out = run(['sh', os.path.join(EXAMPLES, 'shell-session.sh')], env=env)
     lines = out.splitlines()
     assert lines[0].startswith('$ ls -l ') and brick.node in lines[0].split(), out
-    assert any(s.startswith('c') and s.endswith(' ' + brick.node) for s in lines[1:-7]), out
+    assert any(s.startswith('c') and s.endswith(' ' + brick.node) for s in lines[1:-8]), out
     name = os.path.basename(brick.node)
-    assert lines[-7:] == [
+    assert lines[-8:] == [
+        '$ nxtctl -d %s info' % brick.node,
         '$ cd /sys/class/usbmisc/%s/device' % name,
         '$ cat brick_name bt_address firmware_version battery_mv',
         'NXT', HOST.lower(), '1.29', str(brick.fw.battery_mv),   # bt_address: lower case

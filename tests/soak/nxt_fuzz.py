@@ -275,6 +275,8 @@ def telegram_errno(tg):
         return E.EMSGSIZE
     if len(tg) < 2 or tg[0] not in (0x00, 0x01, 0x80, 0x81):
         return E.EINVAL
+    if not nxt.request_complete(tg):
+        return E.EINVAL     # shorter than what its command reads
     return None
 
 
@@ -841,9 +843,10 @@ class Sequence:
         except OSError as e:
             value, err = None, e.errno
         self.note('sysfs', err)
-        # The transaction's errno, ENOENT once the brick is gone, or the
-        # errno of the status byte of a (hostile) reply (nxt_info_query()).
-        sysfs_ok = TRANSACTION - {E.EAGAIN, E.EINTR} | {E.ENOENT} | set(STATUS_ERRNO.values())
+        # The attributes show what replies to the users' telegrams said and
+        # never ask the brick: ENODATA while no such reply has come, ENOENT
+        # once the brick is gone, and no transaction's errno.
+        sysfs_ok = {E.ENODATA, E.ENOENT}
         if self.strict and err == E.EPROTO:
             self.eproto.append('sequence %#x op %d (%s): EPROTO from an honest brick' % (
                 self.seed, i, describe(op)))
@@ -851,7 +854,7 @@ class Sequence:
             self.strict_failures.append('sequence %#x op %d (%s): %s from an honest brick '
                                         'that was neither reset nor unplugged' % (
                                             self.seed, i, describe(op), ename(err)))
-        elif err and (err not in sysfs_ok or self.honest and err not in TRANSACTION | {E.ENOENT}):
+        elif err and err not in sysfs_ok:
             self.fail(i, op, 'reading %s gave %s' % (op[1], ename(err)))
         if err == E.EPIPE and self.honest:
             self.fail(i, op, 'EPIPE from an honest brick')

@@ -479,6 +479,44 @@ fail:
 	return -1;
 }
 
+/*
+ * Asks the brick behind @dev for its name and versions. The driver's
+ * attributes show only what replies to its users' telegrams said, and
+ * ENODATA before: this fills them. Does nothing if @dev cannot be opened
+ * for writing.
+ */
+static void ask_brick_info(const char *dev)
+{
+	static const __u8 ops[] = { NXT_SYS_GET_DEVICE_INFO, NXT_SYS_GET_VERSIONS };
+	struct nxt_transaction t;
+	size_t i;
+	int fd;
+
+	fd = open(dev, O_RDWR | O_CLOEXEC);
+	if (fd < 0)
+		return;
+	for (i = 0; i < sizeof(ops); i++) {
+		memset(&t, 0, sizeof(t));
+		t.telegram[0] = NXT_SYSTEM_CMD;
+		t.telegram[1] = ops[i];
+		t.length = 2;
+		if (ioctl(fd, NXT_IOC_TRANSACT, &t) < 0)
+			break;
+	}
+	close(fd);
+}
+
+/* The brick's name, address and firmware version; 0 if all were read. */
+static int read_list_attrs(const char *node, char *name, char *addr, char *fw)
+{
+	int ret = 0;
+
+	ret |= read_attr(node, "brick_name", name, 64);
+	ret |= read_attr(node, "bt_address", addr, 64);
+	ret |= read_attr(node, "firmware_version", fw, 32);
+	return ret;
+}
+
 static int cmd_list(int argc, char **argv)
 {
 	char *pos[1], name[64], addr[64], fw[32];
@@ -494,9 +532,10 @@ static int cmd_list(int argc, char **argv)
 		return EXIT_OK;
 	for (i = 0; i < g.gl_pathc; i++) {
 		node = strrchr(g.gl_pathv[i], '/') + 1;
-		read_attr(node, "brick_name", name, sizeof(name));
-		read_attr(node, "bt_address", addr, sizeof(addr));
-		read_attr(node, "firmware_version", fw, sizeof(fw));
+		if (read_list_attrs(node, name, addr, fw)) {
+			ask_brick_info(g.gl_pathv[i]);
+			read_list_attrs(node, name, addr, fw);
+		}
 		printf("%s\t%s\t%s\t%s\n", g.gl_pathv[i], name, addr, fw);
 	}
 	globfree(&g);

@@ -97,10 +97,11 @@ def _may_match(node, name, host):
     """False when the sysfs attributes show that the brick cannot match.
 
     The host filter compares the USB serial, which is the brick's Bluetooth
-    address and costs no transaction; the name filter reads brick_name (one
-    GetDeviceInfo, cached by the driver for a second). Unreadable attributes
-    do not exclude a brick: the locator checks both filters again with
-    GetDeviceInfo on the bricks this backend returns.
+    address and costs no transaction; the name filter reads brick_name,
+    which costs none either: the driver shows the name from the last
+    GetDeviceInfo reply a user of the brick got, and ENODATA before.
+    Unreadable attributes do not exclude a brick: the locator checks both
+    filters again with GetDeviceInfo on the bricks this backend returns.
     """
     intf = _sysfs_dir(node)
     if intf is None:
