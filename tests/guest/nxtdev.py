@@ -108,7 +108,8 @@ def request_complete(tg):
     if len(tg) < need:
         return False
     if string_at:
-        return 0 in tg[string_at:]
+        # A brick name may also be its 15 characters without a NUL.
+        return 0 in tg[string_at:] or (tg[1] == 0x98 and len(tg) >= string_at + 15)
     if tg[0] & 0x7f == 0x00 and tg[1] in (0x09, 0x0f):
         need += tg[3]                   # MessageWrite size, LSWrite tx_length
     elif tg[0] & 0x7f == 0x00 and tg[1] == 0x1f and tg[2] == 2:

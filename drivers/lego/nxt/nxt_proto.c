@@ -276,6 +276,7 @@ static const u8 nxt_system_reply_len[] = {
 struct nxt_request_shape {
 	u8 len;
 	u8 string_at;
+	u8 string_max;	/* the string ends there without a NUL too; 0: no limit */
 };
 
 /* Direct commands; { 0, 0 } for opcodes the firmware does not know. */
@@ -331,7 +332,8 @@ static const struct nxt_request_shape nxt_system_req[] = {
 	[0x14] = { .len = 10 },	/* ReadIOMap */
 	[0x15] = { .len = 10 },	/* WriteIOMap: and the data */
 	[0x17] = { .len = 3, .string_at = 2 },	/* BootCommand: "Let's dance: SAMBA" */
-	[0x18] = { .len = 3, .string_at = 2 },	/* SetBrickName: name */
+	/* SetBrickName: the firmware takes 15 characters at most. */
+	[0x18] = { .len = 3, .string_at = 2, .string_max = 15 },
 	[0x1a] = { .len = 2 },		/* GetBTAddress */
 	[0x1b] = { .len = 2 },		/* GetDeviceInfo */
 	[0x20] = { .len = 2 },		/* DeleteUserFlash */
@@ -351,7 +353,8 @@ static const struct nxt_request_shape nxt_system_req[] = {
  * earlier telegrams, another process's perhaps: a short SetOutputState
  * drives a motor with them. A telegram must therefore hold every argument
  * of its command, the data that a count in it announces (MessageWrite,
- * LSWrite, WriteIOMap), and the NUL of a string at its end. Opcodes the
+ * LSWrite, WriteIOMap), and the NUL of a string at its end (or, for a brick
+ * name, its 15 characters: nxt-python sends them without a NUL). Opcodes the
  * firmware does not know are not checked: it answers them with an error.
  *
  * Return: true if the telegram may be sent.
@@ -372,7 +375,8 @@ bool nxt_request_complete(const u8 *tg, size_t len)
 	if (len < shape->len)
 		return false;
 	if (shape->string_at)
-		return memchr(tg + shape->string_at, 0, len - shape->string_at);
+		return memchr(tg + shape->string_at, 0, len - shape->string_at) ||
+		       (shape->string_max && len >= shape->string_at + shape->string_max);
 
 	need = shape->len;
 	if ((tg[0] & ~0x80) == NXT_DIRECT_CMD) {

@@ -465,6 +465,9 @@ static void nxt_test_request_strings_and_counts(struct kunit *test)
 	/* The NUL of a name, not its 20 bytes, ends it: nxt-python's SetBrickName. */
 	static const u8 name15[17] = { 0x01, 0x98, 'N', 'X', 'T' };
 	static const u8 no_nul[] = { 0x01, 0x98, 'N', 'X', 'T' };
+	/* 15 characters, no NUL: what the firmware reads of a brick name. */
+	static const u8 name_full[17] = { 0x01, 0x98, 'A', 'B', 'C', 'D', 'E', 'F', 'G',
+					  'H', 'I', 'J', 'K', 'L', 'M', 'N', 'O' };
 	static const u8 run_no_nul[] = { 0x00, 0x00, 'a', '.', 'r', 'x', 'e' };
 	/* MessageWrite of 8 bytes with 7 sent; LSWrite of 3 bytes with 2. */
 	static const u8 msg_short[] = { 0x00, 0x09, 0x03, 0x08, 'a', 'b', 'c', 'd', 'e', 'f', 0 };
@@ -477,6 +480,8 @@ static void nxt_test_request_strings_and_counts(struct kunit *test)
 
 	KUNIT_EXPECT_TRUE(test, nxt_request_complete(name15, sizeof(name15)));
 	KUNIT_EXPECT_FALSE(test, nxt_request_complete(no_nul, sizeof(no_nul)));
+	KUNIT_EXPECT_TRUE(test, nxt_request_complete(name_full, sizeof(name_full)));
+	KUNIT_EXPECT_FALSE(test, nxt_request_complete(name_full, sizeof(name_full) - 1));
 	KUNIT_EXPECT_FALSE(test, nxt_request_complete(run_no_nul, sizeof(run_no_nul)));
 	KUNIT_EXPECT_FALSE(test, nxt_request_complete(msg_short, sizeof(msg_short)));
 	KUNIT_EXPECT_FALSE(test, nxt_request_complete(ls_short, sizeof(ls_short)));
