@@ -712,7 +712,10 @@ def usb_node(serial):
 def driver_of(usbdir):
     """The driver bound to the brick's interface 0, or None."""
     link = os.path.join(usbdir, os.path.basename(usbdir) + ':1.0', 'driver')
-    return os.path.basename(os.readlink(link)) if os.path.lexists(link) else None
+    try:
+        return os.path.basename(os.readlink(link))
+    except FileNotFoundError:      # none, or unbound right now
+        return None
 
 
 LIBUSB_PROGRAM = r"""
