@@ -186,7 +186,7 @@ static ssize_t nxt_attr_show(struct device *dev, char *buf, enum nxt_attr which)
 	struct nxt_xfer *x;
 	int ret;
 
-	x = kzalloc(sizeof(*x), GFP_KERNEL);
+	x = kzalloc_obj(*x, GFP_KERNEL);
 	if (!x)
 		return -ENOMEM;
 	if (mutex_lock_interruptible(&info->lock)) {
