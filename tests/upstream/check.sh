@@ -160,14 +160,29 @@ step_kernel_doc() {
 	[ -z "$out" ] || { echo "$out"; return 1; }
 }
 
+# get_abi COMMAND ARGS...: the tree's ABI tool on Documentation/ABI:
+# scripts/get_abi.pl until 6.13, then get_abi.py (in scripts/, later in
+# tools/docs/), whose --dir comes before the command.
+get_abi() {
+	local cmd=$1
+	shift
+	if [ -f scripts/get_abi.pl ]; then
+		scripts/get_abi.pl "$cmd" --dir Documentation/ABI "$@"
+	elif [ -f tools/docs/get_abi.py ]; then
+		python3 tools/docs/get_abi.py --dir Documentation/ABI "$cmd" "$@"
+	else
+		python3 scripts/get_abi.py --dir Documentation/ABI "$cmd" "$@"
+	fi
+}
+
 step_abi() {
 	local out
 	mapfile -t files < <(added 'Documentation/ABI/*')
 	[ ${#files[@]} -gt 0 ] || { echo "no ABI files"; return 1; }
-	out=$(cd "$work" && scripts/get_abi.pl validate --dir Documentation/ABI 2>&1) || { echo "$out"; return 1; }
+	out=$(cd "$work" && get_abi validate 2>&1) || { echo "$out"; return 1; }
 	echo "${#files[@]} files: ${files[*]}"
 	# It did read them.
-	(cd "$work" && scripts/get_abi.pl search '/sys/class/lego-sensor/sensor<N>/mode$') |
+	(cd "$work" && get_abi search '/sys/class/lego-sensor/sensor<N>/mode$') |
 		grep 'sysfs-class-lego-sensor' >/dev/null || { echo "get_abi.pl does not find the lego-sensor class"; return 1; }
 	# The tree's own ABI files have warnings of their own; ours have none.
 	out=$(echo "$out" | grep -F -e lego -e LEGO)
