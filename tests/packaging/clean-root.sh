@@ -1,9 +1,9 @@
 #!/usr/bin/env bash
 # tests/install-deps.sh on a new Debian 12 machine: a clean bookworm root
 # (debootstrap, minbase), in which install-deps.sh installs what it lists,
-# then coccicheck's OCaml semantic patches run (spatch compiles their
-# scripts with the OCaml compiler: without it, it stops with "No OCaml
-# compiler found").
+# then coccicheck's semantic patches with scripts run: spatch compiles
+# OCaml scripts with the OCaml compiler (without it, it stops with "No
+# OCaml compiler found") and loads libpython3.11.so for Python ones.
 #
 #   tests/packaging/clean-root.sh [--force]
 #
@@ -19,7 +19,8 @@
 # Release files are past their Valid-Until). PyPI packages are left out
 # (LEGO_DEPS_NO_PIP=1): only the Debian packages are checked here.
 #
-# Environment: LEGO_DEBIAN_MIRROR (default http://deb.debian.org/debian).
+# Environment: LEGO_DEBIAN_MIRROR (default http://deb.debian.org/debian),
+# LEGO_DEBIAN_SECURITY_MIRROR (default http://deb.debian.org/debian-security).
 set -euo pipefail
 top=$(cd "$(dirname "$0")/../.." && pwd)
 # shellcheck source=tests/kernel/lib.sh
@@ -30,11 +31,15 @@ force=0
 [ "${1:-}" = --force ] && force=1
 prog=clean-root
 
-# The semantic patches with OCaml scripts, from the newest kernel's tree.
+# The semantic patches with OCaml or Python scripts, from the newest
+# kernel's tree.
 ktree=$("$top/tests/kernel/build-kernel.sh" --tree-only newest 2>/dev/null) ||
 	{ echo "$prog: no newest test kernel tree (tests/kernel/build-kernel.sh newest)" >&2; exit 1; }
-mapfile -t cocci < <(grep -l -E '^@ *(script|initialize|finalize) *: *ocaml' -r "$ktree/scripts/coccinelle" | sort)
-[ ${#cocci[@]} -gt 0 ] || { echo "$prog: no OCaml semantic patch in $ktree" >&2; exit 1; }
+# Those with a report mode, which make coccicheck MODE=report runs (it skips
+# the others, as here).
+mapfile -t cocci < <(grep -l -E '^@ *(script|initialize|finalize) *: *(ocaml|python)' -r "$ktree/scripts/coccinelle" |
+	xargs grep -l -E '^virtual\b.*\breport\b' | sort)
+[ ${#cocci[@]} -gt 0 ] || { echo "$prog: no semantic patch with scripts in $ktree" >&2; exit 1; }
 
 recipe=1
 key=$( { echo "recipe $recipe"; cat "$top/tests/install-deps.sh" "$top/tests/requirements.txt" "${cocci[@]}"; } |
@@ -53,6 +58,11 @@ echo "$prog: debootstrap bookworm (minbase) into $root" >&2
 debootstrap --variant=minbase bookworm "$root" "$mirror" >"$work/debootstrap.log" 2>&1 ||
 	{ tail -n 20 "$work/debootstrap.log" >&2; exit 1; }
 cp /etc/resolv.conf "$root/etc/resolv.conf"
+# The suites a Debian 12 installation has (debootstrap sets bookworm alone):
+# linux-source-6.12 comes with bookworm's updates.
+printf 'deb %s %s main\n' "$mirror" bookworm "$mirror" bookworm-updates \
+	"${LEGO_DEBIAN_SECURITY_MIRROR:-http://deb.debian.org/debian-security}" bookworm-security \
+	>"$root/etc/apt/sources.list"
 grep -h -E '^Acquire::Check-(Valid-Until|Date)' /etc/apt/apt.conf.d/* 2>/dev/null |
 	sort -u >"$root/etc/apt/apt.conf.d/99mirror-snapshot" || true
 
@@ -78,7 +88,7 @@ for c in "$root"/lego/cocci/*.cocci; do
 		cat "$root/lego/$n.out"
 		exit 1
 	fi
-	if grep -q 'No OCaml compiler' "$root/lego/$n.out"; then
+	if grep -q -e 'No OCaml compiler' -e 'find_library' "$root/lego/$n.out"; then
 		cat "$root/lego/$n.out"
 		exit 1
 	fi
@@ -87,4 +97,4 @@ done
 EOF
 cat "$work/run.log" | grep -E '^(installed|spatch)' >&2
 echo "$(date -u +%FT%TZ) in $((SECONDS - t0)) s" >"$pass"
-echo "$prog: install-deps.sh and coccicheck's OCaml semantic patches (${#cocci[@]}) passed in a clean Debian 12 root in $((SECONDS - t0)) s"
+echo "$prog: install-deps.sh and coccicheck's semantic patches with scripts (${#cocci[@]}) passed in a clean Debian 12 root in $((SECONDS - t0)) s"
