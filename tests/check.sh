@@ -59,6 +59,9 @@ phase "modules, 6.1 headers (W=1, sparse)" tests/build-modules.sh --sparse "$h61
 phase "cross: arm64, armhf (W=1, sparse)" tests/cross-build.sh "$build"
 phase "checkpatch --strict" env CHECKPATCH="$tree/scripts/checkpatch.pl" tests/checkpatch.sh
 phase "fuzz (short, 2 x 30 s)" tests/fuzz/run.sh --short
+# install-deps.sh (Debian packages) in a clean Debian 12 root, with
+# coccicheck's semantic patches that have scripts; cached per inputs.
+phase "install-deps in a clean Debian 12 root" tests/packaging/clean-root.sh
 phase "make install, dkms-source (host)" env LEGO_KERNEL_TREE="$tree" \
 	python3 -m pytest -q -p no:cacheprovider tests/packaging
 phase "upstream series: in-tree rules (host)" \

@@ -51,14 +51,26 @@
 
 /*
  * 6.16: bin_attribute callbacks take a const struct bin_attribute, and an
- * attribute_group's bin_attrs lists const ones: declare the callbacks'
- * attribute "LEGO_BIN_ATTR_CONST struct bin_attribute *", and the list
- * "static LEGO_BIN_ATTR_CONST struct bin_attribute *LEGO_BIN_ATTR_CONST x[]".
+ * attribute_group's bin_attrs lists const ones. LEGO_BIN_ATTR is the type
+ * the callbacks take ("LEGO_BIN_ATTR *attr"); a group's list is
+ * "static LEGO_BIN_ATTR *LEGO_BIN_ATTR_CONST x[]". (checkpatch's
+ * CONST_STRUCT is ignored for this file: the older kernels' type is not
+ * const.)
  */
 #ifdef LEGO_HAVE_CONST_BIN_ATTR
-#define LEGO_BIN_ATTR_CONST const
+#define LEGO_BIN_ATTR		const struct bin_attribute
+#define LEGO_BIN_ATTR_CONST	const
 #else
+#define LEGO_BIN_ATTR		struct bin_attribute
 #define LEGO_BIN_ATTR_CONST
+#endif
+
+/*
+ * kzalloc_obj(), in the newest kernels: allocate the size of an object's
+ * type, typed. The code always passes the GFP flags.
+ */
+#ifndef LEGO_HAVE_KZALLOC_OBJ
+#define kzalloc_obj(obj, gfp)	kzalloc(sizeof(obj), gfp)
 #endif
 
 /*

@@ -10,13 +10,14 @@ set -euo pipefail
 top=$(cd "$(dirname "$0")/../.." && pwd)
 cd "$top"
 build=${LEGO_BUILD_DIR:-$top/.build}
-kver=6.12
 log=$build/demo-console.log
 mkdir -p "$build"
 
 t0=$SECONDS
 echo "==> [1/4] packages (Debian and PyPI; nothing to do when all are there)"
 tests/install-deps.sh
+# The newest kernel source Debian serves (KVER= picks another series).
+read -r kver _ < <(tests/kernel/fetch-source.sh "${KVER:-newest}")
 echo "==> [2/4] the $kver test kernel (cached; the first build takes 5-20 minutes on 2 cores: a dot a minute)"
 tree=$(tests/kernel/build-kernel.sh "$kver")
 echo "    $tree"

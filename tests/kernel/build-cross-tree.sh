@@ -56,7 +56,7 @@ cache=$(kcache_dir)
 read -r series pkgver tarball < <("$here/fetch-source.sh" "$series") || exit 1
 command -v "${cross}gcc" >/dev/null || { echo "build-cross-tree: ${cross}gcc missing (tests/install-deps.sh installs it)" >&2; exit 1; }
 # Bump when the steps below change in a way that changes the result.
-recipe=2
+recipe=4
 key=$( { echo "$arch $series $pkgver $defconfig recipe $recipe"; cat "$fragment"; } | sha256sum | cut -c1-16)
 # (6.12's entries keep the name they had before other series.)
 entry=$cache/cross-$arch-$key
@@ -88,9 +88,11 @@ fi
 
 # Module.symvers: "CRC<TAB>symbol<TAB>module<TAB>export type<TAB>namespace",
 # from the exports of arch/$karch and of everything outside arch/.
-# 1. EXPORT_SYMBOL*(name[, namespace]) lines of the sources.
+# 1. EXPORT_SYMBOL*(name[, namespace]) and EXPORT_PER_CPU_SYMBOL*(name)
+#    lines of the sources (x86's this_cpu_off and pcpu_hot are per-CPU).
 # 2. Exports a macro builds (EXPORT_SYMBOL(func) in a #define, or with ##,
-#    like _dev_warn or param_ops_int): their files are compiled and the
+#    like _dev_warn or param_ops_int, or x86's __x86_indirect_thunk_rax in
+#    an assembler file): their files are compiled and the
 #    __export_symbol_* markers read from the objects; a file that does not
 #    compile for this architecture is skipped. These are entered without
 #    namespace or GPL restriction (the modules are GPL and import only
@@ -100,7 +102,7 @@ fi
 	dirs=$(ls -d ./*/ | grep -vxE '\./(arch|Documentation|tools|samples|scripts|usr)/')
 	# shellcheck disable=SC2086
 	grep -rhoE --include='*.[chS]' \
-		'^[[:space:]]*EXPORT_SYMBOL(_GPL|_NS|_NS_GPL)?\([[:space:]]*[A-Za-z_][A-Za-z0-9_]*[[:space:]]*(,[[:space:]]*[A-Za-z_][A-Za-z0-9_]*)?[[:space:]]*\)' \
+		'^[[:space:]]*EXPORT_(PER_CPU_)?SYMBOL(_GPL|_NS|_NS_GPL)?\([[:space:]]*[A-Za-z_][A-Za-z0-9_]*[[:space:]]*(,[[:space:]]*[A-Za-z_][A-Za-z0-9_]*)?[[:space:]]*\)' \
 		$dirs "arch/$karch" |
 	sed -E 's/^[[:space:]]*//; s/[[:space:]]//g' |
 	awk -F'[(),]' '{
@@ -109,10 +111,10 @@ fi
 	}' >.lego-exports
 
 	# shellcheck disable=SC2086
-	grep -rlE --include='*.c' 'EXPORT_SYMBOL' $dirs "arch/$karch" |
+	grep -rlE --include='*.[cS]' 'EXPORT_SYMBOL' $dirs "arch/$karch" |
 	xargs awk 'FNR == 1 { prev = "" }
-		/EXPORT_SYMBOL/ && (prev ~ /\\$/ || $0 ~ /##|\\$/) { print FILENAME; nextfile }
-		{ prev = $0 }' | sed 's|^\./||; s|\.c$|.o|' >.lego-macro-objs
+		/EXPORT_SYMBOL/ && (prev ~ /\\$/ || $0 ~ /##|\\$|^[[:space:]]*#[[:space:]]*define/) { print FILENAME; nextfile }
+		{ prev = $0 }' | sed 's|^\./||; s|\.[cS]$|.o|' >.lego-macro-objs
 	# shellcheck disable=SC2046
 	kmake -k -j"$(nproc)" $(cat .lego-macro-objs) >>"$log" 2>&1 || true
 	while read -r o; do

@@ -17,7 +17,7 @@ with --have (tools/upstream/lib.sh's up_have runs the same probes on it):
   accessors (before 6.12 <asm/unaligned.h>, in a block of its own after
   that one, as IIO drivers have it);
 - LEGO_TTY_FLAG, LEGO_TTY_COUNT, LEGO_TTY_WRITE_RET, LEGO_UEVENT_CONST,
-  LEGO_BIN_ATTR_CONST, LEGO_ATTR_CONST, LEGO_GROUP_ATTRS, LEGO_CLASS_CONST,
+  LEGO_BIN_ATTR, LEGO_BIN_ATTR_CONST, LEGO_ATTR_CONST, LEGO_GROUP_ATTRS, LEGO_CLASS_CONST,
   LEGO_IMPORT_KUNIT_NS() and lego_assign_str() become the kernel's types,
   qualifiers, fields and macros, as lego_compat.h defines them for those
   flags;
@@ -31,7 +31,8 @@ with --have (tools/upstream/lib.sh's up_have runs the same probes on it):
   iio_push_to_buffers_with_ts(d, p, size, ts) into
   iio_push_to_buffers_with_timestamp(d, p, ts) (before 6.16),
   iio_for_each_active_channel(d, ch) into for_each_set_bit() over the
-  device's active_scan_mask and masklength (before 6.12);
+  device's active_scan_mask and masklength (before 6.12), kzalloc_obj(obj,
+  gfp) into kzalloc(sizeof(obj), gfp) where the tree has no kzalloc_obj();
 - unifdef -DN_LEGOEV3: the uapi header's fallback ldisc number goes, the
   tree reserves one in <linux/tty.h>.
 
@@ -66,7 +67,7 @@ from places import map_paths, place  # noqa: E402
 LEGO_DOCS = os.path.join(HERE, '..', '..', 'Documentation', 'lego')
 
 LEFTOVER = re.compile(r'lego_compat|\bLEGO_(HAVE|TTY|UEVENT|IMPORT)_?\w*|lego_assign_str|lego_hrtimer'
-                      r'|\bLEGO_(BIN_ATTR_CONST|ATTR_CONST|GROUP_ATTRS|CLASS_CONST)\b')
+                      r'|\bLEGO_(BIN_ATTR|BIN_ATTR_CONST|ATTR_CONST|GROUP_ATTRS|CLASS_CONST)\b')
 
 
 def die(msg):
@@ -180,6 +181,8 @@ def transform(text, have):
         (r'\bLEGO_TTY_COUNT\b', 'size_t' if rx else 'int'),
         (r'\bLEGO_TTY_WRITE_RET\b', 'ssize_t' if 'TTY_WRITE_SSIZE_T' in have else 'int'),
         (r'\bLEGO_UEVENT_CONST ', 'const ' if 'CONST_UEVENT' in have else ''),
+        (r'\bLEGO_BIN_ATTR\b', 'const struct bin_attribute' if 'CONST_BIN_ATTR' in have
+         else 'struct bin_attribute'),
         (r'\bLEGO_BIN_ATTR_CONST ', 'const ' if 'CONST_BIN_ATTR' in have else ''),
         (r'\bLEGO_ATTR_CONST ', 'const ' if 'ATTRS_CONST' in have else ''),
         (r'\bLEGO_GROUP_ATTRS\b', 'attrs_const' if 'ATTRS_CONST' in have else 'attrs'),
@@ -194,6 +197,8 @@ def transform(text, have):
         subs.append((r'\btimer_container_of\(', 'from_timer('))
     if 'TIMER_DELETE' not in have:
         subs += [(r'\btimer_delete_sync\(', 'del_timer_sync('), (r'\btimer_delete\(', 'del_timer(')]
+    if 'KZALLOC_OBJ' not in have:
+        subs.append((r'\bkzalloc_obj\(([^,()]+), ', r'kzalloc(sizeof(\1), '))
     if 'SYSTEM_DFL_WQ' not in have:
         subs += [(r'\bsystem_dfl_wq\b', 'system_unbound_wq'), (r'\bsystem_percpu_wq\b', 'system_wq')]
     if 'IIO_ACTIVE_CHANNELS' not in have:

@@ -237,7 +237,7 @@ EV3_VALUE_ATTR(6);
 EV3_VALUE_ATTR(7);
 
 static ssize_t bin_data_read(struct file *file, struct kobject *kobj,
-			     LEGO_BIN_ATTR_CONST struct bin_attribute *attr, char *buf,
+			     LEGO_BIN_ATTR *attr, char *buf,
 			     loff_t off, size_t count)
 {
 	struct ev3_uart_sensor_dev *sd = to_sensor(kobj_to_dev(kobj));
@@ -256,7 +256,7 @@ static ssize_t bin_data_read(struct file *file, struct kobject *kobj,
 static BIN_ATTR_RO(bin_data, EV3_UART_MAX_PAYLOAD);
 
 static ssize_t direct_read(struct file *file, struct kobject *kobj,
-			   LEGO_BIN_ATTR_CONST struct bin_attribute *attr, char *buf,
+			   LEGO_BIN_ATTR *attr, char *buf,
 			   loff_t off, size_t count)
 {
 	return -EOPNOTSUPP;
@@ -264,7 +264,7 @@ static ssize_t direct_read(struct file *file, struct kobject *kobj,
 
 /* A write sends the bytes to the sensor in one WRITE message. */
 static ssize_t direct_write(struct file *file, struct kobject *kobj,
-			    LEGO_BIN_ATTR_CONST struct bin_attribute *attr, char *buf,
+			    LEGO_BIN_ATTR *attr, char *buf,
 			    loff_t off, size_t count)
 {
 	int ret;
@@ -301,7 +301,7 @@ static LEGO_ATTR_CONST struct attribute *LEGO_ATTR_CONST ev3_uart_sensor_attrs[]
 	NULL
 };
 
-static LEGO_BIN_ATTR_CONST struct bin_attribute *LEGO_BIN_ATTR_CONST ev3_uart_sensor_bin_attrs[] = {
+static LEGO_BIN_ATTR *LEGO_BIN_ATTR_CONST ev3_uart_sensor_bin_attrs[] = {
 	&bin_attr_bin_data,
 	&bin_attr_direct,
 	NULL
@@ -367,7 +367,7 @@ struct ev3_uart_sensor_dev *ev3_uart_sensor_create(struct ev3_uart_port *port,
 	struct ev3_uart_sensor_dev *sd;
 	int ret;
 
-	sd = kzalloc(sizeof(*sd), GFP_KERNEL);
+	sd = kzalloc_obj(*sd, GFP_KERNEL);
 	if (!sd)
 		return ERR_PTR(-ENOMEM);
 

@@ -775,8 +775,8 @@ static void ev3_uart_ack_work(struct work_struct *work)
 
 	sd = ev3_uart_sensor_create(port, desc);
 	if (IS_ERR(sd)) {
-		pr_err_ratelimited("%s: cannot register sensor: %ld\n",
-				   tty->name, PTR_ERR(sd));
+		pr_err_ratelimited("%s: cannot register sensor: %pe\n",
+				   tty->name, sd);
 		ev3_uart_trace_sensor(port, EV3_UART_TRACE_FAILED, desc, NULL);
 		why = "sensor not registered";
 		goto fail;
@@ -1301,7 +1301,7 @@ static int ev3_uart_open(struct tty_struct *tty)
 	if (!tty->ops->write)
 		return -EOPNOTSUPP;
 
-	port = kzalloc(sizeof(*port), GFP_KERNEL);
+	port = kzalloc_obj(*port, GFP_KERNEL);
 	if (!port)
 		return -ENOMEM;
 

@@ -62,7 +62,7 @@ static int nxt_open(struct inode *inode, struct file *file)
 	if (!nxt)
 		return -ENODEV;
 
-	f = kzalloc(sizeof(*f), GFP_KERNEL);
+	f = kzalloc_obj(*f, GFP_KERNEL);
 	if (!f)
 		return -ENOMEM;
 	f->nxt = nxt;

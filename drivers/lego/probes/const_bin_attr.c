@@ -5,7 +5,7 @@
  */
 #include <linux/sysfs.h>
 
-static_assert(__same_type(((struct bin_attribute *)0)->read,
+static_assert(__same_type(((const struct bin_attribute *)0)->read,
 			  (ssize_t (*)(struct file *, struct kobject *,
 					const struct bin_attribute *, char *, loff_t, size_t))0),
 	      "bin_attribute read");

@@ -1,0 +1,100 @@
+#!/usr/bin/env bash
+# tests/install-deps.sh on a new Debian 12 machine: a clean bookworm root
+# (debootstrap, minbase), in which install-deps.sh installs what it lists,
+# then coccicheck's semantic patches with scripts run: spatch compiles
+# OCaml scripts with the OCaml compiler (without it, it stops with "No
+# OCaml compiler found") and loads libpython3.11.so for Python ones.
+#
+#   tests/packaging/clean-root.sh [--force]
+#
+# A pass is recorded in $LEGO_CACHE/clean-root-<key>.pass, where <key>
+# hashes install-deps.sh, tests/requirements.txt, the semantic patches and
+# the recipe number: the (slow: a few minutes) check runs again when one of
+# them changes, or with --force. The root is made in a scratch directory
+# and removed afterwards.
+#
+# What is not a new machine's: the root reaches the package mirror as the
+# host does, through the host's apt settings for it (/etc/apt/apt.conf.d
+# lines about Release files' dates: mirrors here serve a snapshot whose
+# Release files are past their Valid-Until). PyPI packages are left out
+# (LEGO_DEPS_NO_PIP=1): only the Debian packages are checked here.
+#
+# Environment: LEGO_DEBIAN_MIRROR (default http://deb.debian.org/debian),
+# LEGO_DEBIAN_SECURITY_MIRROR (default http://deb.debian.org/debian-security).
+set -euo pipefail
+top=$(cd "$(dirname "$0")/../.." && pwd)
+# shellcheck source=tests/kernel/lib.sh
+. "$top/tests/kernel/lib.sh"
+cache=$(kcache_dir)
+mirror=${LEGO_DEBIAN_MIRROR:-http://deb.debian.org/debian}
+force=0
+[ "${1:-}" = --force ] && force=1
+prog=clean-root
+
+# The semantic patches with OCaml or Python scripts, from the newest
+# kernel's tree.
+ktree=$("$top/tests/kernel/build-kernel.sh" --tree-only newest 2>/dev/null) ||
+	{ echo "$prog: no newest test kernel tree (tests/kernel/build-kernel.sh newest)" >&2; exit 1; }
+# Those with a report mode, which make coccicheck MODE=report runs (it skips
+# the others, as here).
+mapfile -t cocci < <(grep -l -E '^@ *(script|initialize|finalize) *: *(ocaml|python)' -r "$ktree/scripts/coccinelle" |
+	xargs grep -l -E '^virtual\b.*\breport\b' | sort)
+[ ${#cocci[@]} -gt 0 ] || { echo "$prog: no semantic patch with scripts in $ktree" >&2; exit 1; }
+
+recipe=1
+key=$( { echo "recipe $recipe"; cat "$top/tests/install-deps.sh" "$top/tests/requirements.txt" "${cocci[@]}"; } |
+	sha256sum | cut -c1-16)
+pass=$cache/clean-root-$key.pass
+if [ "$force" = 0 ] && [ -f "$pass" ]; then
+	echo "$prog: passed before for these inputs ($(cat "$pass"))"
+	exit 0
+fi
+
+work=$(mktemp -d "${TMPDIR:-/tmp}/lego-clean-root.XXXXXX")
+trap 'rm -rf "$work"' EXIT
+root=$work/root
+t0=$SECONDS
+echo "$prog: debootstrap bookworm (minbase) into $root" >&2
+debootstrap --variant=minbase bookworm "$root" "$mirror" >"$work/debootstrap.log" 2>&1 ||
+	{ tail -n 20 "$work/debootstrap.log" >&2; exit 1; }
+cp /etc/resolv.conf "$root/etc/resolv.conf"
+# The suites a Debian 12 installation has (debootstrap sets bookworm alone):
+# linux-source-6.12 comes with bookworm's updates.
+printf 'deb %s %s main\n' "$mirror" bookworm "$mirror" bookworm-updates \
+	"${LEGO_DEBIAN_SECURITY_MIRROR:-http://deb.debian.org/debian-security}" bookworm-security \
+	>"$root/etc/apt/sources.list"
+grep -h -E '^Acquire::Check-(Valid-Until|Date)' /etc/apt/apt.conf.d/* 2>/dev/null |
+	sort -u >"$root/etc/apt/apt.conf.d/99mirror-snapshot" || true
+
+mkdir -p "$root/lego/tests" "$root/lego/cocci" "$root/lego/src"
+cp "$top/tests/install-deps.sh" "$top/tests/requirements.txt" "$root/lego/tests/"
+cp "${cocci[@]}" "$root/lego/cocci/"
+cp "$top"/drivers/lego/ev3/*.c "$top"/drivers/lego/nxt/*.c "$root/lego/src/"
+
+# In a private mount namespace: /proc, /sys and /dev for apt and dpkg.
+unshare -m --propagation private bash -s "$root" >"$work/run.log" 2>&1 <<'EOF' || { tail -n 40 "$work/run.log" >&2; exit 1; }
+set -eu
+root=$1
+for d in proc sys dev; do mount --rbind "/$d" "$root/$d"; done
+chroot "$root" env -i PATH=/usr/sbin:/usr/bin:/sbin:/bin HOME=/root LEGO_DEPS_NO_PIP=1 \
+	bash /lego/tests/install-deps.sh
+echo "installed: $(chroot "$root" dpkg-query -W -f '${Package}\n' | wc -l) packages"
+for c in "$root"/lego/cocci/*.cocci; do
+	n=$(basename "$c")
+	# Report mode, as make coccicheck MODE=report runs them.
+	if ! chroot "$root" spatch -D report --no-show-diff --very-quiet \
+		--cocci-file "/lego/cocci/$n" --dir /lego/src >"$root/lego/$n.out" 2>&1; then
+		echo "spatch $n failed:"
+		cat "$root/lego/$n.out"
+		exit 1
+	fi
+	if grep -q -e 'No OCaml compiler' -e 'find_library' "$root/lego/$n.out"; then
+		cat "$root/lego/$n.out"
+		exit 1
+	fi
+	echo "spatch $n: ok"
+done
+EOF
+cat "$work/run.log" | grep -E '^(installed|spatch)' >&2
+echo "$(date -u +%FT%TZ) in $((SECONDS - t0)) s" >"$pass"
+echo "$prog: install-deps.sh and coccicheck's semantic patches with scripts (${#cocci[@]}) passed in a clean Debian 12 root in $((SECONDS - t0)) s"
