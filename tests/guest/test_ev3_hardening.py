@@ -149,6 +149,35 @@ def test_mode_names_with_spaces_and_twins(line):
         assert e.value.errno == errno.EINVAL
 
 
+def test_twin_rgb_modes_get_an_iio_device(line):
+    """Issue 28: a colour sensor (type 29) with two RGB-RAW modes gave two
+    in_intensity_red_raw (and green, blue) channels, and the IIO core
+    refused the whole device. The first RGB-RAW keeps the colour names, the
+    twin's values are indexed intensity channels."""
+    color = ev3.ev3_sensor.COLOR
+    rgb = color.modes[4]
+    sdef = SensorDef(29, 'lego-ev3-color', 3, color.modes[:5] + [rgb], speed=57600,
+                     quirks=False)
+    emu = line.plug(sdef)
+    path = find_sensor(line.address, timeout=15)
+    assert path, 'not registered (events: %s)' % emu.events
+    assert read_attr(path, 'modes') == 'COL-REFLECT COL-AMBIENT COL-COLOR REF-RAW #4 #5'
+    dev = iio_device('lego-ev3-color', timeout=3)
+    assert dev, 'no IIO device: %s' % kernel_log()[-2000:]
+    attrs = iio_attrs(dev)
+    for c in ['red', 'green', 'blue']:
+        assert 'in_intensity_%s_raw' % c in attrs, sorted(attrs)
+    # COL-REFLECT, COL-AMBIENT, REF-RAW (2), RGB-RAW's fourth, the twin's 3.
+    indexed = sorted(a for a in attrs if a.startswith('in_intensity') and
+                     a.endswith('_raw') and a[12:13].isdigit())
+    assert indexed == ['in_intensity%d_raw' % i for i in range(8)], sorted(attrs)
+    assert read_attr(dev, 'in_intensity5_label') == '#5 value0'
+    write_attr(path, 'mode', '#5')
+    emu.set_values(5, [11, 22, 33])
+    assert wait_value(path, 2, 33) == 33
+    assert [int(read_attr(dev, 'in_intensity%d_raw' % i)) for i in (5, 6, 7)] == [11, 22, 33]
+
+
 def test_speed_the_uart_cannot_set(ev3_module):
     """A tty whose speed is locked (TIOCSLCKTRMIOS, as a UART that cannot do
     the sensor's speed): the driver says so once and stops answering that

@@ -2204,6 +2204,83 @@ static void test_chans_bounded(struct kunit *test)
 	KUNIT_EXPECT_EQ(test, ev3_uart_chans_build(s, NULL, 0), 0U);
 }
 
+/*
+ * Every channel's IIO name (type, modifier or index) is unique: the IIO
+ * core refuses a device with two attributes of one name.
+ */
+static void expect_unique_chans(struct kunit *test, const struct ev3_uart_sensor *s,
+				unsigned int want)
+{
+	struct ev3_uart_chan *chans;
+	unsigned int i, j, n;
+
+	n = ev3_uart_chans_build(s, NULL, 0);
+	KUNIT_EXPECT_EQ(test, n, want);
+	chans = kunit_kzalloc(test, (n ?: 1) * sizeof(*chans), GFP_KERNEL);
+	KUNIT_ASSERT_NOT_NULL(test, chans);
+	KUNIT_ASSERT_EQ(test, ev3_uart_chans_build(s, chans, n), n);
+	for (i = 0; i < n; i++) {
+		for (j = i + 1; j < n; j++) {
+			bool same = chans[i].type == chans[j].type &&
+				    chans[i].modifier == chans[j].modifier &&
+				    (chans[i].modifier ||
+				     chans[i].channel == chans[j].channel);
+
+			KUNIT_EXPECT_EQ_MSG(test, same, false,
+					    "type %u: channels %u and %u (modes %u and %u) share a name",
+					    s->type, i, j, chans[i].mode, chans[j].mode);
+		}
+	}
+}
+
+/* Issue 28: a colour sensor (or Powered Up one) with two RGB modes of one name. */
+static void test_chans_twin_rgb_modes(struct kunit *test)
+{
+	struct ev3_uart_sensor *s = kunit_kzalloc(test, sizeof(*s), GFP_KERNEL);
+	struct ev3_uart_chan chans[8];
+	unsigned int i;
+
+	KUNIT_ASSERT_NOT_NULL(test, s);
+	s->type = EV3_UART_TYPE_COLOR;
+	s->num_modes = 3;
+	for (i = 0; i < s->num_modes; i++) {
+		struct ev3_uart_mode *m = &s->modes[i];
+
+		strscpy(m->name, "RGB-RAW", sizeof(m->name));
+		m->raw_max = 1020;
+		m->si_max = 1020;
+		m->num_values = 4;
+		m->data_type = EV3_UART_DATA_S16;
+		m->figures = 4;
+	}
+	/* One mode: red, green, blue, then the fourth value indexed. */
+	s->num_modes = 1;
+	expect_unique_chans(test, s, 4);
+	s->num_modes = 3;
+	expect_unique_chans(test, s, 12);
+	/* The first mode keeps the modifiers; the twins' values are indexed. */
+	KUNIT_ASSERT_EQ(test, ev3_uart_chans_build(s, chans, ARRAY_SIZE(chans)), 12U);
+	KUNIT_EXPECT_EQ(test, chans[0].modifier, IIO_MOD_LIGHT_RED);
+	KUNIT_EXPECT_EQ(test, chans[2].modifier, IIO_MOD_LIGHT_BLUE);
+	KUNIT_EXPECT_EQ(test, chans[3].modifier, 0);
+	KUNIT_EXPECT_EQ(test, chans[3].channel, 0);
+	KUNIT_EXPECT_EQ(test, chans[4].mode, 1);
+	KUNIT_EXPECT_EQ(test, chans[4].modifier, 0);
+	KUNIT_EXPECT_EQ(test, chans[4].channel, 1);
+	KUNIT_EXPECT_EQ(test, chans[7].channel, 4);
+
+	/* Twin RGB I on the Powered Up colour sensors, after another mode. */
+	s->lump = true;
+	s->type = EV3_UART_TYPE_SPIKE_COLOR;
+	strscpy(s->modes[0].name, "REFLT", sizeof(s->modes[0].name));
+	s->modes[0].num_values = 1;
+	for (i = 1; i < s->num_modes; i++)
+		strscpy(s->modes[i].name, "RGB I", sizeof(s->modes[i].name));
+	expect_unique_chans(test, s, 9);
+	s->type = EV3_UART_TYPE_BOOST_CDS;
+	expect_unique_chans(test, s, 9);
+}
+
 static void test_version_string(struct kunit *test)
 {
 	char buf[EV3_UART_VERSION_LEN + 1];
@@ -2353,6 +2430,7 @@ static struct kunit_case ev3_uart_proto_cases[] = {
 	KUNIT_CASE(test_chan_scale),
 	KUNIT_CASE(test_chan_scale_floats),
 	KUNIT_CASE(test_chans_bounded),
+	KUNIT_CASE(test_chans_twin_rgb_modes),
 	KUNIT_CASE(test_mode_tokens),
 	KUNIT_CASE(test_version_string),
 	KUNIT_CASE(test_driver_names_fit),
