@@ -379,6 +379,9 @@ static void ev3_uart_event(struct ev3_uart_port *port,
 	switch (ev->type) {
 	case EV3_UART_EV_SYNC:
 		port->probe_missed = false;
+		/* A TYPE at 2400 during the probe: no need to wait for it. */
+		if (from == EV3_UART_STATE_PROBE)
+			complete(&port->probe_done);
 		pr_debug("%s: sensor type %u syncing\n", port->tty->name,
 			 port->parser.sensor.type);
 		port->stats.syncs++;
@@ -604,8 +607,11 @@ static void ev3_uart_trace_sensor(struct ev3_uart_port *port, u8 what,
  * and send it then, a few hundred bytes in tens of milliseconds instead of
  * seconds at 2400. The others (EV3 sensors, the BOOST colour and distance
  * sensor, devices busy with something else) do not answer: after 30 ms
- * the line goes back to 2400 baud, where the parser hunts as before. Bytes
- * sent at 2400 meanwhile are lost (an EV3 sensor caught in its handshake
+ * the line goes back to 2400 baud, where the parser hunts as before. The
+ * parser hunts for a TYPE at 2400 meanwhile too: on a line that carries
+ * bytes whatever the speed (a pty) an EV3 sensor's TYPE ends the wait, and
+ * its handshake goes on at 2400. On a UART, bytes sent at 2400 meanwhile
+ * arrive garbled and are lost (an EV3 sensor caught in its handshake
  * repeats it). After the answer, the handshake must come within 500 ms
  * (ev3_uart_fast_work()). Only from the port's workqueue, with the parser
  * in SYNC at 2400 baud (else nothing is done).
@@ -658,7 +664,8 @@ static bool ev3_uart_probe(struct ev3_uart_port *port, bool on_break)
 	from = port->parser.state;
 	speed = ev3_uart_parser_probe_end(&port->parser);
 	ev3_uart_trace_state(port, from, NULL, why);
-	port->probe_missed = on_break && speed == EV3_UART_SPEED_MIN;
+	port->probe_missed = on_break && speed == EV3_UART_SPEED_MIN &&
+			     port->parser.state == EV3_UART_STATE_SYNC;
 	if (speed != EV3_UART_SPEED_MIN && !port->closing)
 		queue_delayed_work(port->wq, &port->fast_work,
 				   msecs_to_jiffies(EV3_UART_FAST_SYNC_MS));

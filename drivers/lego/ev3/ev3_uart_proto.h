@@ -200,9 +200,11 @@ struct ev3_uart_sensor {
  *	meanwhile are dropped: they come at a speed the tty is not set to.
  * @EV3_UART_STATE_DATA: data phase, at the sensor's speed
  * @EV3_UART_STATE_PROBE: the host sent SPEED at &ev3_uart_parser.sync_speed
- *	(the fast sync probe) and waits for a Powered Up device's ACK; any
- *	other byte or line error is dropped. The ACK makes it SYNC at that
- *	speed; no ACK, ev3_uart_parser_probe_end() makes it SYNC at 2400.
+ *	(the fast sync probe) and waits for a Powered Up device's ACK; the
+ *	TYPE hunt at 2400 goes on meanwhile, line errors are dropped. The ACK
+ *	makes it SYNC at that speed; a TYPE makes it INFO at 2400 (a sensor
+ *	that talks at 2400, on a line with no speeds such as a pty); neither,
+ *	ev3_uart_parser_probe_end() makes it SYNC at 2400.
  */
 enum ev3_uart_state {
 	EV3_UART_STATE_SYNC,

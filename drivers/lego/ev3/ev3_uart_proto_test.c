@@ -1148,8 +1148,11 @@ static size_t enc_no_speed(u8 *buf)
 /* The probe answered: ACK, then the handshake at 115200, in any batches. */
 static void test_fast_sync_answered(struct kunit *test)
 {
-	/* What a probe meets: garbled bytes, a TYPE, SYNC, NACK, 0xff. */
-	static const u8 junk[] = { 0x00, 0xff, 0x40, 0x3d, 0x82, 0x02, 0x52 };
+	/*
+	 * What a probe meets: garbled bytes, a broken TYPE, SYNC, NACK, 0xff
+	 * (a whole TYPE starts a handshake at 2400: test_probe_meets_type).
+	 */
+	static const u8 junk[] = { 0x00, 0xff, 0x40, 0x3d, 0x83, 0x02, 0x52 };
 	struct ev3_uart_event ev;
 	size_t chunk, len;
 	struct ctx *c;
@@ -1167,13 +1170,17 @@ static void test_fast_sync_answered(struct kunit *test)
 		ev3_uart_parser_start_data(&c->p);
 		KUNIT_EXPECT_EQ(test, c->p.state, EV3_UART_STATE_PROBE);
 
-		/* Garbage and line errors are dropped, a TYPE too. */
+		/*
+		 * Garbage and line errors are dropped: all but the last three
+		 * bytes slid through the TYPE window, the line error emptied it.
+		 */
 		feed(&c->p, junk, sizeof(junk), chunk, &c->r);
 		ev3_uart_parser_line_error(&c->p, &ev);
 		KUNIT_EXPECT_EQ(test, ev.type, EV3_UART_EV_NONE);
 		KUNIT_EXPECT_EQ(test, c->r.n, 0U);
 		KUNIT_EXPECT_EQ(test, c->p.state, EV3_UART_STATE_PROBE);
-		KUNIT_EXPECT_EQ(test, c->p.garbage, (unsigned long)sizeof(junk));
+		KUNIT_EXPECT_EQ(test, c->p.garbage, (unsigned long)sizeof(junk) - 3);
+		KUNIT_EXPECT_EQ(test, c->p.msg_len, 0);
 
 		/* The ACK, and the handshake right behind it. */
 		c->buf[0] = EV3_UART_SYS_ACK;
@@ -1201,6 +1208,81 @@ static void test_fast_sync_answered(struct kunit *test)
 	feed(&c->p, c->buf, len, len, &c->r);
 	KUNIT_ASSERT_EQ(test, last(&c->r)->type, EV3_UART_EV_HANDSHAKE);
 	KUNIT_EXPECT_EQ(test, c->p.sensor.speed, EV3_UART_SPEED_FAST);
+}
+
+/*
+ * Issue 28: an EV3 sensor that starts its handshake (at 2400) while the host
+ * probes, on a line that carries bytes whatever the speed (a pty): its TYPE
+ * starts the handshake at 2400, in any batches, and its first handshake is
+ * the one that connects.
+ */
+static void test_probe_meets_type(struct kunit *test)
+{
+	static const u8 type4[] = { 0x40, 0x04, 0xbb };
+	struct ev3_uart_event ev;
+	size_t chunk, len;
+	struct ctx *c;
+
+	for (chunk = 1; chunk <= 64; chunk *= 4) {
+		c = new_ctx(test);
+		len = enc_handshake(c->buf, &sensors[0]);
+		/* Its first byte came before the probe, the rest during it. */
+		feed(&c->p, c->buf, 1, 1, &c->r);
+		KUNIT_ASSERT_EQ(test, ev3_uart_parser_probe(&c->p, EV3_UART_SPEED_FAST), 0);
+		feed(&c->p, c->buf + 1, 20, chunk, &c->r);
+		KUNIT_ASSERT_EQ(test, c->r.n, 1U);
+		KUNIT_EXPECT_EQ(test, c->r.ev[0].type, EV3_UART_EV_SYNC);
+		KUNIT_EXPECT_EQ(test, c->p.state, EV3_UART_STATE_INFO);
+		KUNIT_EXPECT_EQ(test, c->p.sync_speed, 2400U);
+		/* The host's wait ends: back to 2400, where the rest comes. */
+		KUNIT_EXPECT_EQ(test, ev3_uart_parser_probe_end(&c->p), 2400U);
+		feed(&c->p, c->buf + 21, len - 21, chunk, &c->r);
+		KUNIT_ASSERT_EQ(test, c->r.n, 2U);
+		KUNIT_EXPECT_EQ(test, c->r.ev[1].type, EV3_UART_EV_HANDSHAKE);
+		KUNIT_EXPECT_EQ(test, c->p.sensor.type, 29);
+		KUNIT_EXPECT_EQ(test, c->p.sensor.num_modes, 6);
+		KUNIT_EXPECT_EQ(test, c->p.sensor.speed, 57600U);
+		KUNIT_EXPECT_EQ(test, c->p.garbage, 0UL);
+	}
+
+	/* All of it within the probe; without SPEED it stays at 2400. */
+	c = new_ctx(test);
+	KUNIT_ASSERT_EQ(test, ev3_uart_parser_probe(&c->p, EV3_UART_SPEED_FAST), 0);
+	len = enc_no_speed(c->buf);
+	feed(&c->p, c->buf, len, len, &c->r);
+	KUNIT_ASSERT_EQ(test, c->r.n, 2U);
+	KUNIT_EXPECT_EQ(test, c->r.ev[0].type, EV3_UART_EV_SYNC);
+	KUNIT_EXPECT_EQ(test, c->r.ev[1].type, EV3_UART_EV_HANDSHAKE);
+	KUNIT_EXPECT_EQ(test, c->p.sensor.speed, 2400U);
+	KUNIT_EXPECT_EQ(test, ev3_uart_parser_probe_end(&c->p), 2400U);
+	KUNIT_EXPECT_EQ(test, c->p.state, EV3_UART_STATE_ACKED);
+
+	/* A TYPE of type 4: its 0x04 is no ACK to the probe. */
+	c = new_ctx(test);
+	KUNIT_ASSERT_EQ(test, ev3_uart_parser_probe(&c->p, EV3_UART_SPEED_FAST), 0);
+	feed(&c->p, type4, sizeof(type4), 1, &c->r);
+	KUNIT_ASSERT_EQ(test, c->r.n, 1U);
+	KUNIT_EXPECT_EQ(test, c->r.ev[0].type, EV3_UART_EV_SYNC);
+	KUNIT_EXPECT_EQ(test, c->p.sensor.type, 4);
+	/* But an ACK after other bytes is one; a broken TYPE is not a TYPE. */
+	c = new_ctx(test);
+	KUNIT_ASSERT_EQ(test, ev3_uart_parser_probe(&c->p, EV3_UART_SPEED_FAST), 0);
+	c->buf[0] = 0x40;
+	c->buf[1] = 0x1d;
+	c->buf[2] = EV3_UART_SYS_ACK;
+	feed(&c->p, c->buf, 3, 1, &c->r);
+	KUNIT_ASSERT_EQ(test, c->r.n, 1U);
+	KUNIT_EXPECT_EQ(test, c->r.ev[0].type, EV3_UART_EV_FAST);
+	KUNIT_EXPECT_EQ(test, c->p.sync_speed, EV3_UART_SPEED_FAST);
+	/* A line error in the probe empties the window. */
+	c = new_ctx(test);
+	KUNIT_ASSERT_EQ(test, ev3_uart_parser_probe(&c->p, EV3_UART_SPEED_FAST), 0);
+	feed(&c->p, type4, 2, 2, &c->r);
+	ev3_uart_parser_line_error(&c->p, &ev);
+	KUNIT_EXPECT_EQ(test, ev.type, EV3_UART_EV_NONE);
+	feed(&c->p, type4 + 2, 1, 1, &c->r);
+	KUNIT_EXPECT_EQ(test, c->r.n, 0U);
+	KUNIT_EXPECT_EQ(test, c->p.state, EV3_UART_STATE_PROBE);
 }
 
 /* The probe not answered, or a fast handshake that fails: 2400 again. */
@@ -2402,6 +2484,7 @@ static struct kunit_case ev3_uart_proto_cases[] = {
 	KUNIT_CASE(test_build_speed),
 	KUNIT_CASE(test_fast_sync_answered),
 	KUNIT_CASE(test_fast_sync_unanswered),
+	KUNIT_CASE(test_probe_meets_type),
 	KUNIT_CASE(test_ext_mode_ignored_for_ev3),
 	KUNIT_CASE(test_lump_16_modes_and_flags),
 	KUNIT_CASE(test_ext_mode_and_fast_path),
