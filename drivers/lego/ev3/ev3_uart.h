@@ -14,7 +14,9 @@
  *
  * ev3_uart_port.select_mutex serialises mode changes (one SELECT in flight):
  * a user's (sysfs, IIO buffer) and the restore of the user's mode after a
- * reconnect (ack_work, keepalive_work), which only try it and give way.
+ * reconnect (ack_work, keepalive_work), which only try it and give way. An
+ * IIO buffer's mode (ev3_uart_iio.buffer_mode) is set under it too, with
+ * the port lock, so that no mode change slips in between.
  * ev3_uart_port.tx_mutex serialises writes to the tty (ACK, NACK, SELECT,
  * WRITE, SPEED), which all happen in process context, and protects the
  * transmit queue (see ev3_uart_tx()).
@@ -251,6 +253,8 @@ struct ev3_uart_port {
 
 /* ev3_uart_ldisc.c */
 int ev3_uart_set_mode(struct ev3_uart_sensor_dev *sd, u8 mode);
+int ev3_uart_set_buffer_mode(struct ev3_uart_sensor_dev *sd,
+			     struct ev3_uart_iio *iio, u8 mode);
 int ev3_uart_set_mode_by_name(struct ev3_uart_sensor_dev *sd, const char *name);
 int ev3_uart_show_modes(struct ev3_uart_sensor_dev *sd, char *buf);
 int ev3_uart_show_mode(struct ev3_uart_sensor_dev *sd, char *buf);
@@ -268,6 +272,7 @@ void ev3_uart_sensor_destroy(struct ev3_uart_sensor_dev *sd);
 int ev3_uart_iio_register(struct ev3_uart_sensor_dev *sd);
 void ev3_uart_iio_unregister(struct ev3_uart_sensor_dev *sd);
 bool ev3_uart_iio_mode_busy(struct ev3_uart_sensor_dev *sd, u8 mode);
+void ev3_uart_iio_buffer_on(struct ev3_uart_iio *iio, u8 mode);
 void ev3_uart_iio_push(struct ev3_uart_sensor_dev *sd, u8 mode,
 		       const u8 *data, unsigned int len, size_t rest);
 

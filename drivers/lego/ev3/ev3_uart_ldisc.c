@@ -974,6 +974,15 @@ static int ev3_uart_settle(struct ev3_uart_sensor_dev *sd, u8 mode,
 	return READ_ONCE(sd->gone) ? -ENODEV : 0;
 }
 
+/*
+ * ev3_uart_set_mode(), and for @iio not NULL the start of its buffer on
+ * @mode once the mode is set, before select_mutex is released: a mode
+ * write waiting for the mutex then finds the buffer holding the mode
+ * (-EBUSY), rather than switch the sensor away from it.
+ */
+static int ev3_uart_select(struct ev3_uart_sensor_dev *sd, u8 mode,
+			   struct ev3_uart_iio *iio);
+
 /**
  * ev3_uart_set_mode() - switch a sensor to another mode
  * @sd: the sensor
@@ -991,6 +1000,30 @@ static int ev3_uart_settle(struct ev3_uart_sensor_dev *sd, u8 mode,
  * -%ETIMEDOUT if it never confirmed, -%ERESTARTSYS if interrupted.
  */
 int ev3_uart_set_mode(struct ev3_uart_sensor_dev *sd, u8 mode)
+{
+	return ev3_uart_select(sd, mode, NULL);
+}
+
+/**
+ * ev3_uart_set_buffer_mode() - switch a sensor to the mode an IIO buffer
+ *	captures, and start the buffer on it
+ * @sd: the sensor
+ * @iio: its IIO front end, whose buffer is being enabled
+ * @mode: the mode of the buffer's channels
+ *
+ * As ev3_uart_set_mode(); on success the buffer holds the sensor to @mode
+ * (ev3_uart_iio_buffer_on()) from before any other mode change can start.
+ *
+ * Return: see ev3_uart_set_mode().
+ */
+int ev3_uart_set_buffer_mode(struct ev3_uart_sensor_dev *sd,
+			     struct ev3_uart_iio *iio, u8 mode)
+{
+	return ev3_uart_select(sd, mode, iio);
+}
+
+static int ev3_uart_select(struct ev3_uart_sensor_dev *sd, u8 mode,
+			   struct ev3_uart_iio *iio)
 {
 	unsigned long wait = msecs_to_jiffies(EV3_UART_SELECT_WAIT_MS);
 	struct ev3_uart_port *port = sd->port;
@@ -1074,6 +1107,11 @@ int ev3_uart_set_mode(struct ev3_uart_sensor_dev *sd, u8 mode)
 	else if (!ret && settle && time_before(jiffies, settle))
 		ret = ev3_uart_settle(sd, mode, settle, wait);
 out:
+	if (iio && ret >= 0) {
+		spin_lock(&port->lock);
+		ev3_uart_iio_buffer_on(iio, mode);
+		spin_unlock(&port->lock);
+	}
 	mutex_unlock(&port->select_mutex);
 	/* An error, or success: 1 (nothing to send) or the bytes the tty took. */
 	return min(ret, 0);
