@@ -405,7 +405,8 @@ class EmulatedSensor(threading.Thread):
     stop() is called."""
 
     def __init__(self, path, kind, hostile=False, seed=1, boot_delay=0.5, period_scale=1.0,
-                 host_tty=None, retry_delay=None, fast_sync=None, pace=False, gate=None):
+                 host_tty=None, retry_delay=None, fast_sync=None, pace=False, gate=None,
+                 flaky=False):
         """period_scale > 1 slows the spontaneous cadence of continuous modes
         (NACK replies stay immediate): several emulators in one Python
         process inside an emulated machine cannot all keep real cadences
@@ -423,6 +424,10 @@ class EmulatedSensor(threading.Thread):
         schedule, and return from send() when the last byte would have
         left, as tcdrain() does on a UART.
 
+        flaky: a broken device (set or cleared at any time): after each
+        handshake that the host answers, one good DATA message and seven
+        with a bad checksum, then a reset.
+
         gate: a threading.Event the first handshake (or, for a device that
         syncs fast, the first listening for the probe) waits for, after
         the reset; `at_gate` is set once it waits. A test can so attach the
@@ -438,6 +443,8 @@ class EmulatedSensor(threading.Thread):
         self.fast_sync = getattr(self.sdef, 'fast_sync', False) if fast_sync is None \
             else fast_sync
         self.pace = pace
+        self.flaky = flaky
+        self.flaky_resets = 0
         self.gate = gate
         self.at_gate = threading.Event()
         self.handshake_starts = []  # monotonic time of each handshake's first byte
@@ -731,7 +738,21 @@ class EmulatedSensor(threading.Thread):
         self.send(data_frame(self.sdef, tag, pack_values(m, values), bad_checksum=bad))
         self.frames_sent += 1
 
+    def flaky_data(self):
+        """A broken device's data phase: one good frame, seven bad."""
+        m = self.sdef.modes[self.mode]
+        payload = pack_values(m, self.values[self.mode])
+        self.send(data_frame(self.sdef, self.mode, payload))
+        for _ in range(7):
+            self.send(data_frame(self.sdef, self.mode, payload, bad_checksum=True))
+        termios.tcdrain(self.fd)
+        self.flaky_resets += 1
+        self.log('flaky reset')
+
     def data_phase(self):
+        if self.flaky:
+            self.flaky_data()
+            return
         last_nack = time.monotonic()
         next_spont = 0.0
         pending = None              # (time, mode) of a SELECT being carried out

@@ -178,6 +178,58 @@ def test_twin_rgb_modes_get_an_iio_device(line):
     assert [int(read_attr(dev, 'in_intensity%d_raw' % i)) for i in (5, 6, 7)] == [11, 22, 33]
 
 
+def counters(tty):
+    with open('/sys/kernel/debug/lego_ev3_uart/%s/counters' % tty) as f:
+        return {k: int(v) for k, v in (ln.split() for ln in f)}
+
+
+def most_registrations(seconds):
+    """The most registrations a device that fails every time can get in
+    `seconds` under the back-off (ev3_uart_proto.h): the free retries and
+    the first, then one after each wait (1 s, doubled each time)."""
+    n, t, wait = 3 + 1, 0.0, 1.0
+    while t + wait <= seconds:
+        t += wait
+        n += 1
+        wait = min(2 * wait, 32.0)
+    return n
+
+
+def test_failing_device_is_backed_off(line):
+    """Issue 28: a device that answers the fast sync probe, sends its
+    handshake, one good DATA message and seven bad ones, and does it
+    again, had a class device and an IIO device registered and
+    unregistered every 100 ms or so, with their uevents and four lines of
+    log each time. Its reconnects are held off now (1 s after three
+    failures, doubled at every failure), and the port's lines are rate
+    limited; once the device behaves it is registered again and stays."""
+    log_before = kernel_log().count(line.address + ':')
+    emu = line.plug('spike-color', flaky=True)
+    t0 = time.monotonic()
+    time.sleep(6.0)
+    took = time.monotonic() - t0
+    c = counters(line.address)
+    lines = kernel_log().count(line.address + ':') - log_before
+    print('flaky device: %d registrations, %d resets, %d log lines in %.1f s'
+          % (c['registered'], emu.flaky_resets, lines, took))
+    assert c['registered'] >= 4, (c, emu.events[-10:])
+    assert c['registered'] <= most_registrations(took), (c, emu.events[-20:])
+    # At most DEFAULT_RATELIMIT_BURST (10) lines a 5 s interval.
+    assert lines <= 10 * (1 + int(took // 5)), lines
+    # It keeps trying; its handshakes are left unanswered meanwhile.
+    assert abs(emu.flaky_resets - c['registered']) <= 1, (c, emu.flaky_resets)
+    assert len(emu.sync_speeds) > emu.handshakes, emu.events[-20:]
+    # Well again: registered at the end of the wait in force (4 s at most
+    # after 6 s of failures), and it stays.
+    emu.flaky = False
+    path = find_sensor(line.address, timeout=20)
+    assert path, emu.events[-20:]
+    emu.set_values(0, [3])
+    assert wait_value(path, 0, 3) == 3
+    time.sleep(1.0)
+    assert ev3.read_attr(path, 'driver_name') == 'lego-spike-color'
+
+
 def test_speed_the_uart_cannot_set(ev3_module):
     """A tty whose speed is locked (TIOCSLCKTRMIOS, as a UART that cannot do
     the sensor's speed): the driver says so once and stops answering that

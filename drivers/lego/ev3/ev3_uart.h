@@ -61,6 +61,7 @@
 #include <linux/device.h>
 #include <linux/hrtimer.h>
 #include <linux/mutex.h>
+#include <linux/ratelimit.h>
 #include <linux/spinlock.h>
 #include <linux/tty.h>
 #include <linux/workqueue.h>
@@ -203,6 +204,12 @@ struct ev3_uart_sensor_dev {
  * @last_error: reason of the last protocol error, for the log (under @lock)
  * @bad_speed: a speed this tty could not be set to: handshakes asking for it
  *	are not answered (only ack_work uses it)
+ * @backoff: how the sensors on this line have been failing (only ack_work
+ *	and reset_work, on the ordered workqueue, use it and the next two)
+ * @registered_at: jiffies when the sensor was registered
+ * @backoff_until: jiffies until which handshakes are left unanswered (a
+ *	device that keeps failing, see ev3_uart_backoff_lost()), 0 for none
+ * @log_rs: rate limit of the port's connect, loss and error lines
  * @tx_buf: bytes queued for the tty (under @tx_mutex)
  * @tx_pos: the first byte of @tx_buf not yet sent
  * @tx_len: bytes queued from @tx_pos on
@@ -243,6 +250,10 @@ struct ev3_uart_port {
 	char label[EV3_UART_LABEL_LEN];
 	const char *last_error;
 	u32 bad_speed;
+	struct ev3_uart_backoff backoff;
+	unsigned long registered_at;
+	unsigned long backoff_until;
+	struct ratelimit_state log_rs;
 	u8 tx_buf[4 * EV3_UART_MAX_MSG_LEN];
 	unsigned int tx_pos;
 	unsigned int tx_len;

@@ -304,6 +304,17 @@ static void ev3_uart_setup_tty(struct tty_struct *tty)
 	ev3_uart_set_termios(tty, &t);
 }
 
+/*
+ * The lines a port logs for each connection, loss and protocol error: a
+ * device that keeps failing must not flood the log (its reconnects are
+ * also held off, see ev3_uart_backoff_lost()).
+ */
+#define ev3_uart_info(port, fmt, ...)					\
+	do {								\
+		if (__ratelimit(&(port)->log_rs))			\
+			pr_info(fmt, ##__VA_ARGS__);			\
+	} while (0)
+
 static void ev3_uart_queue(struct ev3_uart_port *port, struct work_struct *work)
 {
 	lockdep_assert_held(&port->lock);
@@ -445,7 +456,7 @@ static void ev3_uart_event(struct ev3_uart_port *port,
 	case EV3_UART_EV_ERROR:
 		port->stats.resyncs++;
 		port->last_error = ev->reason;
-		pr_info_ratelimited("%s: %s\n", port->tty->name, ev->reason);
+		ev3_uart_info(port, "%s: %s\n", port->tty->name, ev->reason);
 		ev3_uart_queue(port, &port->reset_work);
 		break;
 	case EV3_UART_EV_FAST:
@@ -735,6 +746,19 @@ static void ev3_uart_ack_work(struct work_struct *work)
 	spin_unlock(&port->lock);
 	cancel_delayed_work(&port->fast_work);
 
+	/*
+	 * A device whose sensors keep failing right after they are
+	 * registered: not before the back-off is over (it resets and comes
+	 * again, as when its ACK is not answered).
+	 */
+	if (port->backoff_until && time_before(jiffies, port->backoff_until)) {
+		pr_debug("%s: sensor type %u keeps failing; not answered yet\n",
+			 tty->name, desc->type);
+		why = "backing off a device that keeps failing";
+		goto fail;
+	}
+	port->backoff_until = 0;
+
 	/* Not again a speed this tty could not do (see below). */
 	if (desc->speed == port->bad_speed) {
 		pr_debug("%s: sensor type %u wants %u baud again; not answered\n",
@@ -795,12 +819,14 @@ static void ev3_uart_ack_work(struct work_struct *work)
 	last_error = port->last_error;
 	port->last_error = NULL;
 	spin_unlock(&port->lock);
+	port->registered_at = jiffies;
 	ev3_uart_trace_sensor(port, EV3_UART_TRACE_REGISTERED, desc, sd);
 
-	pr_info("%s: %s connected as %s at %u baud\n", tty->name,
-		sd->driver_name, dev_name(&sd->dev), desc->speed);
+	ev3_uart_info(port, "%s: %s connected as %s at %u baud\n", tty->name,
+		      sd->driver_name, dev_name(&sd->dev), desc->speed);
 	if (last_error)
-		pr_info("%s: reconnected after: %s\n", tty->name, last_error);
+		ev3_uart_info(port, "%s: reconnected after: %s\n", tty->name,
+			      last_error);
 
 	ev3_uart_restore_mode(port, desc);
 	return;
@@ -865,6 +891,24 @@ static void ev3_uart_keepalive_work(struct work_struct *work)
 				   msecs_to_jiffies(EV3_UART_KEEPALIVE_MS));
 }
 
+/*
+ * @sd was lost: hold off the next connections if the sensors on this line
+ * keep failing right after they are registered. Only from reset_work.
+ */
+static void ev3_uart_backoff(struct ev3_uart_port *port,
+			     const struct ev3_uart_sensor_dev *sd)
+{
+	unsigned int lived = jiffies_to_msecs(jiffies - port->registered_at);
+	unsigned int wait = ev3_uart_backoff_lost(&port->backoff, lived);
+
+	if (!wait)
+		return;
+	port->backoff_until = (jiffies + msecs_to_jiffies(wait)) ?: 1;
+	ev3_uart_info(port, "%s: %s lost %u ms after it connected, %u times in a row: next connection in %u ms at the earliest\n",
+		      port->tty->name, sd->driver_name, lived,
+		      port->backoff.failures, wait);
+}
+
 static void ev3_uart_reset_work(struct work_struct *work)
 {
 	struct ev3_uart_port *port = container_of(work, struct ev3_uart_port,
@@ -892,9 +936,10 @@ static void ev3_uart_reset_work(struct work_struct *work)
 
 	ev3_uart_hunt(port);
 	if (sd) {
-		pr_info("%s: %s disconnected\n", port->tty->name,
-			sd->driver_name);
+		ev3_uart_info(port, "%s: %s disconnected\n", port->tty->name,
+			      sd->driver_name);
 		ev3_uart_trace_sensor(port, EV3_UART_TRACE_LOST, &sd->desc, sd);
+		ev3_uart_backoff(port, sd);
 		ev3_uart_sensor_destroy(sd);
 	}
 }
@@ -1370,6 +1415,8 @@ static int ev3_uart_open(struct tty_struct *tty)
 	INIT_DELAYED_WORK(&port->fast_work, ev3_uart_fast_work);
 	init_completion(&port->probe_done);
 	INIT_WORK(&port->tx_work, ev3_uart_tx_work);
+	ratelimit_state_init(&port->log_rs, DEFAULT_RATELIMIT_INTERVAL,
+			     DEFAULT_RATELIMIT_BURST);
 	ev3_uart_parser_init(&port->parser);
 	port->select_mode = EV3_UART_NO_MODE;
 	port->requested_mode = EV3_UART_NO_MODE;

@@ -1926,3 +1926,40 @@ bool ev3_uart_parser_tick(struct ev3_uart_parser *p, struct ev3_uart_event *ev)
 	return ev->type == EV3_UART_EV_ERROR;
 }
 EXPORT_SYMBOL_IF_KUNIT(ev3_uart_parser_tick);
+
+/**
+ * ev3_uart_backoff_lost() - a sensor was lost: how long to hold off the
+ *	next connection on its line
+ * @b: the line's record (zeroed when the line is attached)
+ * @lived_ms: milliseconds from its registration to its loss
+ *
+ * A device that answers the fast sync probe, sends its handshake and a
+ * few bad DATA messages, again and again, would have a class device and an
+ * IIO device registered and unregistered every 100 ms or so, with their
+ * uevents. A sensor that lived %EV3_UART_SHORT_LIFE_MS or more ends such a
+ * run; the first %EV3_UART_FREE_RETRIES failures in a row cost nothing (a
+ * sensor plugged in badly), then the wait doubles from
+ * %EV3_UART_BACKOFF_MIN_MS to %EV3_UART_BACKOFF_MAX_MS.
+ *
+ * Return: the milliseconds during which the next handshakes must be left
+ * unanswered, 0 for none.
+ */
+unsigned int ev3_uart_backoff_lost(struct ev3_uart_backoff *b,
+				   unsigned int lived_ms)
+{
+	unsigned int shift;
+
+	if (lived_ms >= EV3_UART_SHORT_LIFE_MS) {
+		b->failures = 0;
+		return 0;
+	}
+	/* No further than the longest wait needs. */
+	if (b->failures <= EV3_UART_FREE_RETRIES + EV3_UART_BACKOFF_MAX_SHIFT)
+		b->failures++;
+	if (b->failures <= EV3_UART_FREE_RETRIES)
+		return 0;
+	shift = min_t(unsigned int, b->failures - EV3_UART_FREE_RETRIES - 1,
+		      EV3_UART_BACKOFF_MAX_SHIFT);
+	return EV3_UART_BACKOFF_MIN_MS << shift;
+}
+EXPORT_SYMBOL_IF_KUNIT(ev3_uart_backoff_lost);

@@ -282,6 +282,39 @@ static void connect(struct kunit *test, struct ctx *c, const struct tsensor *s)
 	c->r.n = 0;
 }
 
+/* ---- reconnects of a device that keeps failing ---- */
+
+/* Issue 28: register, one good DATA, seven bad ones, lost, again. */
+static void test_backoff(struct kunit *test)
+{
+	static const unsigned int want[] = {
+		0, 0, 0, 1000, 2000, 4000, 8000, 16000, 32000, 32000, 32000,
+	};
+	struct ev3_uart_backoff b = { };
+	unsigned int i;
+
+	for (i = 0; i < ARRAY_SIZE(want); i++)
+		KUNIT_EXPECT_EQ_MSG(test, ev3_uart_backoff_lost(&b, 60), want[i],
+				    "failure %u", i + 1);
+	/* A sensor that lived long enough ends the run... */
+	KUNIT_EXPECT_EQ(test, ev3_uart_backoff_lost(&b, EV3_UART_SHORT_LIFE_MS), 0U);
+	KUNIT_EXPECT_EQ(test, b.failures, 0U);
+	/* ...so failures far apart never back off. */
+	for (i = 0; i < 20; i++) {
+		KUNIT_EXPECT_EQ(test, ev3_uart_backoff_lost(&b, 0), 0U);
+		KUNIT_EXPECT_EQ(test, ev3_uart_backoff_lost(&b, 499), 0U);
+		KUNIT_EXPECT_EQ(test, ev3_uart_backoff_lost(&b, 3000), 0U);
+	}
+	/* An unplugged sensor is noticed after 700 ms of silence: no failure. */
+	KUNIT_EXPECT_EQ(test, ev3_uart_backoff_lost(&b, 700), 0U);
+	KUNIT_EXPECT_EQ(test, b.failures, 0U);
+	/* The count stops where the wait does: it never wraps. */
+	for (i = 0; i < 1000; i++)
+		ev3_uart_backoff_lost(&b, 0);
+	KUNIT_EXPECT_EQ(test, b.failures, EV3_UART_FREE_RETRIES + EV3_UART_BACKOFF_MAX_SHIFT + 1U);
+	KUNIT_EXPECT_EQ(test, ev3_uart_backoff_lost(&b, 0), (unsigned int)EV3_UART_BACKOFF_MAX_MS);
+}
+
 /* ---- framing ---- */
 
 static void test_checksum_real_messages(struct kunit *test)
@@ -2514,6 +2547,7 @@ static struct kunit_case ev3_uart_proto_cases[] = {
 	KUNIT_CASE(test_chan_scale_floats),
 	KUNIT_CASE(test_chans_bounded),
 	KUNIT_CASE(test_chans_twin_rgb_modes),
+	KUNIT_CASE(test_backoff),
 	KUNIT_CASE(test_mode_tokens),
 	KUNIT_CASE(test_version_string),
 	KUNIT_CASE(test_driver_names_fit),
