@@ -24,9 +24,10 @@
 #   make dkms-remove   dkms remove --all, and remove those sources
 #   make dkms-source   only copy the sources DKMS builds (DESTDIR= honoured)
 #   make deb           Debian packages into .build/deb/ (tests/packaging/make-deb.sh)
-#   make upstream-series  the drivers as an in-tree patch series against Debian's
-#                      linux-source-6.12, into .build/upstream/6.12/ (tools/upstream;
-#                      UPSTREAM_SERIES=6.1: against linux-source-6.1, into 6.1/)
+#   make upstream-series  the drivers as an in-tree patch series against the
+#                      newest linux-source-X.Y Debian serves, into
+#                      .build/upstream/X.Y/ (tools/upstream; UPSTREAM_SERIES=6.12
+#                      or 6.1: against that source, into 6.12/ or 6.1/)
 #   make upstream-check   that series applied to the kernel source and checked:
 #                      checkpatch per patch, kernel-doc, ABI, in-tree W=1 builds
 #                      (long, not in make check; UPSTREAM_STEPS= picks steps,
@@ -86,7 +87,7 @@ help:
 
 # Documentation/lego/testing.rst, "The in-tree series".
 .PHONY: upstream-series upstream-check
-UPSTREAM_SERIES ?= 6.12
+UPSTREAM_SERIES ?= newest
 upstream-series:
 	@tools/upstream/series.sh $(UPSTREAM_SERIES)
 

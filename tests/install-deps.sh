@@ -26,10 +26,13 @@ debs+=(libiio-dev)
 # tests/fuzz (libFuzzer, ASan, UBSan) and tests/bench/proto (callgrind)
 debs+=(clang-14 libclang-rt-14-dev valgrind)
 # make upstream-series and upstream-check (tools/upstream, tests/upstream):
-# unifdef for the in-tree sources, coccinelle for coccicheck, python3-ply
+# unifdef for the in-tree sources, coccinelle for coccicheck (with the OCaml
+# compiler, ocaml-nox: semantic patches with OCaml scripts, such as
+# api/check_bq27xxx_data.cocci and null/badzero.cocci, are compiled by
+# spatch, which stops with "No OCaml compiler found" without it), python3-ply
 # and python3-git for checkpatch's SPDX check, Sphinx for the kernel's
 # documentation build
-debs+=(unifdef coccinelle python3-ply python3-git python3-sphinx python3-sphinx-rtd-theme python3-yaml)
+debs+=(unifdef coccinelle ocaml-nox python3-ply python3-git python3-sphinx python3-sphinx-rtd-theme python3-yaml)
 # make deb (tests/packaging/make-deb.sh) and its lintian run
 debs+=(dpkg-dev debhelper dh-dkms dh-python pybuild-plugin-pyproject python3-all
 	python3-setuptools fakeroot lintian)

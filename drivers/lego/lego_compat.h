@@ -2,7 +2,9 @@
 /*
  * Differences between the kernels these drivers build against (6.1 LTS up to
  * current mainline), kept in one place. The LEGO_HAVE_* flags are set by the
- * top-level Kbuild, which probes the target kernel's headers.
+ * top-level Kbuild, which compiles each of drivers/lego/probes/ against the
+ * target kernel's headers. The code uses the newest kernel's interfaces;
+ * what older kernels lack is mapped here onto what they have.
  */
 #ifndef _LEGO_COMPAT_H
 #define _LEGO_COMPAT_H
@@ -17,10 +19,11 @@
 #include <asm/unaligned.h>
 #endif
 
-#ifdef LEGO_HAVE_STRING_NS
-#define LEGO_IMPORT_KUNIT_NS() MODULE_IMPORT_NS("EXPORTED_FOR_KUNIT_TESTING")
-#else
+/* 6.13: symbol namespaces became string literals. */
+#ifdef LEGO_HAVE_IDENT_NS
 #define LEGO_IMPORT_KUNIT_NS() MODULE_IMPORT_NS(EXPORTED_FOR_KUNIT_TESTING)
+#else
+#define LEGO_IMPORT_KUNIT_NS() MODULE_IMPORT_NS("EXPORTED_FOR_KUNIT_TESTING")
 #endif
 
 /* Types of the flag buffer and of the count in tty_ldisc_ops::receive_buf. */
@@ -45,6 +48,72 @@
 #else
 #define LEGO_UEVENT_CONST
 #endif
+
+/*
+ * 6.16: bin_attribute callbacks take a const struct bin_attribute, and an
+ * attribute_group's bin_attrs lists const ones: declare the callbacks'
+ * attribute "LEGO_BIN_ATTR_CONST struct bin_attribute *", and the list
+ * "static LEGO_BIN_ATTR_CONST struct bin_attribute *LEGO_BIN_ATTR_CONST x[]".
+ */
+#ifdef LEGO_HAVE_CONST_BIN_ATTR
+#define LEGO_BIN_ATTR_CONST const
+#else
+#define LEGO_BIN_ATTR_CONST
+#endif
+
+/*
+ * An attribute_group's list of const attributes, attrs_const, where the
+ * kernel has it (attrs is to go): declare the list
+ * "static LEGO_ATTR_CONST struct attribute *LEGO_ATTR_CONST x[]" and set
+ * it as ".LEGO_GROUP_ATTRS = x".
+ */
+#ifdef LEGO_HAVE_ATTRS_CONST
+#define LEGO_ATTR_CONST		const
+#define LEGO_GROUP_ATTRS	attrs_const
+#else
+#define LEGO_ATTR_CONST
+#define LEGO_GROUP_ATTRS	attrs
+#endif
+
+/* 6.4: class_register() takes a const struct class. */
+#ifdef LEGO_HAVE_CONST_CLASS
+#define LEGO_CLASS_CONST const
+#else
+#define LEGO_CLASS_CONST
+#endif
+
+#ifdef __KERNEL__
+/*
+ * system_percpu_wq and system_dfl_wq are the new names of system_wq and
+ * system_unbound_wq, whose names are to be removed.
+ */
+#ifndef LEGO_HAVE_SYSTEM_DFL_WQ
+#include <linux/workqueue.h>
+
+#define system_percpu_wq	system_wq
+#define system_dfl_wq		system_unbound_wq
+#endif
+
+/*
+ * 6.16: iio_push_to_buffers_with_ts() takes the size of the scan (and
+ * checks it); iio_push_to_buffers_with_timestamp() is deprecated.
+ */
+#ifndef LEGO_HAVE_IIO_PUSH_WITH_TS
+#define iio_push_to_buffers_with_ts(indio_dev, data, len, ts)	\
+	({ (void)(len); iio_push_to_buffers_with_timestamp(indio_dev, data, ts); })
+#endif
+
+/*
+ * 6.12: iio_for_each_active_channel(); the mask's length became private.
+ * As the kernel has it (checkpatch's MACRO_ARG_REUSE is ignored for this
+ * file, whose shims keep the shape of the kernel's own macros).
+ */
+#ifndef LEGO_HAVE_IIO_ACTIVE_CHANNELS
+#define iio_for_each_active_channel(indio_dev, chan)			\
+	for_each_set_bit((chan), (indio_dev)->active_scan_mask,	\
+			 (indio_dev)->masklength)
+#endif
+#endif /* __KERNEL__ */
 
 /*
  * 6.13: hrtimer_setup() initialises a timer and sets its callback. Kernel

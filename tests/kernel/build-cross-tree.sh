@@ -1,8 +1,12 @@
 #!/usr/bin/env bash
-# Prepare (or find in the cache) a kernel tree to cross-compile the modules
-# against, for one ARM architecture.
+# Prepare (or find in the cache) a kernel tree to compile the modules
+# against: for an ARM architecture (cross-compiled), or for x86 where a
+# series is built against but not booted (make check boots the newest).
 #
-#   tests/kernel/build-cross-tree.sh [--tree-only] ARCH   ARCH: arm64 or armhf
+#   tests/kernel/build-cross-tree.sh [--tree-only] ARCH [SERIES]
+#
+# ARCH: arm64, armhf or x86; SERIES: 6.12 (default) or any that
+# tests/kernel/fetch-source.sh finds.
 #
 # --tree-only prints the cached tree if it is complete and builds nothing.
 # Prints the tree on stdout; progress goes to stderr and build.log in the
@@ -10,12 +14,12 @@
 #   make -C TREE ARCH=<karch> CROSS_COMPILE=<prefix> M=...
 # (tests/cross-build.sh does; `. <entry>/env` sets KARCH and CROSS).
 #
-# The source is Debian's linux-source-6.12, as for the test kernel. The tree
+# The source is Debian's linux-source-SERIES, as for the test kernel. The tree
 # is the architecture's defconfig (arm64: defconfig; armhf: multi_v7_defconfig,
 # the ARMv7 multiplatform config that matches Debian's armhf baseline and the
-# 32-bit Raspberry Pi 2/3) merged with tests/kernel/cross-common.config, then
+# 32-bit Raspberry Pi 2/3; x86: x86_64_defconfig) merged with tests/kernel/cross-common.config, then
 # `make modules_prepare`. It lives in
-#   $LEGO_CACHE/cross-ARCH-<key>/linux
+#   $LEGO_CACHE/cross-ARCH-<key>/linux (cross-ARCH-SERIES-<key> but for 6.12)
 # where <key> hashes the package version, the fragment and the recipe number.
 #
 # modpost needs the kernel's exported symbols (Module.symvers) to reject a
@@ -38,24 +42,25 @@ arch=${1:-}
 case "$arch" in
 arm64) karch=arm64 cross=aarch64-linux-gnu- defconfig=defconfig ;;
 armhf) karch=arm cross=arm-linux-gnueabihf- defconfig=multi_v7_defconfig ;;
-*) echo "usage: $0 [--tree-only] arm64|armhf" >&2; exit 2 ;;
+x86) karch=x86 cross= defconfig=x86_64_defconfig ;;
+*) echo "usage: $0 [--tree-only] arm64|armhf|x86 [SERIES]" >&2; exit 2 ;;
 esac
-series=6.12
+series=${2:-6.12}
 here=$(cd "$(dirname "$0")" && pwd)
 prog=build-cross-tree
 # shellcheck source=tests/kernel/lib.sh
 . "$here/lib.sh"
 fragment=$here/cross-common.config
-tarball=/usr/src/linux-source-$series.tar.xz
 cache=$(kcache_dir)
 
-[ -r "$tarball" ] || { echo "build-cross-tree: $tarball missing (apt-get install linux-source-$series)" >&2; exit 1; }
+read -r series pkgver tarball < <("$here/fetch-source.sh" "$series") || exit 1
 command -v "${cross}gcc" >/dev/null || { echo "build-cross-tree: ${cross}gcc missing (tests/install-deps.sh installs it)" >&2; exit 1; }
-pkgver=$(dpkg-query -W -f '${Version}' "linux-source-$series")
 # Bump when the steps below change in a way that changes the result.
 recipe=2
 key=$( { echo "$arch $series $pkgver $defconfig recipe $recipe"; cat "$fragment"; } | sha256sum | cut -c1-16)
+# (6.12's entries keep the name they had before other series.)
 entry=$cache/cross-$arch-$key
+[ "$series" = 6.12 ] || entry=$cache/cross-$arch-$series-$key
 tree=$entry/linux
 
 kcache_lookup "$entry" "$tree_only"

@@ -499,8 +499,7 @@ static int __init nm_init(void)
 		p->baud = 9600;
 		spin_lock_init(&p->lock);
 		INIT_KFIFO(p->fifo);
-		hrtimer_init(&p->timer, CLOCK_MONOTONIC, HRTIMER_MODE_REL_SOFT);
-		p->timer.function = nm_tick;
+		hrtimer_setup(&p->timer, nm_tick, CLOCK_MONOTONIC, HRTIMER_MODE_REL_SOFT);
 		p->garble = i + 1;
 		tty_port_link_device(&p->port, nm_driver, i);
 	}

@@ -20,7 +20,7 @@ def kdir():
     tree = os.environ.get('LEGO_KERNEL_TREE')
     if tree:
         return tree
-    r = subprocess.run([os.path.join(TOP, 'tests/kernel/build-kernel.sh'), '--tree-only', '6.12'],
+    r = subprocess.run([os.path.join(TOP, 'tests/kernel/build-kernel.sh'), '--tree-only', 'newest'],
                        capture_output=True, text=True)
     if r.returncode == 0 and r.stdout.strip():
         return r.stdout.strip()
@@ -57,6 +57,11 @@ def src(tmp_path_factory):
 @pytest.fixture(scope='module')
 def tree():
     return kdir()
+
+
+def dkms_version(src):
+    with open(os.path.join(src, 'dkms.conf')) as f:
+        return re.search(r'^PACKAGE_VERSION="([^"]+)"', f.read(), re.M).group(1)
 
 
 def krelease(tree):
@@ -124,8 +129,7 @@ def test_pkg_config_file_compiles_a_program(src, tmp_path):
     pc = os.path.join(dest, 'usr/share/pkgconfig/lego-mindstorms.pc')
     with open(pc) as f:
         text = f.read()
-    with open(os.path.join(src, 'dkms.conf')) as f:
-        ver = re.search(r'^PACKAGE_VERSION="([^"]+)"', f.read(), re.M).group(1)
+    ver = dkms_version(src)
     assert re.search(r'^Version: %s$' % re.escape(ver), text, re.M), text
     env = dict(os.environ, PKG_CONFIG_PATH=os.path.dirname(pc),
                PKG_CONFIG_SYSROOT_DIR=dest)
@@ -145,8 +149,7 @@ def test_pkg_config_file_compiles_a_program(src, tmp_path):
 def test_dkms_source_has_only_the_build_files(src, tmp_path):
     dest = str(tmp_path / 'stage')
     make(src, 'dkms-source', 'DESTDIR=' + dest)
-    with open(os.path.join(src, 'dkms.conf')) as f:
-        ver = re.search(r'^PACKAGE_VERSION="([^"]+)"', f.read(), re.M).group(1)
+    ver = dkms_version(src)
     root = os.path.join(dest, 'usr/src/lego-mindstorms-' + ver)
     assert sorted(os.listdir(root)) == ['Kbuild', 'Makefile', 'dkms.conf', 'drivers', 'include']
     files = listing(root)
@@ -213,3 +216,40 @@ def test_kernel_without_iio_kfifo_gets_a_clear_error(src, tree):
     assert 'needs a kernel with CONFIG_IIO and CONFIG_IIO_KFIFO_BUF' in r.stdout + r.stderr
     # And with the option, the same tree builds (make clean reads no config).
     make(src, 'KDIR=' + tree, 'clean')
+
+
+def test_dkms_conf_builds_for_6_1_and_later_only(src):
+    """BUILD_EXCLUSIVE_KERNEL, matched as dkms matches it (bash's =~ on the
+    kernel release), takes 6.1 and every later release, and no older one."""
+    take = ['6.1.0-56-amd64', '6.1.158', '6.12.117+deb12-amd64', '6.9.0', '6.19.1',
+            '7.0.0-rc1', '7.3.4-amd64', '10.2.1', '6.1']
+    refuse = ['6.0.19', '5.15.0-91-generic', '5.10.0-32-amd64', '4.19.0', '3.16.0', '6.0']
+    script = 'source "$1/dkms.conf"; shift; for v; do [[ $v =~ $BUILD_EXCLUSIVE_KERNEL ]] && echo "$v"; done; true'
+    r = subprocess.run(['bash', '-c', script, 'x', src] + take + refuse,
+                       capture_output=True, text=True, env={'kernel_source_dir': '/k', 'PATH': os.environ['PATH']})
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.split() == take
+
+
+def test_dkms_skips_a_kernel_older_than_6_1(src, tree):
+    """dkms build for a 5.10 kernel (the test tree under that release name:
+    dkms decides on the name before it builds) is skipped with exit 77 and
+    its BUILD_EXCLUSIVE message; nothing is built or installed."""
+    if os.getuid() != 0 or not shutil.which('dkms') or not shutil.which('unshare'):
+        pytest.skip('needs root, dkms and unshare')
+    script = r'''
+for d in /var/lib/dkms /usr/src /lib/modules; do mount -t tmpfs tmpfs $d; done
+mkdir -p /lib/modules/5.10.0-99-amd64 && ln -s {tree} /lib/modules/5.10.0-99-amd64/build
+make -s -C {src} dkms-source >/dev/null || exit 1
+dkms add -m lego-mindstorms -v {ver} >/dev/null || exit 1
+dkms build -m lego-mindstorms -v {ver} -k 5.10.0-99-amd64
+echo "rc=$?"
+find /lib/modules /var/lib/dkms -name '*.ko*'
+'''.format(tree=tree, src=src, ver=dkms_version(src))
+    r = subprocess.run(['unshare', '-m', '--propagation', 'private', 'bash', '-c', script],
+                       capture_output=True, text=True)
+    out = r.stdout + r.stderr
+    assert r.returncode == 0, out[-3000:]
+    assert 'rc=77' in out, out[-3000:]
+    assert 'BUILD_EXCLUSIVE' in out, out[-3000:]
+    assert '.ko' not in r.stdout.split('rc=77', 1)[1], out[-3000:]

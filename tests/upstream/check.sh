@@ -57,8 +57,8 @@
 # "N passed, N failed" and the exit status is 1 if any step failed.
 set -uo pipefail
 top=$(cd "$(dirname "$0")/../.." && pwd)
-series=6.12
-if [ $# -gt 0 ] && [[ "$1" =~ ^[0-9]+\.[0-9]+$ ]]; then
+series=newest
+if [ $# -gt 0 ] && [[ "$1" =~ ^([0-9]+\.[0-9]+|newest)$ ]]; then
 	series=$1
 	shift
 fi

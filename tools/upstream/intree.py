@@ -8,7 +8,7 @@ The out-of-tree build keeps every difference between the kernels it
 supports in drivers/lego/lego_compat.h, chosen by the LEGO_HAVE_* flags the
 top-level Kbuild probes. A kernel tree needs none of it, so each shim is
 replaced by what it stands for in the target tree, whose flags are given
-with --have (tools/upstream/probe.mk runs the same probes on it):
+with --have (tools/upstream/lib.sh's up_have runs the same probes on it):
 
 - the line '#include "lego_compat.h"' goes; the headers it supplied that
   the file uses are included instead, in the file's first block of
@@ -17,14 +17,21 @@ with --have (tools/upstream/probe.mk runs the same probes on it):
   accessors (before 6.12 <asm/unaligned.h>, in a block of its own after
   that one, as IIO drivers have it);
 - LEGO_TTY_FLAG, LEGO_TTY_COUNT, LEGO_TTY_WRITE_RET, LEGO_UEVENT_CONST,
-  LEGO_IMPORT_KUNIT_NS() and lego_assign_str() become the kernel's types
-  and macros, as lego_compat.h defines them for those flags;
+  LEGO_BIN_ATTR_CONST, LEGO_ATTR_CONST, LEGO_GROUP_ATTRS, LEGO_CLASS_CONST,
+  LEGO_IMPORT_KUNIT_NS() and lego_assign_str() become the kernel's types,
+  qualifiers, fields and macros, as lego_compat.h defines them for those
+  flags;
 - the current kernel API the code is written against is turned back into
   the target's where the target predates it: hrtimer_setup() into
   hrtimer_init() and a ->function assignment (before 6.13),
   timer_container_of() into from_timer() (before 6.16), timer_delete*()
   into del_timer*() (before 6.2), KUNIT_EXPECT_MEMEQ(test, a, b, n) into
-  KUNIT_EXPECT_EQ(test, memcmp(a, b, n), 0) (before 6.2);
+  KUNIT_EXPECT_EQ(test, memcmp(a, b, n), 0) (before 6.2),
+  system_dfl_wq and system_percpu_wq into system_unbound_wq and system_wq,
+  iio_push_to_buffers_with_ts(d, p, size, ts) into
+  iio_push_to_buffers_with_timestamp(d, p, ts) (before 6.16),
+  iio_for_each_active_channel(d, ch) into for_each_set_bit() over the
+  device's active_scan_mask and masklength (before 6.12);
 - unifdef -DN_LEGOEV3: the uapi header's fallback ldisc number goes, the
   tree reserves one in <linux/tty.h>.
 
@@ -42,9 +49,9 @@ tree (a directory of drivers/lego, a page of Documentation/lego) is
 replaced by that place. A page of Documentation/lego that has none must
 not be named: it stays out of the tree.
 
-Anything left that belongs to the shims (a LEGO_HAVE_, LEGO_TTY_ or
-LEGO_UEVENT_ name, lego_compat, lego_assign_str) is an error: a new shim
-needs a rule here.
+Anything left that belongs to the shims (a LEGO_HAVE_, LEGO_TTY_,
+LEGO_UEVENT_, LEGO_IMPORT_ name or one of the qualifier macros above,
+lego_compat, lego_assign_str) is an error: a new shim needs a rule here.
 """
 import argparse
 import os
@@ -58,7 +65,8 @@ from places import map_paths, place  # noqa: E402
 
 LEGO_DOCS = os.path.join(HERE, '..', '..', 'Documentation', 'lego')
 
-LEFTOVER = re.compile(r'lego_compat|\bLEGO_(HAVE|TTY|UEVENT|IMPORT)_?\w*|lego_assign_str|lego_hrtimer')
+LEFTOVER = re.compile(r'lego_compat|\bLEGO_(HAVE|TTY|UEVENT|IMPORT)_?\w*|lego_assign_str|lego_hrtimer'
+                      r'|\bLEGO_(BIN_ATTR_CONST|ATTR_CONST|GROUP_ATTRS|CLASS_CONST)\b')
 
 
 def die(msg):
@@ -120,6 +128,17 @@ def hrtimer_init_back(m):
     return '%s\n%s%s.function = %s;' % (call, indent, timer[1:], func)
 
 
+def push_with_ts_back(m):
+    """iio_push_to_buffers_with_ts(d, p, size, ts) as ..._with_timestamp(d, p, ts)."""
+    indent, dev, data, ts = m.group(1), m.group(2), m.group(3), m.group(4).strip()
+    call = '%siio_push_to_buffers_with_timestamp(%s, %s, %s);' % (indent, dev, data, ts)
+    if len(call.expandtabs(8)) <= 100:
+        return call
+    head = '%siio_push_to_buffers_with_timestamp(%s, %s,' % (indent, dev, data)
+    col = len(head.split(',')[0].expandtabs(8)) - len(dev)
+    return '%s\n%s%s);' % (head, '\t' * (col // 8) + ' ' * (col % 8), ts)
+
+
 def memeq_back(text):
     """KUNIT_EXPECT_MEMEQ(test, a, b, n) as KUNIT_EXPECT_EQ() of a memcmp()."""
     out = []
@@ -161,9 +180,13 @@ def transform(text, have):
         (r'\bLEGO_TTY_COUNT\b', 'size_t' if rx else 'int'),
         (r'\bLEGO_TTY_WRITE_RET\b', 'ssize_t' if 'TTY_WRITE_SSIZE_T' in have else 'int'),
         (r'\bLEGO_UEVENT_CONST ', 'const ' if 'CONST_UEVENT' in have else ''),
+        (r'\bLEGO_BIN_ATTR_CONST ', 'const ' if 'CONST_BIN_ATTR' in have else ''),
+        (r'\bLEGO_ATTR_CONST ', 'const ' if 'ATTRS_CONST' in have else ''),
+        (r'\bLEGO_GROUP_ATTRS\b', 'attrs_const' if 'ATTRS_CONST' in have else 'attrs'),
+        (r'\bLEGO_CLASS_CONST ', 'const ' if 'CONST_CLASS' in have else ''),
         (r'\bLEGO_IMPORT_KUNIT_NS\(\)',
-         'MODULE_IMPORT_NS("EXPORTED_FOR_KUNIT_TESTING")' if 'STRING_NS' in have
-         else 'MODULE_IMPORT_NS(EXPORTED_FOR_KUNIT_TESTING)'),
+         'MODULE_IMPORT_NS(EXPORTED_FOR_KUNIT_TESTING)' if 'IDENT_NS' in have
+         else 'MODULE_IMPORT_NS("EXPORTED_FOR_KUNIT_TESTING")'),
         (r'\blego_assign_str\((\w+), *(\w+)\)',
          r'__assign_str(\1)' if 'ASSIGN_STR_1' in have else r'__assign_str(\1, \2)'),
     ]
@@ -171,8 +194,16 @@ def transform(text, have):
         subs.append((r'\btimer_container_of\(', 'from_timer('))
     if 'TIMER_DELETE' not in have:
         subs += [(r'\btimer_delete_sync\(', 'del_timer_sync('), (r'\btimer_delete\(', 'del_timer(')]
+    if 'SYSTEM_DFL_WQ' not in have:
+        subs += [(r'\bsystem_dfl_wq\b', 'system_unbound_wq'), (r'\bsystem_percpu_wq\b', 'system_wq')]
+    if 'IIO_ACTIVE_CHANNELS' not in have:
+        subs.append((r'\biio_for_each_active_channel\(([\w>-]+), (\w+)\)',
+                     r'for_each_set_bit(\2, \1->active_scan_mask, \1->masklength)'))
     for pat, rep in subs:
         text = re.sub(pat, rep, text)
+    if 'IIO_PUSH_WITH_TS' not in have:
+        text = re.sub(r'^([ \t]*)iio_push_to_buffers_with_ts\(([^,]+), ([^,]+), [^,]+,\s*([^;]+)\);',
+                      push_with_ts_back, text, flags=re.M)
     if 'KUNIT_MEMEQ' not in have:
         text = memeq_back(text)
     if 'HRTIMER_SETUP' not in have:

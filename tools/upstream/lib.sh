@@ -1,9 +1,13 @@
 # shellcheck shell=bash
 # Shared by tools/upstream/series.sh and tests/upstream/check.sh. Source it
-# with "top" (the checkout) and "series" (6.12) set; "prog" names the caller.
+# with "top" (the checkout) and "series" (newest, 6.12, 6.1, ...) set; "prog"
+# names the caller. "newest" becomes the series it is (7.3 today): the
+# source is Debian's linux-source-SERIES, as tests/kernel/fetch-source.sh
+# finds it (installed, or fetched into the kernel cache).
 
 up_out=${LEGO_UPSTREAM_OUT:-$top/.build/upstream}
-up_tarball=/usr/src/linux-source-$series.tar.xz
+read -r series up_version up_tarball < <("$top/tests/kernel/fetch-source.sh" "$series") ||
+	{ echo "$prog: no source for linux-source-$series" >&2; exit 1; }
 # The scratch repository: the kernel source as one base commit, tagged by the
 # Debian package's version, and the series on the branch lego-$series.
 up_repo=$up_out/linux-$series
@@ -11,7 +15,7 @@ up_branch=lego-$series
 up_patches=$up_out/$series
 
 up_pkgver() {
-	dpkg-query -W -f '${Version}' "linux-source-$series"
+	echo "$up_version"
 }
 
 # A git tag for the package version (no ~ or : in tags).
@@ -33,7 +37,6 @@ up_git() {
 # tarball only when no commit is tagged with the package's version.
 up_base() {
 	local tag
-	[ -r "$up_tarball" ] || { echo "$prog: $up_tarball missing (apt-get install linux-source-$series)" >&2; return 1; }
 	tag=$(up_base_tag)
 	mapfile -t _id < <(up_ident)
 	up_name=${_id[0]}
@@ -52,4 +55,19 @@ up_base() {
 	GIT_AUTHOR_DATE="@0 +0000" GIT_COMMITTER_DATE="@0 +0000" \
 		up_git commit -q --no-verify -m "Linux $series as Debian's linux-source-$series $(up_pkgver)"
 	up_git tag "$tag"
+}
+
+# up_have: the LEGO_HAVE_* flags (without the prefix) of the series' tree,
+# from the top-level Kbuild's own probes (drivers/lego/probes), run by
+# kbuild on a configured tree of the same source: the test kernel's if it is
+# cached, else a prepared x86_64_defconfig tree (build-cross-tree.sh x86).
+up_have() {
+	local ktree m
+	ktree=$("$top/tests/kernel/build-kernel.sh" --tree-only "$series" 2>/dev/null) ||
+		ktree=$("$top/tests/kernel/build-cross-tree.sh" x86 "$series") || return 1
+	m=$(mktemp -d)
+	echo 'include $(LEGO_SRC)/Kbuild' >"$m/Kbuild"
+	make -s -C "$ktree" M="$m" LEGO_SRC="$top" LEGO_PRINT_HAVE=1 modules 2>&1 |
+		sed -n 's/^lego-have: //p' | head -n 1
+	rm -rf "$m"
 }

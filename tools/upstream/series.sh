@@ -28,7 +28,8 @@
 # - C sources and headers go through tools/upstream/intree.py, which drops
 #   drivers/lego/lego_compat.h's shims for what they mean in the target tree
 #   (its LEGO_HAVE_* flags come from the top-level Kbuild's own probes, run
-#   on the tree by tools/upstream/probe.mk) and runs unifdef -DN_LEGOEV3;
+#   by kbuild on a configured tree of the same source: up_have in
+#   tools/upstream/lib.sh) and runs unifdef -DN_LEGOEV3;
 # - hooks into existing kernel files, each inserted at a fixed or sorted
 #   place and checked: N_LEGOEV3 in include/uapi/linux/tty.h (the next free
 #   number, NR_LDISCS raised), the ioctl magic numbers in
@@ -43,7 +44,7 @@
 set -euo pipefail
 top=$(cd "$(dirname "$0")/../.." && pwd)
 here=$top/tools/upstream
-series=${1:-6.12}
+series=${1:-newest}
 prog=upstream-series
 # shellcheck source=tools/upstream/lib.sh
 . "$here/lib.sh"
@@ -52,7 +53,7 @@ command -v unifdef >/dev/null || { echo "$prog: unifdef missing (tests/install-d
 up_base
 tag=$(up_base_tag)
 tree=$up_repo
-have=$(make -s -f "$here/probe.mk" LEGO_SRC="$top" srctree="$tree")
+have=$(up_have) || { echo "$prog: no configured $series tree to probe" >&2; exit 1; }
 date=$(git -C "$top" log -1 --format=%cI HEAD)
 export GIT_AUTHOR_DATE=$date GIT_COMMITTER_DATE=$date
 

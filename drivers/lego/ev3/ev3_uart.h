@@ -32,10 +32,10 @@
  * theirs (the receive path only reads no_probe, with READ_ONCE()). The
  * receive path completes ev3_uart_port.probe_done, under the port lock,
  * when the probe is answered. keepalive_work runs on
- * system_unbound_wq, so that NACKs go out (from another CPU if need be)
+ * system_dfl_wq, so that NACKs go out (from another CPU if need be)
  * while a sensor registers (the sensor resets after a second without one);
  * it only ticks the parser, sends and queues reset_work. tx_work runs on
- * system_unbound_wq too. The one timer,
+ * system_dfl_wq too. The one timer,
  * ev3_uart_port.ack_timer, runs in hard interrupt context and takes no
  * lock: it only queues ack_work.
  *

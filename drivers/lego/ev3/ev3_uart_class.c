@@ -237,7 +237,7 @@ EV3_VALUE_ATTR(6);
 EV3_VALUE_ATTR(7);
 
 static ssize_t bin_data_read(struct file *file, struct kobject *kobj,
-			     struct bin_attribute *attr, char *buf,
+			     LEGO_BIN_ATTR_CONST struct bin_attribute *attr, char *buf,
 			     loff_t off, size_t count)
 {
 	struct ev3_uart_sensor_dev *sd = to_sensor(kobj_to_dev(kobj));
@@ -256,7 +256,7 @@ static ssize_t bin_data_read(struct file *file, struct kobject *kobj,
 static BIN_ATTR_RO(bin_data, EV3_UART_MAX_PAYLOAD);
 
 static ssize_t direct_read(struct file *file, struct kobject *kobj,
-			   struct bin_attribute *attr, char *buf,
+			   LEGO_BIN_ATTR_CONST struct bin_attribute *attr, char *buf,
 			   loff_t off, size_t count)
 {
 	return -EOPNOTSUPP;
@@ -264,7 +264,7 @@ static ssize_t direct_read(struct file *file, struct kobject *kobj,
 
 /* A write sends the bytes to the sensor in one WRITE message. */
 static ssize_t direct_write(struct file *file, struct kobject *kobj,
-			    struct bin_attribute *attr, char *buf,
+			    LEGO_BIN_ATTR_CONST struct bin_attribute *attr, char *buf,
 			    loff_t off, size_t count)
 {
 	int ret;
@@ -276,7 +276,7 @@ static ssize_t direct_write(struct file *file, struct kobject *kobj,
 }
 static BIN_ATTR_RW(direct, 255);
 
-static struct attribute *ev3_uart_sensor_attrs[] = {
+static LEGO_ATTR_CONST struct attribute *LEGO_ATTR_CONST ev3_uart_sensor_attrs[] = {
 	&dev_attr_address.attr,
 	&dev_attr_driver_name.attr,
 	&dev_attr_modes.attr,
@@ -301,14 +301,14 @@ static struct attribute *ev3_uart_sensor_attrs[] = {
 	NULL
 };
 
-static struct bin_attribute *ev3_uart_sensor_bin_attrs[] = {
+static LEGO_BIN_ATTR_CONST struct bin_attribute *LEGO_BIN_ATTR_CONST ev3_uart_sensor_bin_attrs[] = {
 	&bin_attr_bin_data,
 	&bin_attr_direct,
 	NULL
 };
 
 static const struct attribute_group ev3_uart_sensor_group = {
-	.attrs = ev3_uart_sensor_attrs,
+	.LEGO_GROUP_ATTRS = ev3_uart_sensor_attrs,
 	.bin_attrs = ev3_uart_sensor_bin_attrs,
 };
 
@@ -330,7 +330,7 @@ static int ev3_uart_sensor_uevent(LEGO_UEVENT_CONST struct device *dev,
 	return add_uevent_var(env, "LEGO_ADDRESS=%s", sd->address);
 }
 
-static struct class lego_sensor_class = {
+static LEGO_CLASS_CONST struct class lego_sensor_class = {
 	.name = "lego-sensor",
 	.dev_groups = ev3_uart_sensor_groups,
 	.dev_uevent = ev3_uart_sensor_uevent,

@@ -45,6 +45,7 @@
  *	port lock)
  * @scan: one scan: a value per channel, then the timestamp (under the port
  *	lock)
+ * @scan_size: the size of @scan in bytes
  * @name: the IIO device's name, the sensor's driver name (a copy: the IIO
  *	device can outlive the sensor)
  * @label: its label, the sensor's address (a copy)
@@ -58,6 +59,7 @@ struct ev3_uart_iio {
 	u8 buffer_mode;
 	s64 last_ts;
 	s32 *scan;
+	size_t scan_size;
 	char name[sizeof_field(struct ev3_uart_sensor_dev, driver_name)];
 	char label[EV3_UART_ADDRESS_LEN];
 };
@@ -150,14 +152,14 @@ static ssize_t modes_show(struct device *dev, struct device_attribute *attr,
 }
 static IIO_DEVICE_ATTR_RO(modes, 0);
 
-static struct attribute *ev3_iio_attrs[] = {
+static LEGO_ATTR_CONST struct attribute *LEGO_ATTR_CONST ev3_iio_attrs[] = {
 	&iio_dev_attr_mode.dev_attr.attr,
 	&iio_dev_attr_modes.dev_attr.attr,
 	NULL
 };
 
 static const struct attribute_group ev3_iio_attr_group = {
-	.attrs = ev3_iio_attrs,
+	.LEGO_GROUP_ATTRS = ev3_iio_attrs,
 };
 
 static const struct iio_info ev3_iio_info = {
@@ -172,7 +174,9 @@ static int ev3_iio_postenable(struct iio_dev *indio)
 	unsigned int ch;
 	u8 mode;
 
-	ch = find_first_bit(indio->active_scan_mask, iio->num_chans);
+	/* The scan mask holds the channels of one mode (validate_scan_mask). */
+	iio_for_each_active_channel(indio, ch)
+		break;
 	if (ch >= iio->num_chans)
 		return -EINVAL;
 	mode = iio->chans[ch].mode;
@@ -262,14 +266,17 @@ void ev3_uart_iio_push(struct ev3_uart_sensor_dev *sd, u8 mode,
 	if (!iio || iio->buffer_mode != mode ||
 	    time_before(jiffies, sd->settle_until))
 		return;
-	for_each_set_bit(ch, iio->indio->active_scan_mask, iio->num_chans) {
+	iio_for_each_active_channel(iio->indio, ch) {
+		/* The timestamp, last of the scan, is no channel of ours. */
+		if (ch >= iio->num_chans)
+			break;
 		if (ev3_uart_chan_read(&sd->desc, &iio->chans[ch], data, len,
 				       &iio->scan[i]))
 			iio->scan[i] = 0;
 		i++;
 	}
-	iio_push_to_buffers_with_timestamp(iio->indio, iio->scan,
-					   ev3_iio_timestamp(iio, len, rest));
+	iio_push_to_buffers_with_ts(iio->indio, iio->scan, iio->scan_size,
+				    ev3_iio_timestamp(iio, len, rest));
 }
 
 /* The IIO channel specs of the channels, then the timestamp. */
@@ -341,8 +348,8 @@ int ev3_uart_iio_register(struct ev3_uart_sensor_dev *sd)
 	ret = -ENOMEM;
 	iio->chans = devm_kcalloc(&indio->dev, n, sizeof(*iio->chans), GFP_KERNEL);
 	/* A value per channel, then the timestamp, 8-byte aligned. */
-	iio->scan = devm_kzalloc(&indio->dev, round_up(n * sizeof(s32), 8) + 8,
-				 GFP_KERNEL);
+	iio->scan_size = round_up(n * sizeof(s32), 8) + 8;
+	iio->scan = devm_kzalloc(&indio->dev, iio->scan_size, GFP_KERNEL);
 	if (!iio->chans || !iio->scan)
 		goto free;
 	if (WARN_ON(ev3_uart_chans_build(&sd->desc, iio->chans, n) != n))

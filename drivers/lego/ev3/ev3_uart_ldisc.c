@@ -227,7 +227,7 @@ static void ev3_uart_write_wakeup(struct tty_struct *tty)
 {
 	struct ev3_uart_port *port = tty->disc_data;
 
-	queue_work(system_unbound_wq, &port->tx_work);
+	queue_work(system_dfl_wq, &port->tx_work);
 }
 
 /*
@@ -802,7 +802,7 @@ static void ev3_uart_ack_work(struct work_struct *work)
 	 * that another CPU sends the NACKs while this one registers (without
 	 * kernel preemption a per-CPU worker would wait for this one).
 	 */
-	queue_delayed_work(system_unbound_wq, &port->keepalive_work, 0);
+	queue_delayed_work(system_dfl_wq, &port->keepalive_work, 0);
 
 	sd = ev3_uart_sensor_create(port, desc);
 	if (IS_ERR(sd)) {
@@ -887,7 +887,7 @@ static void ev3_uart_keepalive_work(struct work_struct *work)
 	}
 	ev3_uart_tx(port, &nack, ev3_uart_build_nack(&nack));
 	if (!READ_ONCE(port->closing))
-		queue_delayed_work(system_unbound_wq, &port->keepalive_work,
+		queue_delayed_work(system_dfl_wq, &port->keepalive_work,
 				   msecs_to_jiffies(EV3_UART_KEEPALIVE_MS));
 }
 

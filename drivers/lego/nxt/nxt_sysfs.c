@@ -249,7 +249,7 @@ NXT_ATTR_RO(brick_name, NXT_ATTR_NAME);
 NXT_ATTR_RO(bt_address, NXT_ATTR_BT_ADDRESS);
 NXT_ATTR_RO(free_flash, NXT_ATTR_FREE_FLASH);
 
-static struct attribute *nxt_attrs[] = {
+static LEGO_ATTR_CONST struct attribute *LEGO_ATTR_CONST nxt_attrs[] = {
 	&dev_attr_battery_mv.attr,
 	&dev_attr_firmware_version.attr,
 	&dev_attr_protocol_version.attr,
@@ -260,7 +260,7 @@ static struct attribute *nxt_attrs[] = {
 };
 
 static const struct attribute_group nxt_group = {
-	.attrs = nxt_attrs,
+	.LEGO_GROUP_ATTRS = nxt_attrs,
 };
 
 const struct attribute_group *nxt_groups[] = {

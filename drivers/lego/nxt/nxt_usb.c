@@ -74,7 +74,7 @@ static void nxt_drain_for(struct nxt_usb *nxt, unsigned int ms)
 	nxt->stats.drains++;
 	trace_nxt_usb_drain(nxt_name(nxt), ms, nxt->orphan, nxt->orphan_op);
 	/* Nothing else may happen when it ends: poll() is woken then. */
-	mod_delayed_work(system_wq, &nxt->drain_work, msecs_to_jiffies(ms) + 1);
+	mod_delayed_work(system_percpu_wq, &nxt->drain_work, msecs_to_jiffies(ms) + 1);
 }
 
 /* The drain has ended (or ended early): writers and poll() may go on. */
