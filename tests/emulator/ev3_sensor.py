@@ -428,10 +428,11 @@ class EmulatedSensor(threading.Thread):
         handshake that the host answers, one good DATA message and seven
         with a bad checksum, then a reset.
 
-        gate: a threading.Event the first handshake (or, for a device that
-        syncs fast, the first listening for the probe) waits for, after
-        the reset; `at_gate` is set once it waits. A test can so attach the
-        host and have the sensor talk right after."""
+        gate: a function called once, in the emulator's thread, right
+        before the first handshake's first byte (or, for a device that
+        syncs fast, before it first listens for the probe), after the
+        reset: a test can so attach the host and have the sensor talk
+        within the same millisecond."""
         super().__init__(daemon=True)
         self.host_tty = host_tty
         self.host_fd = None
@@ -446,7 +447,6 @@ class EmulatedSensor(threading.Thread):
         self.flaky = flaky
         self.flaky_resets = 0
         self.gate = gate
-        self.at_gate = threading.Event()
         self.handshake_starts = []  # monotonic time of each handshake's first byte
         self.sync_speeds = []       # the speed of each handshake sent
         self.fast_syncs = 0         # probes answered
@@ -565,14 +565,10 @@ class EmulatedSensor(threading.Thread):
             time.sleep(left)
 
     def wait_gate(self):
-        """Wait for the test's go (see __init__), once."""
-        if self.gate is None:
-            return
-        self.at_gate.set()
-        while not self.gate.wait(0.05):
-            if self.stopping.is_set():
-                return
-        self.gate = None
+        """Call the test's gate (see __init__), once."""
+        gate, self.gate = self.gate, None
+        if gate is not None:
+            gate()
 
     def read(self, timeout):
         r, _, _ = select.select([self.fd], [], [], max(timeout, 0))
@@ -739,7 +735,9 @@ class EmulatedSensor(threading.Thread):
         self.frames_sent += 1
 
     def flaky_data(self):
-        """A broken device's data phase: one good frame, seven bad."""
+        """A broken device's data phase: one good frame, seven bad (after
+        the 20 ms a real sensor may take, so that the host is at our speed)."""
+        time.sleep(0.02)
         m = self.sdef.modes[self.mode]
         payload = pack_values(m, self.values[self.mode])
         self.send(data_frame(self.sdef, self.mode, payload))

@@ -12,10 +12,10 @@ probe (on a pty, which has no break).
 """
 import fcntl
 import os
+import select
 import struct
 import subprocess
 import termios
-import threading
 import time
 
 import pytest
@@ -196,29 +196,38 @@ def test_spike_at_2400_when_the_probe_misses_it(ev3_module):
         os.close(master)
 
 
-def attach_pty_and_go(kind, **kw):
+def attach_pty_and_go(kind, after_probe=False, **kw):
     """A pty with the discipline on its slave, and an emulated sensor on its
     master that paces what it sends at its speed (a pty paces nothing) and
-    starts talking right after the attach, while the attach's probe runs.
-    Returns (master, slave, tty name, emulator, monotonic time of the
-    attach)."""
+    starts talking right after the attach: the emulator's thread attaches
+    the discipline itself, just before its first byte; with after_probe,
+    it also waits for the attach's probe (SPEED 115200) to reach it, so
+    that its first byte comes while the host waits for an answer. Returns
+    (master, slave, tty name, emulator, monotonic time of the attach)."""
     master, slave = os.openpty()
     tty = 'pts' + os.ttyname(slave).split('/')[-1]
-    go = threading.Event()
-    emu = ev3_sensor.EmulatedSensor(master, kind, pace=True, gate=go, **kw)
+    attached = []
+
+    def attach():
+        fcntl.ioctl(slave, termios.TIOCSETD, struct.pack('i', N_LEGOEV3))
+        attached.append(time.monotonic())
+        seen = b''
+        while after_probe and ev3_sensor.PROBE not in seen and \
+                time.monotonic() < attached[0] + 2:
+            if select.select([master], [], [], 0.05)[0]:
+                seen += os.read(master, 64)
+
+    emu = ev3_sensor.EmulatedSensor(master, kind, pace=True, gate=attach, **kw)
     emu.start()
-    assert emu.at_gate.wait(10), emu.events
-    fcntl.ioctl(slave, termios.TIOCSETD, struct.pack('i', N_LEGOEV3))
-    t_attach = time.monotonic()
-    go.set()
-    return master, slave, tty, emu, t_attach
+    assert wait_for(lambda: attached, 10), emu.events
+    return master, slave, tty, emu, attached[0]
 
 
 @pytest.mark.parametrize('kind', ['color', 'us', 'gyro', 'ir'])
 def test_ev3_registers_on_its_first_handshake(trace, ev3_module, kind):
     """Issue 28: an EV3 sensor that starts its handshake (a real sensor's
-    bytes, at 2400 baud's pace) right after the discipline is attached,
-    while the attach's probe waits at 115200: on a pty the bytes arrive
+    bytes, at 2400 baud's pace) right after the discipline is attached, as
+    the attach's probe (SPEED at 115200) reaches it: on a pty the bytes arrive
     whatever the speed, and the probe used to drop them, TYPE included, so
     that only the sensor's second handshake was answered, a whole
     handshake later. Its first one must be answered: from its first byte
@@ -226,7 +235,7 @@ def test_ev3_registers_on_its_first_handshake(trace, ev3_module, kind):
     than half of it more."""
     sdef = ev3_sensor.SENSORS[kind]
     wire = len(ev3_sensor.handshake(sdef)) * 10 / 2400     # 1.29 to 1.60 s
-    master, slave, tty, emu, _ = attach_pty_and_go(kind, boot_delay=0)
+    master, slave, tty, emu, _ = attach_pty_and_go(kind, after_probe=True, boot_delay=0)
     try:
         path = find_sensor(tty, timeout=4 * wire + 5)
         t_found = time.monotonic()

@@ -330,7 +330,9 @@ int ev3_uart_iio_register(struct ev3_uart_sensor_dev *sd)
 
 	n = ev3_uart_chans_build(&sd->desc, NULL, 0);
 	if (!n) {
-		dev_info(&sd->dev, "no value has an IIO type and scale: no IIO device\n");
+		/* Once a connection: limited like the port's other lines. */
+		if (__ratelimit(&sd->port->log_rs))
+			dev_info(&sd->dev, "no value has an IIO type and scale: no IIO device\n");
 		return 0;
 	}
 
