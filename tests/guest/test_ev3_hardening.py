@@ -17,7 +17,7 @@ import ev3
 import tracing
 from ev3 import find_sensor, iio_device, read_attr, wait_value, write_attr
 from ev3_sensor import S8, S16, Mode, SensorDef
-from conftest import loaded, module_path
+from conftest import loaded, module_path, wait_for
 
 TIOCSLCKTRMIOS = 0x5457
 CBAUD = 0o010017
@@ -232,6 +232,36 @@ def test_failing_device_is_backed_off(line):
     assert wait_value(path, 0, 3) == 3
     time.sleep(1.0)
     assert ev3.read_attr(path, 'driver_name') == 'ev3-uart-99'
+
+
+def test_write_errors_are_logged_once(line):
+    """Issue 28: a tty whose writes fail (the null modem's fail_writes)
+    had a warning for each keep-alive, every 100 ms, as long as it lasted.
+    The first error is logged, the others only counted until a message
+    goes out again; then the sensor connects again."""
+    emu = line.plug('gyro')
+    path = find_sensor(line.address, timeout=15)
+    assert path, emu.events
+    knob = '/sys/module/lego_nullmodem/parameters/fail_writes'
+    before = kernel_log().count(line.address + ': cannot send')
+    errors = tracing.counters('/sys/kernel/debug/lego_ev3_uart/%s/counters'
+                              % line.address)['tx_errors']
+    write_attr(os.path.dirname(knob), 'fail_writes', '1')     # ttyNM0
+    try:
+        # The keep-alives fail, the sensor resets, its next handshakes go
+        # unanswered: writes fail for 4 s.
+        time.sleep(4.0)
+    finally:
+        write_attr(os.path.dirname(knob), 'fail_writes', '0')
+    c = tracing.counters('/sys/kernel/debug/lego_ev3_uart/%s/counters' % line.address)
+    warned = kernel_log().count(line.address + ': cannot send') - before
+    print('%d write errors, %d lines' % (c['tx_errors'] - errors, warned))
+    assert c['tx_errors'] - errors >= 7, c
+    assert warned == 1, warned
+    # Writes work again: the sensor is back, and the log says so once.
+    path = find_sensor(line.address, timeout=15, gone_from=None)
+    assert path, emu.events[-10:]
+    assert wait_for(lambda: kernel_log().count(line.address + ': sending to the tty again'), 5)
 
 
 def test_speed_the_uart_cannot_set(ev3_module):

@@ -214,6 +214,8 @@ struct ev3_uart_sensor_dev {
  * @tx_pos: the first byte of @tx_buf not yet sent
  * @tx_len: bytes queued from @tx_pos on
  * @tx_work: sends what is queued once the tty has room again
+ * @tx_failed: the last write to the tty failed (under @tx_mutex): further
+ *	errors are not logged until one succeeds
  * @stats: counters, for debugfs
  * @debugfs: the port's directory in debugfs (lego_ev3_uart/TTY)
  */
@@ -258,6 +260,7 @@ struct ev3_uart_port {
 	unsigned int tx_pos;
 	unsigned int tx_len;
 	struct work_struct tx_work;
+	bool tx_failed;
 	struct ev3_uart_stats stats;
 	struct dentry *debugfs;
 };

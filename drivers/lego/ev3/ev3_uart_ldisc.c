@@ -185,10 +185,49 @@ static void ev3_uart_tx_account(struct ev3_uart_port *port, const u8 *buf,
 			  len, ret);
 }
 
+/*
+ * Latch the tty's write errors, as can327 does: the first one is logged,
+ * the others (a keep-alive every 100 ms) only counted, until a message goes
+ * out again. @tx_mutex held. Return: what to log: 1 the first error, -1
+ * the recovery, 0 nothing.
+ */
+static int ev3_uart_tx_latch(struct ev3_uart_port *port, int ret)
+{
+	bool was = port->tx_failed;
+
+	lockdep_assert_held(&port->tx_mutex);
+	port->tx_failed = ret;
+	if (ret && !was)
+		return 1;
+	return !ret && was ? -1 : 0;
+}
+
+static void ev3_uart_tx_log(struct ev3_uart_port *port, int what, int err)
+{
+	if (what > 0)
+		pr_warn("%s: cannot send to the tty: %d (not logged again until a message goes out)\n",
+			port->tty->name, err);
+	else if (what < 0)
+		pr_info("%s: sending to the tty again\n", port->tty->name);
+}
+
+/*
+ * Drop what is queued and not yet handed to the tty: on a speed change
+ * (it was meant for the old speed) and when a sensor is lost (a SELECT or
+ * a WRITE for it must not reach the next one).
+ */
+static void ev3_uart_tx_discard(struct ev3_uart_port *port)
+{
+	mutex_lock(&port->tx_mutex);
+	port->tx_len = 0;
+	port->tx_pos = 0;
+	mutex_unlock(&port->tx_mutex);
+}
+
 /* Queue a whole message behind what is still queued, and send. */
 static int ev3_uart_tx(struct ev3_uart_port *port, const u8 *buf, size_t len)
 {
-	int ret;
+	int ret, log;
 
 	mutex_lock(&port->tx_mutex);
 	if (port->tx_pos) {
@@ -203,10 +242,9 @@ static int ev3_uart_tx(struct ev3_uart_port *port, const u8 *buf, size_t len)
 		ret = ev3_uart_tx_flush(port);
 	}
 	ev3_uart_tx_account(port, buf, len, ret);
+	log = ev3_uart_tx_latch(port, ret);
 	mutex_unlock(&port->tx_mutex);
-	if (ret)
-		pr_warn_ratelimited("%s: cannot send a %zu-byte message: %d\n",
-				    port->tty->name, len, ret);
+	ev3_uart_tx_log(port, log, ret);
 	return ret;
 }
 
@@ -214,12 +252,15 @@ static void ev3_uart_tx_work(struct work_struct *work)
 {
 	struct ev3_uart_port *port = container_of(work, struct ev3_uart_port,
 						  tx_work);
+	int ret = 0, log = 0;
 
 	mutex_lock(&port->tx_mutex);
-	if (port->tx_len && ev3_uart_tx_flush(port))
-		pr_warn_ratelimited("%s: cannot send queued bytes\n",
-				    port->tty->name);
+	if (port->tx_len) {
+		ret = ev3_uart_tx_flush(port);
+		log = ev3_uart_tx_latch(port, ret);
+	}
 	mutex_unlock(&port->tx_mutex);
+	ev3_uart_tx_log(port, log, ret);
 }
 
 /* The driver has room again: send the rest from process context. */
@@ -249,7 +290,9 @@ static void ev3_uart_set_termios(struct tty_struct *tty, struct ktermios *t)
 
 /*
  * Through tty_set_termios(), like a TCSETS would: locked termios are
- * respected, and the driver writes back the speed it could set. A tty with
+ * respected, and the driver writes back the speed it could set. What is
+ * still queued for the tty is dropped first (ev3_uart_tx_discard()): sent
+ * after the change it would go out at the wrong speed. A tty with
  * no set_termios (a pty master) has no speed to set. A speed within 2 % is
  * as good (the tty core itself rounds to a standard rate that close, and
  * UARTs tolerate more).
@@ -266,6 +309,7 @@ static int ev3_uart_set_speed(struct ev3_uart_port *port, unsigned int baud)
 	speed_t got;
 	int ret;
 
+	ev3_uart_tx_discard(port);
 	down_read(&tty->termios_rwsem);
 	t = tty->termios;
 	up_read(&tty->termios_rwsem);
@@ -832,9 +876,12 @@ static void ev3_uart_ack_work(struct work_struct *work)
 	return;
 
 fail:
+	/* Started before a failed registration: done before the probe. */
+	cancel_delayed_work_sync(&port->keepalive_work);
 	spin_lock(&port->lock);
 	ev3_uart_parser_restart(port, why);
 	spin_unlock(&port->lock);
+	ev3_uart_tx_discard(port);
 	ev3_uart_hunt(port);
 }
 
@@ -915,7 +962,12 @@ static void ev3_uart_reset_work(struct work_struct *work)
 						  reset_work);
 	struct ev3_uart_sensor_dev *sd;
 
-	cancel_delayed_work(&port->keepalive_work);
+	/*
+	 * A keep-alive that is running must be done before the line changes
+	 * speed for the probe below: its NACK would go out at 115200, into
+	 * the probe. It does not wait for this work.
+	 */
+	cancel_delayed_work_sync(&port->keepalive_work);
 
 	spin_lock(&port->lock);
 	sd = port->sensor;
@@ -934,6 +986,7 @@ static void ev3_uart_reset_work(struct work_struct *work)
 	complete_all(&port->select_done);
 	spin_unlock(&port->lock);
 
+	ev3_uart_tx_discard(port);
 	ev3_uart_hunt(port);
 	if (sd) {
 		ev3_uart_info(port, "%s: %s disconnected\n", port->tty->name,
@@ -1469,6 +1522,12 @@ static void ev3_uart_close(struct tty_struct *tty)
 	port->sensor = NULL;
 	if (sd)
 		WRITE_ONCE(sd->gone, true);
+	/*
+	 * A sensor ack_work published after the first complete_all() may
+	 * have a mode change waiting: wake it, or the unregistering below
+	 * waits for it (up to 250 ms).
+	 */
+	complete_all(&port->select_done);
 	spin_unlock(&port->lock);
 	if (sd) {
 		ev3_uart_trace_sensor(port, EV3_UART_TRACE_CLOSED, &sd->desc, sd);
@@ -1476,9 +1535,15 @@ static void ev3_uart_close(struct tty_struct *tty)
 	}
 	debugfs_remove_recursive(port->debugfs);
 
-	/* No work writes any more: stop the wakeups, then their work. */
-	clear_bit(TTY_DO_WRITE_WAKEUP, &tty->flags);
+	/*
+	 * No work or user writes any more: the last tx_work, which sets the
+	 * wakeup flag when it writes, then the flag, which would else stay
+	 * set for the next discipline. No write_wakeup comes meanwhile to
+	 * queue tx_work again: the tty core holds the discipline locked
+	 * around close(), and tty_wakeup() calls no discipline then.
+	 */
 	cancel_work_sync(&port->tx_work);
+	clear_bit(TTY_DO_WRITE_WAKEUP, &tty->flags);
 	tty->disc_data = NULL;
 	kfree(port);
 }
