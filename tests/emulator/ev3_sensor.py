@@ -406,7 +406,7 @@ class EmulatedSensor(threading.Thread):
 
     def __init__(self, path, kind, hostile=False, seed=1, boot_delay=0.5, period_scale=1.0,
                  host_tty=None, retry_delay=None, fast_sync=None, pace=False, gate=None,
-                 flaky=False):
+                 flaky=False, ignore_select=False):
         """period_scale > 1 slows the spontaneous cadence of continuous modes
         (NACK replies stay immediate): several emulators in one Python
         process inside an emulated machine cannot all keep real cadences
@@ -423,6 +423,9 @@ class EmulatedSensor(threading.Thread):
         the speed we are at, PACE_CHUNK bytes at a time on the wire's
         schedule, and return from send() when the last byte would have
         left, as tcdrain() does on a UART.
+
+        ignore_select: SELECT messages are not carried out (the host's mode
+        changes are never confirmed).
 
         flaky: a broken device (set or cleared at any time): after each
         handshake that the host answers, one good DATA message and seven
@@ -445,6 +448,7 @@ class EmulatedSensor(threading.Thread):
             else fast_sync
         self.pace = pace
         self.flaky = flaky
+        self.ignore_select = ignore_select
         self.flaky_resets = 0
         self.gate = gate
         self.handshake_starts = []  # monotonic time of each handshake's first byte
@@ -814,7 +818,8 @@ class EmulatedSensor(threading.Thread):
                 elif b == 0x43:             # SELECT
                     if len(buf) < 3:
                         break
-                    if checksum(buf[:2]) == buf[2] and buf[1] < len(self.sdef.modes):
+                    if checksum(buf[:2]) == buf[2] and buf[1] < len(self.sdef.modes) and \
+                            not self.ignore_select:
                         new = buf[1]
                         pending = (time.monotonic() + self.sdef.modes[new].first_reply, new)
                     buf = buf[3:]

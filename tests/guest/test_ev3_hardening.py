@@ -9,6 +9,7 @@ import os
 import select
 import struct
 import subprocess
+import threading
 import time
 
 import pytest
@@ -262,6 +263,74 @@ def test_write_errors_are_logged_once(line):
     path = find_sensor(line.address, timeout=15, gone_from=None)
     assert path, emu.events[-10:]
     assert wait_for(lambda: kernel_log().count(line.address + ': sending to the tty again'), 5)
+
+
+def test_close_wakes_a_mode_write_on_a_sensor_published_meanwhile(ev3_module):
+    """Issue 28: close() wakes the mode changes waiting on the port's
+    sensor, but a sensor that ack_work registered while close() waited for
+    it got no wake-up: a mode write on it waited out its 250 ms, holding up
+    the unregistering. A sensor of 256 channels takes seconds to register
+    on the test kernel: the line is closed meanwhile, while mode writes on
+    its class device (which the emulator never confirms) follow one
+    another; the last must end (ENODEV) as soon as close() marks the
+    sensor gone, the trace's "closed" event."""
+    units = ['deg', 'd/s', 'cm', 'C', 'mm', 'inch', 'mV', 'lx']
+    sdef = SensorDef(88, 'ev3-uart-88', 8, [
+        Mode('M%d' % i, (-128, 127), (-128, 127), units[i], 32, S8, 4, 0,
+             cadence='continuous', period=0.05)
+        for i in range(8)], speed=57600)
+    clock = os.path.join(tracing.tracefs(), 'trace_clock')
+    with open(clock) as f:
+        old_clock = [w.strip('[]') for w in f.read().split() if w.startswith('[')][0]
+    with open(clock, 'w') as f:
+        f.write('mono')                 # time.monotonic()'s clock
+    trace = tracing.Trace('lego_ev3_uart')
+    lates = []
+    try:
+        for _ in range(2):
+            ln = ev3.Line(0)
+            ln.attach()
+            emu = ln.plug(sdef, ignore_select=True)
+            path = find_sensor(ln.address, timeout=20)
+            assert path, emu.events
+            ends = []
+            stop = threading.Event()
+
+            def writer():
+                while not stop.is_set():
+                    try:
+                        write_attr(path, 'mode', 'M1')
+                        err = 0
+                    except OSError as e:
+                        err = e.errno
+                    ends.append((time.monotonic(), err))
+                    if err in (errno.ENODEV, errno.ENOENT):
+                        return
+
+            t = threading.Thread(target=writer)
+            t.start()
+            time.sleep(0.3)
+            registered = iio_device('ev3-uart-88', timeout=0)
+            ln.detach()                 # waits for the registration
+            stop.set()
+            t.join(5)
+            emu.stop()
+            closed = [ts for ts, n, f in trace.timed() if n == 'ev3_uart_sensor' and
+                      f.get('tty') == ln.address and f['event'] == 'closed']
+            assert closed and ends, (closed, ends)
+            assert registered is None, 'registered before the close: nothing tested'
+            last, err = ends[-1]
+            assert err in (errno.ENODEV, errno.ENOENT), ends
+            lates.append(last - closed[-1])
+            write_attr(tracing.tracefs(), 'trace', '')
+    finally:
+        trace.stop()
+        with open(clock, 'w') as f:
+            f.write(old_clock)
+    print('mode writes ended %s ms after the close marked the sensor gone'
+          % ['%.0f' % (x * 1e3) for x in lates])
+    for late in lates:
+        assert late < 0.05, lates
 
 
 def test_speed_the_uart_cannot_set(ev3_module):
