@@ -298,6 +298,8 @@ SENSORS = {'color': COLOR, 'us': US, 'gyro': GYRO, 'gyro-old': GYRO_OLD, 'ir': I
            'spike-dist': SPIKE_DIST}
 
 IR_STALE_TIME = 1.1
+# Bytes written at a time when the emulator paces a line itself (pace=True).
+PACE_CHUNK = 4
 # The host's ACK must come within ACK_WAIT of the handshake's end; the
 # emulator watches for it in waits of ACK_SLICE (see wait_ack()).
 ACK_WAIT = 0.080
@@ -403,7 +405,8 @@ class EmulatedSensor(threading.Thread):
     stop() is called."""
 
     def __init__(self, path, kind, hostile=False, seed=1, boot_delay=0.5, period_scale=1.0,
-                 host_tty=None, retry_delay=None, fast_sync=None):
+                 host_tty=None, retry_delay=None, fast_sync=None, pace=False, gate=None,
+                 flaky=False, ignore_select=False):
         """period_scale > 1 slows the spontaneous cadence of continuous modes
         (NACK replies stay immediate): several emulators in one Python
         process inside an emulated machine cannot all keep real cadences
@@ -414,7 +417,25 @@ class EmulatedSensor(threading.Thread):
         end's speed differs from ours.
 
         fast_sync: False makes a device that answers the fast sync probe
-        ignore it (None: as its definition says)."""
+        ignore it (None: as its definition says).
+
+        pace: on a line that paces nothing (a pty), write at the pace of
+        the speed we are at, PACE_CHUNK bytes at a time on the wire's
+        schedule, and return from send() when the last byte would have
+        left, as tcdrain() does on a UART.
+
+        ignore_select: SELECT messages are not carried out (the host's mode
+        changes are never confirmed).
+
+        flaky: a broken device (set or cleared at any time): after each
+        handshake that the host answers, one good DATA message and seven
+        with a bad checksum, then a reset.
+
+        gate: a function called once, in the emulator's thread, right
+        before the first handshake's first byte (or, for a device that
+        syncs fast, before it first listens for the probe), after the
+        reset: a test can so attach the host and have the sensor talk
+        within the same millisecond."""
         super().__init__(daemon=True)
         self.host_tty = host_tty
         self.host_fd = None
@@ -425,6 +446,12 @@ class EmulatedSensor(threading.Thread):
         self.sdef = SENSORS[kind] if isinstance(kind, str) else kind
         self.fast_sync = getattr(self.sdef, 'fast_sync', False) if fast_sync is None \
             else fast_sync
+        self.pace = pace
+        self.flaky = flaky
+        self.ignore_select = ignore_select
+        self.flaky_resets = 0
+        self.gate = gate
+        self.handshake_starts = []  # monotonic time of each handshake's first byte
         self.sync_speeds = []       # the speed of each handshake sent
         self.fast_syncs = 0         # probes answered
         self.path, self.hostile, self.boot_delay = path, hostile, boot_delay
@@ -517,9 +544,35 @@ class EmulatedSensor(threading.Thread):
         if host != self.speed:
             self.garbled += len(data)
             data = garble(data, self.speed, host, self.rng)
+        if self.pace and self.speed:
+            self.send_paced(data)
+            return
         view = memoryview(data)
         while view:
             view = view[os.write(self.fd, view):]
+
+    def send_paced(self, data):
+        """send() on a line that paces nothing: each chunk when a wire at
+        our speed would have taken it (10 bits a byte), on an absolute
+        schedule, so that a late wake-up does not slow the rest."""
+        byte = 10.0 / self.speed
+        t0 = time.monotonic()
+        for i in range(0, len(data), PACE_CHUNK):
+            left = t0 + i * byte - time.monotonic()
+            if left > 0:
+                time.sleep(left)
+            view = memoryview(data[i:i + PACE_CHUNK])
+            while view:
+                view = view[os.write(self.fd, view):]
+        left = t0 + len(data) * byte - time.monotonic()
+        if left > 0:
+            time.sleep(left)
+
+    def wait_gate(self):
+        """Call the test's gate (see __init__), once."""
+        gate, self.gate = self.gate, None
+        if gate is not None:
+            gate()
 
     def read(self, timeout):
         r, _, _ = select.select([self.fd], [], [], max(timeout, 0))
@@ -584,8 +637,10 @@ class EmulatedSensor(threading.Thread):
             self.stopping.wait(delay)
         if speed == 2400:
             termios.tcflush(self.fd, termios.TCIFLUSH)
+            self.wait_gate()
         if self.hostile:
             self.send_hostile()
+        self.handshake_starts.append(time.monotonic())
         self.send(hs)
         termios.tcdrain(self.fd)
         self.sync_speeds.append(speed)
@@ -615,6 +670,7 @@ class EmulatedSensor(threading.Thread):
             fcntl.ioctl(self.fd, TIOCSBRK)
         except OSError:
             pass                    # a tty with no break (a pty)
+        self.wait_gate()
         deadline = time.monotonic() + delay
         buf = b''
         try:
@@ -682,7 +738,23 @@ class EmulatedSensor(threading.Thread):
         self.send(data_frame(self.sdef, tag, pack_values(m, values), bad_checksum=bad))
         self.frames_sent += 1
 
+    def flaky_data(self):
+        """A broken device's data phase: one good frame, seven bad (after
+        the 20 ms a real sensor may take, so that the host is at our speed)."""
+        time.sleep(0.02)
+        m = self.sdef.modes[self.mode]
+        payload = pack_values(m, self.values[self.mode])
+        self.send(data_frame(self.sdef, self.mode, payload))
+        for _ in range(7):
+            self.send(data_frame(self.sdef, self.mode, payload, bad_checksum=True))
+        termios.tcdrain(self.fd)
+        self.flaky_resets += 1
+        self.log('flaky reset')
+
     def data_phase(self):
+        if self.flaky:
+            self.flaky_data()
+            return
         last_nack = time.monotonic()
         next_spont = 0.0
         pending = None              # (time, mode) of a SELECT being carried out
@@ -746,7 +818,8 @@ class EmulatedSensor(threading.Thread):
                 elif b == 0x43:             # SELECT
                     if len(buf) < 3:
                         break
-                    if checksum(buf[:2]) == buf[2] and buf[1] < len(self.sdef.modes):
+                    if checksum(buf[:2]) == buf[2] and buf[1] < len(self.sdef.modes) and \
+                            not self.ignore_select:
                         new = buf[1]
                         pending = (time.monotonic() + self.sdef.modes[new].first_reply, new)
                     buf = buf[3:]

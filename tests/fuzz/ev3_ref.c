@@ -31,5 +31,6 @@
 #define ev3_uart_parser_tick		ref_ev3_uart_parser_tick
 #define ev3_uart_parser_probe		ref_ev3_uart_parser_probe
 #define ev3_uart_parser_probe_end	ref_ev3_uart_parser_probe_end
+#define ev3_uart_backoff_lost		ref_ev3_uart_backoff_lost
 
 #include "ev3_uart_proto.c"

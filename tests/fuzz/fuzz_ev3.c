@@ -35,6 +35,8 @@ struct host {
 	unsigned int probe_wait;	/* batches to receive before probe_end */
 	s64 now;
 	s64 last_ts;
+	s64 registered_at;	/* h->now at the last handshake */
+	struct ev3_uart_backoff backoff;
 	unsigned long events;
 };
 
@@ -105,10 +107,13 @@ static void check_parser(const struct ev3_uart_parser *p)
 		CHECK(p->msg_len <= 3);
 		return;
 	}
-	/* Waiting for the probe's ACK: nothing held, nothing to replay. */
+	/*
+	 * Waiting for the probe's ACK: the TYPE hunt's window at most (it
+	 * goes on at 2400), nothing to replay.
+	 */
 	if (p->state == EV3_UART_STATE_PROBE) {
 		CHECK(p->sync_speed == EV3_UART_SPEED_FAST);
-		CHECK(!p->msg_len && p->replay_pos == p->replay_len);
+		CHECK(p->msg_len <= 3 && p->replay_pos == p->replay_len);
 		CHECK(p->fast_hdr == EV3_UART_NO_HDR);
 		return;
 	}
@@ -274,6 +279,31 @@ static void start_data(struct host *h)
 	CHECK(h->p->mode == 0 && h->p->pending_mode == EV3_UART_NO_MODE);
 }
 
+/*
+ * A sensor lost (the ldisc's reset_work): the back-off of a device that
+ * keeps failing (ev3_uart_backoff_lost()), with the time since its
+ * handshake.
+ */
+static void lost(struct host *h)
+{
+	s64 lived = (h->now - h->registered_at) / 1000000;
+	unsigned int before = h->backoff.failures, wait;
+
+	if (lived < 0 || lived > 100000)
+		lived = 100000;
+	wait = ev3_uart_backoff_lost(&h->backoff, lived);
+	CHECK(wait <= EV3_UART_BACKOFF_MAX_MS);
+	CHECK(!wait || wait % EV3_UART_BACKOFF_MIN_MS == 0);
+	if (lived >= EV3_UART_SHORT_LIFE_MS) {
+		CHECK(!wait && !h->backoff.failures);
+	} else {
+		CHECK(h->backoff.failures >= before);
+		CHECK(h->backoff.failures <= EV3_UART_FREE_RETRIES +
+					     EV3_UART_BACKOFF_MAX_SHIFT + 1);
+		CHECK(!wait == (h->backoff.failures <= EV3_UART_FREE_RETRIES));
+	}
+}
+
 static void event(struct host *h, const struct ev3_uart_event *ev, size_t rest)
 {
 	struct ev3_uart_parser *p = h->p;
@@ -287,6 +317,9 @@ static void event(struct host *h, const struct ev3_uart_event *ev, size_t rest)
 		break;
 	case EV3_UART_EV_SYNC:
 		CHECK(p->state == EV3_UART_STATE_INFO);
+		/* A TYPE during the probe starts a handshake at 2400. */
+		CHECK(p->sync_speed == EV3_UART_SPEED_MIN ||
+		      p->sensor.speed == EV3_UART_SPEED_FAST);
 		break;
 	case EV3_UART_EV_HANDSHAKE:
 		CHECK(p->state == EV3_UART_STATE_ACKED);
@@ -300,6 +333,7 @@ static void event(struct host *h, const struct ev3_uart_event *ev, size_t rest)
 		name = ev3_uart_lump_driver_name(p->sensor.type);
 		CHECK(!name || (strncmp(name, "lego-", 5) == 0 &&
 				strlen(name) < EV3_UART_DRIVER_NAME_LEN));
+		h->registered_at = h->now;
 		h->acked_wait = h->rng && rnd(h) % 4 == 0 ? 1 + rnd(h) % 3 : 0;
 		if (!h->acked_wait)
 			start_data(h);
@@ -314,6 +348,7 @@ static void event(struct host *h, const struct ev3_uart_event *ev, size_t rest)
 	case EV3_UART_EV_ERROR:
 		CHECK(p->state == EV3_UART_STATE_SYNC);
 		CHECK(ev->reason && ev->reason[0]);
+		lost(h);
 		break;
 	case EV3_UART_EV_MSG:
 		CHECK(p->report_msgs && p->state == EV3_UART_STATE_INFO);

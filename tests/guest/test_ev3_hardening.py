@@ -9,14 +9,16 @@ import os
 import select
 import struct
 import subprocess
+import threading
 import time
 
 import pytest
 
 import ev3
+import tracing
 from ev3 import find_sensor, iio_device, read_attr, wait_value, write_attr
 from ev3_sensor import S8, S16, Mode, SensorDef
-from conftest import loaded, module_path
+from conftest import loaded, module_path, wait_for
 
 TIOCSLCKTRMIOS = 0x5457
 CBAUD = 0o010017
@@ -147,6 +149,188 @@ def test_mode_names_with_spaces_and_twins(line):
         with pytest.raises(OSError) as e:
             write_attr(path, 'mode', bad)
         assert e.value.errno == errno.EINVAL
+
+
+def test_twin_rgb_modes_get_an_iio_device(line):
+    """Issue 28: a colour sensor (type 29) with two RGB-RAW modes gave two
+    in_intensity_red_raw (and green, blue) channels, and the IIO core
+    refused the whole device. The first RGB-RAW keeps the colour names, the
+    twin's values are indexed intensity channels."""
+    color = ev3.ev3_sensor.COLOR
+    rgb = color.modes[4]
+    sdef = SensorDef(29, 'lego-ev3-color', 3, color.modes[:5] + [rgb], speed=57600,
+                     quirks=False)
+    emu = line.plug(sdef)
+    path = find_sensor(line.address, timeout=15)
+    assert path, 'not registered (events: %s)' % emu.events
+    assert read_attr(path, 'modes') == 'COL-REFLECT COL-AMBIENT COL-COLOR REF-RAW #4 #5'
+    dev = iio_device('lego-ev3-color', timeout=3)
+    assert dev, 'no IIO device: %s' % kernel_log()[-2000:]
+    attrs = iio_attrs(dev)
+    for c in ['red', 'green', 'blue']:
+        assert 'in_intensity_%s_raw' % c in attrs, sorted(attrs)
+    # COL-REFLECT, COL-AMBIENT, REF-RAW (2), RGB-RAW's fourth, the twin's 3.
+    indexed = sorted(a for a in attrs if a.startswith('in_intensity') and
+                     a.endswith('_raw') and a[12:13].isdigit())
+    assert indexed == ['in_intensity%d_raw' % i for i in range(8)], sorted(attrs)
+    assert read_attr(dev, 'in_intensity5_label') == '#5 value0'
+    write_attr(path, 'mode', '#5')
+    emu.set_values(5, [11, 22, 33])
+    assert wait_value(path, 2, 33) == 33
+    assert [int(read_attr(dev, 'in_intensity%d_raw' % i)) for i in (5, 6, 7)] == [11, 22, 33]
+
+
+def test_failing_device_is_backed_off(line):
+    """Issue 28: a device that sends its handshake, one good DATA message
+    and seven bad ones, and does it again (a Powered Up one by fast sync,
+    every 100 ms or so), had a class device and an IIO device registered
+    and unregistered each time, with their uevents and four lines of log.
+    After three such failures in a row its reconnects are held off (1 s,
+    doubled at every failure: ev3_uart_proto.h), and the port's lines are
+    rate limited; once the device behaves it is registered again and
+    stays. Played by a small sensor at 2400 baud that resets quickly, one
+    connection every half second or so."""
+    sdef = SensorDef(99, 'ev3-uart-99', 1, [
+        Mode('TEST', (0, 100), (0, 100), 'pct', 1, S8, 3, 0)], speed=57600, quirks=False)
+    trace = tracing.Trace('lego_ev3_uart')
+
+    def driver_lines():
+        log = kernel_log()
+        return log.count(line.address + ':') + log.count('lego-sensor sensor')
+
+    log_before = driver_lines()
+    try:
+        emu = line.plug(sdef, flaky=True, boot_delay=0.15)
+        t0 = time.monotonic()
+        time.sleep(10.0)
+        took = time.monotonic() - t0
+        events = [(t, f['event']) for t, n, f in trace.timed()
+                  if n == 'ev3_uart_sensor' and f.get('tty') == line.address]
+    finally:
+        trace.stop()
+    lines = driver_lines() - log_before
+    reg = [t for t, e in events if e == 'registered']
+    lost = [t for t, e in events if e == 'lost']
+    print('flaky device: %d registrations, %d resets, %d log lines in %.1f s'
+          % (len(reg), emu.flaky_resets, lines, took))
+    assert len(reg) >= 5, (events, emu.events[-10:])
+    # From the fourth loss on, the next registration waits 1 s, 2 s, 4 s...
+    waits = []
+    for k in range(3, len(reg) - 1):
+        waits.append(reg[k + 1] - max(t for t in lost if t < reg[k + 1]))
+    print('waits after the fourth loss on: %s' % ['%.2f' % w for w in waits])
+    for k, w in enumerate(waits):
+        assert w >= min(2 ** k, 32), (k, waits, events)
+    # At most DEFAULT_RATELIMIT_BURST (10) lines a 5 s interval.
+    assert lines <= 10 * (1 + int(took // 5)), lines
+    # It kept trying; its handshakes were left unanswered meanwhile.
+    assert len(emu.sync_speeds) > emu.handshakes, emu.events[-20:]
+    # Well again: registered at the end of the wait in force, and it stays.
+    emu.flaky = False
+    path = find_sensor(line.address, timeout=2 ** len(waits) + 10)
+    assert path, emu.events[-20:]
+    emu.set_values(0, [3])
+    assert wait_value(path, 0, 3) == 3
+    time.sleep(1.0)
+    assert ev3.read_attr(path, 'driver_name') == 'ev3-uart-99'
+
+
+def test_write_errors_are_logged_once(line):
+    """Issue 28: a tty whose writes fail (the null modem's fail_writes)
+    had a warning for each keep-alive, every 100 ms, as long as it lasted.
+    The first error is logged, the others only counted until a message
+    goes out again; then the sensor connects again."""
+    emu = line.plug('gyro')
+    path = find_sensor(line.address, timeout=15)
+    assert path, emu.events
+    knob = '/sys/module/lego_nullmodem/parameters/fail_writes'
+    before = kernel_log().count(line.address + ': cannot send')
+    errors = tracing.counters('/sys/kernel/debug/lego_ev3_uart/%s/counters'
+                              % line.address)['tx_errors']
+    write_attr(os.path.dirname(knob), 'fail_writes', '1')     # ttyNM0
+    try:
+        # The keep-alives fail, the sensor resets, its next handshakes go
+        # unanswered: writes fail for 4 s.
+        time.sleep(4.0)
+    finally:
+        write_attr(os.path.dirname(knob), 'fail_writes', '0')
+    c = tracing.counters('/sys/kernel/debug/lego_ev3_uart/%s/counters' % line.address)
+    warned = kernel_log().count(line.address + ': cannot send') - before
+    print('%d write errors, %d lines' % (c['tx_errors'] - errors, warned))
+    assert c['tx_errors'] - errors >= 7, c
+    assert warned == 1, warned
+    # Writes work again: the sensor is back, and the log says so once.
+    path = find_sensor(line.address, timeout=15, gone_from=None)
+    assert path, emu.events[-10:]
+    assert wait_for(lambda: kernel_log().count(line.address + ': sending to the tty again'), 5)
+
+
+def test_close_wakes_a_mode_write_on_a_sensor_published_meanwhile(ev3_module):
+    """Issue 28: close() wakes the mode changes waiting on the port's
+    sensor, but a sensor that ack_work registered while close() waited for
+    it got no wake-up: a mode write on it waited out its 250 ms, holding up
+    the unregistering. A sensor of 256 channels takes seconds to register
+    on the test kernel: the line is closed meanwhile, while mode writes on
+    its class device (which the emulator never confirms) follow one
+    another; the last must end (ENODEV) as soon as close() marks the
+    sensor gone, the trace's "closed" event."""
+    units = ['deg', 'd/s', 'cm', 'C', 'mm', 'inch', 'mV', 'lx']
+    sdef = SensorDef(88, 'ev3-uart-88', 8, [
+        Mode('M%d' % i, (-128, 127), (-128, 127), units[i], 32, S8, 4, 0,
+             cadence='continuous', period=0.05)
+        for i in range(8)], speed=57600)
+    clock = os.path.join(tracing.tracefs(), 'trace_clock')
+    with open(clock) as f:
+        old_clock = [w.strip('[]') for w in f.read().split() if w.startswith('[')][0]
+    with open(clock, 'w') as f:
+        f.write('mono')                 # time.monotonic()'s clock
+    trace = tracing.Trace('lego_ev3_uart')
+    lates = []
+    try:
+        for _ in range(2):
+            ln = ev3.Line(0)
+            ln.attach()
+            emu = ln.plug(sdef, ignore_select=True)
+            path = find_sensor(ln.address, timeout=20)
+            assert path, emu.events
+            ends = []
+            stop = threading.Event()
+
+            def writer():
+                while not stop.is_set():
+                    try:
+                        write_attr(path, 'mode', 'M1')
+                        err = 0
+                    except OSError as e:
+                        err = e.errno
+                    ends.append((time.monotonic(), err))
+                    if err in (errno.ENODEV, errno.ENOENT):
+                        return
+
+            t = threading.Thread(target=writer)
+            t.start()
+            time.sleep(0.3)
+            registered = iio_device('ev3-uart-88', timeout=0)
+            ln.detach()                 # waits for the registration
+            stop.set()
+            t.join(5)
+            emu.stop()
+            closed = [ts for ts, n, f in trace.timed() if n == 'ev3_uart_sensor' and
+                      f.get('tty') == ln.address and f['event'] == 'closed']
+            assert closed and ends, (closed, ends)
+            assert registered is None, 'registered before the close: nothing tested'
+            last, err = ends[-1]
+            assert err in (errno.ENODEV, errno.ENOENT), ends
+            lates.append(last - closed[-1])
+            write_attr(tracing.tracefs(), 'trace', '')
+    finally:
+        trace.stop()
+        with open(clock, 'w') as f:
+            f.write(old_clock)
+    print('mode writes ended %s ms after the close marked the sensor gone'
+          % ['%.0f' % (x * 1e3) for x in lates])
+    for late in lates:
+        assert late < 0.05, lates
 
 
 def test_speed_the_uart_cannot_set(ev3_module):

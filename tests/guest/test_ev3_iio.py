@@ -149,3 +149,78 @@ def test_libiio_tools(line):
     samples = [struct.unpack('<i4xq', out.stdout[i:i + 16]) for i in range(0, len(out.stdout), 16)]
     assert all(v == 45 for v, _ in samples[-8:])
     assert [t for _, t in samples] == sorted(t for _, t in samples)
+
+
+def _full_preemption():
+    """Switch the kernel to full preemption (PREEMPT_DYNAMIC) if it can;
+    the previous model, to restore, or None."""
+    path = '/sys/kernel/debug/sched/preempt'
+    try:
+        with open(path) as f:
+            old = [w.strip('()') for w in f.read().split() if w.startswith('(')][0]
+        with open(path, 'w') as f:
+            f.write('full')
+        return old
+    except (OSError, IndexError):
+        return None
+
+
+def test_buffer_enable_and_mode_write_race(line):
+    """Issue 28: enabling a buffer set its mode (buffer_mode) only after the
+    mode change had released the sensor's select_mutex, so that a mode
+    write waiting for the mutex could switch the sensor away in between:
+    the buffer on mode 3, the sensor in mode 1, nothing pushed, and every
+    other mode EBUSY. A mode write that races an enable either fails with
+    EBUSY (the buffer holds its mode) or comes first, and the sensor is
+    then in the buffer's mode. Both on one CPU, with full preemption where
+    the kernel allows it: the woken mode write then runs before the enable
+    returns, as it can on any machine."""
+    emu = line.plug('us')
+    path = find_sensor(line.address, timeout=15)
+    assert path
+    dev = iio_device('lego-ev3-us')
+    assert dev
+    # US-SI-CM (mode 3, in_distance2) answers 61 ms after SELECT: the mode
+    # write below is waiting for the mutex by then.
+    write_attr(dev, 'scan_elements/in_distance2_en', '1')
+    old_affinity = os.sched_getaffinity(0)
+    old_model = _full_preemption()
+    os.sched_setaffinity(0, {min(old_affinity)})
+    slipped = []
+    try:
+        for i in range(25):
+            write_attr(path, 'mode', 'US-DIST-CM')
+            result = {}
+
+            def mode_write():
+                time.sleep(0.02)
+                try:
+                    write_attr(path, 'mode', 'US-DIST-IN')
+                    result['mode'] = 0
+                except OSError as e:
+                    result['mode'] = e.errno
+
+            t = threading.Thread(target=mode_write)
+            t.start()
+            try:
+                write_attr(dev, 'buffer/enable', '1')
+                result['enable'] = 0
+            except OSError as e:
+                result['enable'] = e.errno
+            t.join(5)
+            mode = read_attr(path, 'mode')
+            if result['enable'] == 0:
+                if mode != 'US-SI-CM':
+                    slipped.append((i, mode, result))
+                write_attr(dev, 'buffer/enable', '0')
+            assert 'mode' in result, 'the mode write hangs'
+    finally:
+        os.sched_setaffinity(0, old_affinity)
+        if old_model:
+            with open('/sys/kernel/debug/sched/preempt', 'w') as f:
+                f.write(old_model)
+    assert not slipped, 'buffer on US-SI-CM, sensor elsewhere: %s' % slipped
+    # And the sensor still changes modes once the buffer is off.
+    write_attr(path, 'mode', 'US-DIST-IN')
+    emu.set_values(1, [104])
+    assert wait_attr_int(dev, 'in_distance1_raw', 104) == 104

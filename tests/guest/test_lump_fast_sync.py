@@ -12,6 +12,7 @@ probe (on a pty, which has no break).
 """
 import fcntl
 import os
+import select
 import struct
 import subprocess
 import termios
@@ -191,6 +192,95 @@ def test_spike_at_2400_when_the_probe_misses_it(ev3_module):
     finally:
         if emu:
             emu.stop()
+        os.close(slave)
+        os.close(master)
+
+
+def attach_pty_and_go(kind, after_probe=False, **kw):
+    """A pty with the discipline on its slave, and an emulated sensor on its
+    master that paces what it sends at its speed (a pty paces nothing) and
+    starts talking right after the attach: the emulator's thread attaches
+    the discipline itself, just before its first byte; with after_probe,
+    it also waits for the attach's probe (SPEED 115200) to reach it, so
+    that its first byte comes while the host waits for an answer. Returns
+    (master, slave, tty name, emulator, monotonic time of the attach)."""
+    master, slave = os.openpty()
+    tty = 'pts' + os.ttyname(slave).split('/')[-1]
+    attached = []
+
+    def attach():
+        fcntl.ioctl(slave, termios.TIOCSETD, struct.pack('i', N_LEGOEV3))
+        attached.append(time.monotonic())
+        seen = b''
+        while after_probe and ev3_sensor.PROBE not in seen and \
+                time.monotonic() < attached[0] + 2:
+            if select.select([master], [], [], 0.05)[0]:
+                seen += os.read(master, 64)
+
+    emu = ev3_sensor.EmulatedSensor(master, kind, pace=True, gate=attach, **kw)
+    emu.start()
+    assert wait_for(lambda: attached, 10), emu.events
+    return master, slave, tty, emu, attached[0]
+
+
+@pytest.mark.parametrize('kind', ['color', 'us', 'gyro', 'ir'])
+def test_ev3_registers_on_its_first_handshake(trace, ev3_module, kind):
+    """Issue 28: an EV3 sensor that starts its handshake (a real sensor's
+    bytes, at 2400 baud's pace) right after the discipline is attached, as
+    the attach's probe (SPEED at 115200) reaches it: on a pty the bytes arrive
+    whatever the speed, and the probe used to drop them, TYPE included, so
+    that only the sensor's second handshake was answered, a whole
+    handshake later. Its first one must be answered: from its first byte
+    to the registration takes the handshake's time on the wire, and less
+    than half of it more."""
+    sdef = ev3_sensor.SENSORS[kind]
+    wire = len(ev3_sensor.handshake(sdef)) * 10 / 2400     # 1.29 to 1.60 s
+    master, slave, tty, emu, _ = attach_pty_and_go(kind, after_probe=True, boot_delay=0)
+    try:
+        path = find_sensor(tty, timeout=4 * wire + 5)
+        t_found = time.monotonic()
+        assert path, emu.events
+        assert ev3.read_attr(path, 'driver_name') == sdef.driver
+        took = t_found - emu.handshake_starts[0]
+        print('%s: registered %.0f ms after the first handshake byte (wire time %.0f ms), '
+              'after %d handshake(s)' % (kind, took * 1e3, wire * 1e3,
+                                         len(emu.handshake_starts)))
+        # Its first handshake was ACKed: no second one was sent.
+        assert ev3.wait_handshakes(emu, 1, 5) == 1, emu.events
+        assert len(emu.handshake_starts) == 1 and emu.sync_speeds == [2400], emu.events
+        assert wire <= took < 1.5 * wire, (took, wire, emu.events)
+        # It began during the probe: its TYPE ended the probe's wait.
+        ev = trace.of(tty)
+        assert [f for _, n, f in ev if n == 'ev3_uart_state' and f['from'] == 'PROBE'
+                and f['to'] == 'INFO' and f['reason'] == 'TYPE message'], ev[:20]
+        assert counters(tty)['fast_syncs'] == 0
+        emu.set_values(0, [5])
+        assert wait_value(path, 0, 5) == 5
+    finally:
+        emu.stop()
+        os.close(slave)
+        os.close(master)
+
+
+def test_spike_fast_sync_on_a_pty_still_answered(trace, ev3_module):
+    """The probe's TYPE hunt does not take a Powered Up device's ACK for
+    anything else: a SPIKE sensor listening when the discipline is attached
+    answers the attach's probe and registers by fast sync, its handshake
+    (paced at 115200) under half a second."""
+    master, slave, tty, emu, t_attach = attach_pty_and_go('spike-color', boot_delay=3)
+    try:
+        path = find_sensor(tty, timeout=10)
+        took = time.monotonic() - t_attach
+        assert path, emu.events
+        assert emu.fast_syncs == 1 and emu.sync_speeds == [115200], emu.events
+        hs_time, _ = last_handshake(trace.registered(tty))
+        print('spike-color on a pty: handshake %.1f ms, registered %.2f s after the '
+              'attach' % (hs_time * 1e3, took))
+        assert hs_time < 0.5, hs_time
+        assert took < 2.5, took         # not after the 3 s listening and a 2400 handshake
+        assert counters(tty)['fast_syncs'] == 1
+    finally:
+        emu.stop()
         os.close(slave)
         os.close(master)
 

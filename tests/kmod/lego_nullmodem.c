@@ -13,10 +13,12 @@
  *  - a break (tcsendbreak) arrives as a TTY_BREAK character;
  *  - nothing arrives when the other end is not open.
  *
- * Two knobs for tests of the line discipline's own behaviour:
+ * Knobs for tests of the line discipline's own behaviour:
  *  - fifo_room (writable) limits the bytes a port holds before they are on
  *    the wire, so that writes are taken in part, as from a UART whose
  *    buffer is full;
+ *  - fail_writes (writable, a bitmask of ports) makes every write to those
+ *    ports fail with -EIO, as a broken tty's would;
  *  - ack_ns records, per port, when its last burst of bytes at 2400 baud
  *    that ended in 0x04 (an EV3 ACK) was on the wire, so that a test can
  *    time the discipline's ACK against the sensor's on the line itself,
@@ -73,6 +75,10 @@ MODULE_PARM_DESC(pairs, "number of tty pairs (default 4, at most 16)");
 static unsigned int fifo_room;
 module_param(fifo_room, uint, 0644);
 MODULE_PARM_DESC(fifo_room, "bytes a port holds before they are sent (default 0: 4096)");
+
+static unsigned int fail_writes;
+module_param(fail_writes, uint, 0644);
+MODULE_PARM_DESC(fail_writes, "bitmask of ports whose writes fail with -EIO (default 0)");
 
 static unsigned long long ack_ns[32];
 module_param_array(ack_ns, ullong, NULL, 0444);
@@ -377,6 +383,8 @@ static LEGO_TTY_WRITE_RET nm_write(struct tty_struct *tty, const u8 *buf,
 	unsigned long flags;
 	unsigned int n;
 
+	if (READ_ONCE(fail_writes) & BIT(tty->index))
+		return -EIO;
 	/* The host's side of a generated line: taken at once (see the top). */
 	if (!(tty->index & 1) && smp_load_acquire(&nm_gen.running) &&
 	    (READ_ONCE(nm_gen.lines) & BIT(pair))) {

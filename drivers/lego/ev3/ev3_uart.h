@@ -14,7 +14,9 @@
  *
  * ev3_uart_port.select_mutex serialises mode changes (one SELECT in flight):
  * a user's (sysfs, IIO buffer) and the restore of the user's mode after a
- * reconnect (ack_work, keepalive_work), which only try it and give way.
+ * reconnect (ack_work, keepalive_work), which only try it and give way. An
+ * IIO buffer's mode (ev3_uart_iio.buffer_mode) is set under it too, with
+ * the port lock, so that no mode change slips in between.
  * ev3_uart_port.tx_mutex serialises writes to the tty (ACK, NACK, SELECT,
  * WRITE, SPEED), which all happen in process context, and protects the
  * transmit queue (see ev3_uart_tx()).
@@ -59,6 +61,7 @@
 #include <linux/device.h>
 #include <linux/hrtimer.h>
 #include <linux/mutex.h>
+#include <linux/ratelimit.h>
 #include <linux/spinlock.h>
 #include <linux/tty.h>
 #include <linux/workqueue.h>
@@ -201,10 +204,18 @@ struct ev3_uart_sensor_dev {
  * @last_error: reason of the last protocol error, for the log (under @lock)
  * @bad_speed: a speed this tty could not be set to: handshakes asking for it
  *	are not answered (only ack_work uses it)
+ * @backoff: how the sensors on this line have been failing (only ack_work
+ *	and reset_work, on the ordered workqueue, use it and the next two)
+ * @registered_at: jiffies when the sensor was registered
+ * @backoff_until: jiffies until which handshakes are left unanswered (a
+ *	device that keeps failing, see ev3_uart_backoff_lost()), 0 for none
+ * @log_rs: rate limit of the port's connect, loss and error lines
  * @tx_buf: bytes queued for the tty (under @tx_mutex)
  * @tx_pos: the first byte of @tx_buf not yet sent
  * @tx_len: bytes queued from @tx_pos on
  * @tx_work: sends what is queued once the tty has room again
+ * @tx_failed: the last write to the tty failed (under @tx_mutex): further
+ *	errors are not logged until one succeeds
  * @stats: counters, for debugfs
  * @debugfs: the port's directory in debugfs (lego_ev3_uart/TTY)
  */
@@ -241,16 +252,23 @@ struct ev3_uart_port {
 	char label[EV3_UART_LABEL_LEN];
 	const char *last_error;
 	u32 bad_speed;
+	struct ev3_uart_backoff backoff;
+	unsigned long registered_at;
+	unsigned long backoff_until;
+	struct ratelimit_state log_rs;
 	u8 tx_buf[4 * EV3_UART_MAX_MSG_LEN];
 	unsigned int tx_pos;
 	unsigned int tx_len;
 	struct work_struct tx_work;
+	bool tx_failed;
 	struct ev3_uart_stats stats;
 	struct dentry *debugfs;
 };
 
 /* ev3_uart_ldisc.c */
 int ev3_uart_set_mode(struct ev3_uart_sensor_dev *sd, u8 mode);
+int ev3_uart_set_buffer_mode(struct ev3_uart_sensor_dev *sd,
+			     struct ev3_uart_iio *iio, u8 mode);
 int ev3_uart_set_mode_by_name(struct ev3_uart_sensor_dev *sd, const char *name);
 int ev3_uart_show_modes(struct ev3_uart_sensor_dev *sd, char *buf);
 int ev3_uart_show_mode(struct ev3_uart_sensor_dev *sd, char *buf);
@@ -268,6 +286,7 @@ void ev3_uart_sensor_destroy(struct ev3_uart_sensor_dev *sd);
 int ev3_uart_iio_register(struct ev3_uart_sensor_dev *sd);
 void ev3_uart_iio_unregister(struct ev3_uart_sensor_dev *sd);
 bool ev3_uart_iio_mode_busy(struct ev3_uart_sensor_dev *sd, u8 mode);
+void ev3_uart_iio_buffer_on(struct ev3_uart_iio *iio, u8 mode);
 void ev3_uart_iio_push(struct ev3_uart_sensor_dev *sd, u8 mode,
 		       const u8 *data, unsigned int len, size_t rest);
 

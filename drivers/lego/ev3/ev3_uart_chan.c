@@ -216,24 +216,30 @@ static bool ev3_uart_chan_type(const struct ev3_uart_sensor *desc, u8 mode,
 
 /*
  * The colour sensor's RGB-RAW: red, green, blue, then the LED-off reading;
- * the Powered Up colour sensors' RGB I likewise.
+ * the Powered Up colour sensors' RGB I likewise. Only the first mode of
+ * that name (@rgb_used: its mode number, else %EV3_UART_NO_MODE) gets the
+ * modifiers: a sensor that sends two modes of the same name would give
+ * two channels the same IIO name (in_intensity_red_raw twice), and the IIO
+ * core would refuse the whole device. The other mode's values are indexed
+ * channels like any.
  */
 static u8 ev3_uart_chan_modifier(const struct ev3_uart_sensor *desc, u8 mode,
-				 unsigned int index)
+				 unsigned int index, u8 *rgb_used)
 {
 	static const u8 rgb[] = { IIO_MOD_LIGHT_RED, IIO_MOD_LIGHT_GREEN,
 				  IIO_MOD_LIGHT_BLUE };
 
 	if (index >= ARRAY_SIZE(rgb))
 		return 0;
-	if (!desc->lump && desc->type == EV3_UART_TYPE_COLOR &&
-	    !strcmp(desc->modes[mode].name, "RGB-RAW"))
-		return rgb[index];
-	if (desc->lump && (desc->type == EV3_UART_TYPE_BOOST_CDS ||
-			   desc->type == EV3_UART_TYPE_SPIKE_COLOR) &&
-	    !strcmp(desc->modes[mode].name, "RGB I"))
-		return rgb[index];
-	return 0;
+	if (!(!desc->lump && desc->type == EV3_UART_TYPE_COLOR &&
+	      !strcmp(desc->modes[mode].name, "RGB-RAW")) &&
+	    !(desc->lump && (desc->type == EV3_UART_TYPE_BOOST_CDS ||
+			     desc->type == EV3_UART_TYPE_SPIKE_COLOR) &&
+	      !strcmp(desc->modes[mode].name, "RGB I")))
+		return 0;
+	if (*rgb_used == EV3_UART_NO_MODE)
+		*rgb_used = mode;
+	return *rgb_used == mode ? rgb[index] : 0;
 }
 
 /**
@@ -245,6 +251,9 @@ static u8 ev3_uart_chan_modifier(const struct ev3_uart_sensor *desc, u8 mode,
  * Every value of every mode whose unit has an IIO channel type, and whose
  * scale and offset can be shown, becomes a channel, in mode order. At most
  * %EV3_UART_MAX_CHANS channels are counted and at most @max filled in.
+ * No two channels have the same type, modifier and index, the parts of
+ * their IIO attribute names, whatever the sensor sent (twin mode names
+ * included).
  *
  * Return: the number of channels the sensor has (call with @chans NULL to
  * size the array).
@@ -254,6 +263,7 @@ unsigned int ev3_uart_chans_build(const struct ev3_uart_sensor *desc,
 				  unsigned int max)
 {
 	u16 type_count[64] = { };
+	u8 rgb_used = EV3_UART_NO_MODE;
 	unsigned int n = 0, k, nmodes;
 	struct ev3_uart_chan c;
 	enum iio_chan_type type;
@@ -277,7 +287,7 @@ unsigned int ev3_uart_chans_build(const struct ev3_uart_sensor *desc,
 			c.mode = mode;
 			c.index = k;
 			c.type = type;
-			c.modifier = ev3_uart_chan_modifier(desc, mode, k);
+			c.modifier = ev3_uart_chan_modifier(desc, mode, k, &rgb_used);
 			if (!c.modifier)
 				c.channel = type_count[type]++;
 			c.realbits = 8 * size;

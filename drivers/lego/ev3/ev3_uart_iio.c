@@ -173,7 +173,6 @@ static int ev3_iio_postenable(struct iio_dev *indio)
 	struct ev3_uart_iio *iio = iio_priv(indio);
 	unsigned int ch;
 	u8 mode;
-	int ret;
 
 	/* The scan mask holds the channels of one mode (validate_scan_mask). */
 	iio_for_each_active_channel(indio, ch)
@@ -181,14 +180,23 @@ static int ev3_iio_postenable(struct iio_dev *indio)
 	if (ch >= iio->num_chans)
 		return -EINVAL;
 	mode = iio->chans[ch].mode;
-	ret = ev3_uart_set_mode(iio->sd, mode);
-	if (ret)
-		return ret;
-	spin_lock(&iio->sd->port->lock);
+	/* The buffer holds the mode before a mode write can take it away. */
+	return ev3_uart_set_buffer_mode(iio->sd, iio, mode);
+}
+
+/**
+ * ev3_uart_iio_buffer_on() - the buffer captures @mode from now on
+ * @iio: the IIO front end
+ * @mode: the sensor's mode, just set
+ *
+ * Called under the port lock by ev3_uart_set_buffer_mode(), with the
+ * sensor's select_mutex held.
+ */
+void ev3_uart_iio_buffer_on(struct ev3_uart_iio *iio, u8 mode)
+{
+	lockdep_assert_held(&iio->sd->port->lock);
 	iio->buffer_mode = mode;
 	iio->last_ts = 0;
-	spin_unlock(&iio->sd->port->lock);
-	return 0;
 }
 
 static int ev3_iio_predisable(struct iio_dev *indio)
@@ -322,7 +330,9 @@ int ev3_uart_iio_register(struct ev3_uart_sensor_dev *sd)
 
 	n = ev3_uart_chans_build(&sd->desc, NULL, 0);
 	if (!n) {
-		dev_info(&sd->dev, "no value has an IIO type and scale: no IIO device\n");
+		/* Once a connection: limited like the port's other lines. */
+		if (__ratelimit(&sd->port->log_rs))
+			dev_info(&sd->dev, "no value has an IIO type and scale: no IIO device\n");
 		return 0;
 	}
 

@@ -185,10 +185,49 @@ static void ev3_uart_tx_account(struct ev3_uart_port *port, const u8 *buf,
 			  len, ret);
 }
 
+/*
+ * Latch the tty's write errors, as can327 does: the first one is logged,
+ * the others (a keep-alive every 100 ms) only counted, until a message goes
+ * out again. @tx_mutex held. Return: what to log: 1 the first error, -1
+ * the recovery, 0 nothing.
+ */
+static int ev3_uart_tx_latch(struct ev3_uart_port *port, int ret)
+{
+	bool was = port->tx_failed;
+
+	lockdep_assert_held(&port->tx_mutex);
+	port->tx_failed = ret;
+	if (ret && !was)
+		return 1;
+	return !ret && was ? -1 : 0;
+}
+
+static void ev3_uart_tx_log(struct ev3_uart_port *port, int what, int err)
+{
+	if (what > 0)
+		pr_warn("%s: cannot send to the tty: %d (not logged again until a message goes out)\n",
+			port->tty->name, err);
+	else if (what < 0)
+		pr_info("%s: sending to the tty again\n", port->tty->name);
+}
+
+/*
+ * Drop what is queued and not yet handed to the tty: on a speed change
+ * (it was meant for the old speed) and when a sensor is lost (a SELECT or
+ * a WRITE for it must not reach the next one).
+ */
+static void ev3_uart_tx_discard(struct ev3_uart_port *port)
+{
+	mutex_lock(&port->tx_mutex);
+	port->tx_len = 0;
+	port->tx_pos = 0;
+	mutex_unlock(&port->tx_mutex);
+}
+
 /* Queue a whole message behind what is still queued, and send. */
 static int ev3_uart_tx(struct ev3_uart_port *port, const u8 *buf, size_t len)
 {
-	int ret;
+	int ret, log;
 
 	mutex_lock(&port->tx_mutex);
 	if (port->tx_pos) {
@@ -203,10 +242,9 @@ static int ev3_uart_tx(struct ev3_uart_port *port, const u8 *buf, size_t len)
 		ret = ev3_uart_tx_flush(port);
 	}
 	ev3_uart_tx_account(port, buf, len, ret);
+	log = ev3_uart_tx_latch(port, ret);
 	mutex_unlock(&port->tx_mutex);
-	if (ret)
-		pr_warn_ratelimited("%s: cannot send a %zu-byte message: %d\n",
-				    port->tty->name, len, ret);
+	ev3_uart_tx_log(port, log, ret);
 	return ret;
 }
 
@@ -214,12 +252,15 @@ static void ev3_uart_tx_work(struct work_struct *work)
 {
 	struct ev3_uart_port *port = container_of(work, struct ev3_uart_port,
 						  tx_work);
+	int ret = 0, log = 0;
 
 	mutex_lock(&port->tx_mutex);
-	if (port->tx_len && ev3_uart_tx_flush(port))
-		pr_warn_ratelimited("%s: cannot send queued bytes\n",
-				    port->tty->name);
+	if (port->tx_len) {
+		ret = ev3_uart_tx_flush(port);
+		log = ev3_uart_tx_latch(port, ret);
+	}
 	mutex_unlock(&port->tx_mutex);
+	ev3_uart_tx_log(port, log, ret);
 }
 
 /* The driver has room again: send the rest from process context. */
@@ -249,7 +290,9 @@ static void ev3_uart_set_termios(struct tty_struct *tty, struct ktermios *t)
 
 /*
  * Through tty_set_termios(), like a TCSETS would: locked termios are
- * respected, and the driver writes back the speed it could set. A tty with
+ * respected, and the driver writes back the speed it could set. What is
+ * still queued for the tty is dropped first (ev3_uart_tx_discard()): sent
+ * after the change it would go out at the wrong speed. A tty with
  * no set_termios (a pty master) has no speed to set. A speed within 2 % is
  * as good (the tty core itself rounds to a standard rate that close, and
  * UARTs tolerate more).
@@ -266,6 +309,7 @@ static int ev3_uart_set_speed(struct ev3_uart_port *port, unsigned int baud)
 	speed_t got;
 	int ret;
 
+	ev3_uart_tx_discard(port);
 	down_read(&tty->termios_rwsem);
 	t = tty->termios;
 	up_read(&tty->termios_rwsem);
@@ -303,6 +347,17 @@ static void ev3_uart_setup_tty(struct tty_struct *tty)
 	tty_termios_encode_baud_rate(&t, EV3_UART_SPEED_MIN, EV3_UART_SPEED_MIN);
 	ev3_uart_set_termios(tty, &t);
 }
+
+/*
+ * The lines a port logs for each connection, loss and protocol error: a
+ * device that keeps failing must not flood the log (its reconnects are
+ * also held off, see ev3_uart_backoff_lost()).
+ */
+#define ev3_uart_info(port, fmt, ...)					\
+	do {								\
+		if (__ratelimit(&(port)->log_rs))			\
+			pr_info(fmt, ##__VA_ARGS__);			\
+	} while (0)
 
 static void ev3_uart_queue(struct ev3_uart_port *port, struct work_struct *work)
 {
@@ -379,6 +434,9 @@ static void ev3_uart_event(struct ev3_uart_port *port,
 	switch (ev->type) {
 	case EV3_UART_EV_SYNC:
 		port->probe_missed = false;
+		/* A TYPE at 2400 during the probe: no need to wait for it. */
+		if (from == EV3_UART_STATE_PROBE)
+			complete(&port->probe_done);
 		pr_debug("%s: sensor type %u syncing\n", port->tty->name,
 			 port->parser.sensor.type);
 		port->stats.syncs++;
@@ -442,7 +500,7 @@ static void ev3_uart_event(struct ev3_uart_port *port,
 	case EV3_UART_EV_ERROR:
 		port->stats.resyncs++;
 		port->last_error = ev->reason;
-		pr_info_ratelimited("%s: %s\n", port->tty->name, ev->reason);
+		ev3_uart_info(port, "%s: %s\n", port->tty->name, ev->reason);
 		ev3_uart_queue(port, &port->reset_work);
 		break;
 	case EV3_UART_EV_FAST:
@@ -604,8 +662,11 @@ static void ev3_uart_trace_sensor(struct ev3_uart_port *port, u8 what,
  * and send it then, a few hundred bytes in tens of milliseconds instead of
  * seconds at 2400. The others (EV3 sensors, the BOOST colour and distance
  * sensor, devices busy with something else) do not answer: after 30 ms
- * the line goes back to 2400 baud, where the parser hunts as before. Bytes
- * sent at 2400 meanwhile are lost (an EV3 sensor caught in its handshake
+ * the line goes back to 2400 baud, where the parser hunts as before. The
+ * parser hunts for a TYPE at 2400 meanwhile too: on a line that carries
+ * bytes whatever the speed (a pty) an EV3 sensor's TYPE ends the wait, and
+ * its handshake goes on at 2400. On a UART, bytes sent at 2400 meanwhile
+ * arrive garbled and are lost (an EV3 sensor caught in its handshake
  * repeats it). After the answer, the handshake must come within 500 ms
  * (ev3_uart_fast_work()). Only from the port's workqueue, with the parser
  * in SYNC at 2400 baud (else nothing is done).
@@ -658,7 +719,8 @@ static bool ev3_uart_probe(struct ev3_uart_port *port, bool on_break)
 	from = port->parser.state;
 	speed = ev3_uart_parser_probe_end(&port->parser);
 	ev3_uart_trace_state(port, from, NULL, why);
-	port->probe_missed = on_break && speed == EV3_UART_SPEED_MIN;
+	port->probe_missed = on_break && speed == EV3_UART_SPEED_MIN &&
+			     port->parser.state == EV3_UART_STATE_SYNC;
 	if (speed != EV3_UART_SPEED_MIN && !port->closing)
 		queue_delayed_work(port->wq, &port->fast_work,
 				   msecs_to_jiffies(EV3_UART_FAST_SYNC_MS));
@@ -728,6 +790,19 @@ static void ev3_uart_ack_work(struct work_struct *work)
 	spin_unlock(&port->lock);
 	cancel_delayed_work(&port->fast_work);
 
+	/*
+	 * A device whose sensors keep failing right after they are
+	 * registered: not before the back-off is over (it resets and comes
+	 * again, as when its ACK is not answered).
+	 */
+	if (port->backoff_until && time_before(jiffies, port->backoff_until)) {
+		pr_debug("%s: sensor type %u keeps failing; not answered yet\n",
+			 tty->name, desc->type);
+		why = "backing off a device that keeps failing";
+		goto fail;
+	}
+	port->backoff_until = 0;
+
 	/* Not again a speed this tty could not do (see below). */
 	if (desc->speed == port->bad_speed) {
 		pr_debug("%s: sensor type %u wants %u baud again; not answered\n",
@@ -788,20 +863,25 @@ static void ev3_uart_ack_work(struct work_struct *work)
 	last_error = port->last_error;
 	port->last_error = NULL;
 	spin_unlock(&port->lock);
+	port->registered_at = jiffies;
 	ev3_uart_trace_sensor(port, EV3_UART_TRACE_REGISTERED, desc, sd);
 
-	pr_info("%s: %s connected as %s at %u baud\n", tty->name,
-		sd->driver_name, dev_name(&sd->dev), desc->speed);
+	ev3_uart_info(port, "%s: %s connected as %s at %u baud\n", tty->name,
+		      sd->driver_name, dev_name(&sd->dev), desc->speed);
 	if (last_error)
-		pr_info("%s: reconnected after: %s\n", tty->name, last_error);
+		ev3_uart_info(port, "%s: reconnected after: %s\n", tty->name,
+			      last_error);
 
 	ev3_uart_restore_mode(port, desc);
 	return;
 
 fail:
+	/* Started before a failed registration: done before the probe. */
+	cancel_delayed_work_sync(&port->keepalive_work);
 	spin_lock(&port->lock);
 	ev3_uart_parser_restart(port, why);
 	spin_unlock(&port->lock);
+	ev3_uart_tx_discard(port);
 	ev3_uart_hunt(port);
 }
 
@@ -858,13 +938,36 @@ static void ev3_uart_keepalive_work(struct work_struct *work)
 				   msecs_to_jiffies(EV3_UART_KEEPALIVE_MS));
 }
 
+/*
+ * @sd was lost: hold off the next connections if the sensors on this line
+ * keep failing right after they are registered. Only from reset_work.
+ */
+static void ev3_uart_backoff(struct ev3_uart_port *port,
+			     const struct ev3_uart_sensor_dev *sd)
+{
+	unsigned int lived = jiffies_to_msecs(jiffies - port->registered_at);
+	unsigned int wait = ev3_uart_backoff_lost(&port->backoff, lived);
+
+	if (!wait)
+		return;
+	port->backoff_until = (jiffies + msecs_to_jiffies(wait)) ?: 1;
+	ev3_uart_info(port, "%s: %s lost %u ms after it connected, %u times in a row: next connection in %u ms at the earliest\n",
+		      port->tty->name, sd->driver_name, lived,
+		      port->backoff.failures, wait);
+}
+
 static void ev3_uart_reset_work(struct work_struct *work)
 {
 	struct ev3_uart_port *port = container_of(work, struct ev3_uart_port,
 						  reset_work);
 	struct ev3_uart_sensor_dev *sd;
 
-	cancel_delayed_work(&port->keepalive_work);
+	/*
+	 * A keep-alive that is running must be done before the line changes
+	 * speed for the probe below: its NACK would go out at 115200, into
+	 * the probe. It does not wait for this work.
+	 */
+	cancel_delayed_work_sync(&port->keepalive_work);
 
 	spin_lock(&port->lock);
 	sd = port->sensor;
@@ -883,11 +986,13 @@ static void ev3_uart_reset_work(struct work_struct *work)
 	complete_all(&port->select_done);
 	spin_unlock(&port->lock);
 
+	ev3_uart_tx_discard(port);
 	ev3_uart_hunt(port);
 	if (sd) {
-		pr_info("%s: %s disconnected\n", port->tty->name,
-			sd->driver_name);
+		ev3_uart_info(port, "%s: %s disconnected\n", port->tty->name,
+			      sd->driver_name);
 		ev3_uart_trace_sensor(port, EV3_UART_TRACE_LOST, &sd->desc, sd);
+		ev3_uart_backoff(port, sd);
 		ev3_uart_sensor_destroy(sd);
 	}
 }
@@ -967,6 +1072,15 @@ static int ev3_uart_settle(struct ev3_uart_sensor_dev *sd, u8 mode,
 	return READ_ONCE(sd->gone) ? -ENODEV : 0;
 }
 
+/*
+ * ev3_uart_set_mode(), and for @iio not NULL the start of its buffer on
+ * @mode once the mode is set, before select_mutex is released: a mode
+ * write waiting for the mutex then finds the buffer holding the mode
+ * (-EBUSY), rather than switch the sensor away from it.
+ */
+static int ev3_uart_select(struct ev3_uart_sensor_dev *sd, u8 mode,
+			   struct ev3_uart_iio *iio);
+
 /**
  * ev3_uart_set_mode() - switch a sensor to another mode
  * @sd: the sensor
@@ -984,6 +1098,30 @@ static int ev3_uart_settle(struct ev3_uart_sensor_dev *sd, u8 mode,
  * -%ETIMEDOUT if it never confirmed, -%ERESTARTSYS if interrupted.
  */
 int ev3_uart_set_mode(struct ev3_uart_sensor_dev *sd, u8 mode)
+{
+	return ev3_uart_select(sd, mode, NULL);
+}
+
+/**
+ * ev3_uart_set_buffer_mode() - switch a sensor to the mode an IIO buffer
+ *	captures, and start the buffer on it
+ * @sd: the sensor
+ * @iio: its IIO front end, whose buffer is being enabled
+ * @mode: the mode of the buffer's channels
+ *
+ * As ev3_uart_set_mode(); on success the buffer holds the sensor to @mode
+ * (ev3_uart_iio_buffer_on()) from before any other mode change can start.
+ *
+ * Return: see ev3_uart_set_mode().
+ */
+int ev3_uart_set_buffer_mode(struct ev3_uart_sensor_dev *sd,
+			     struct ev3_uart_iio *iio, u8 mode)
+{
+	return ev3_uart_select(sd, mode, iio);
+}
+
+static int ev3_uart_select(struct ev3_uart_sensor_dev *sd, u8 mode,
+			   struct ev3_uart_iio *iio)
 {
 	unsigned long wait = msecs_to_jiffies(EV3_UART_SELECT_WAIT_MS);
 	struct ev3_uart_port *port = sd->port;
@@ -1067,6 +1205,11 @@ int ev3_uart_set_mode(struct ev3_uart_sensor_dev *sd, u8 mode)
 	else if (!ret && settle && time_before(jiffies, settle))
 		ret = ev3_uart_settle(sd, mode, settle, wait);
 out:
+	if (iio && ret >= 0) {
+		spin_lock(&port->lock);
+		ev3_uart_iio_buffer_on(iio, mode);
+		spin_unlock(&port->lock);
+	}
 	mutex_unlock(&port->select_mutex);
 	/* An error, or success: 1 (nothing to send) or the bytes the tty took. */
 	return min(ret, 0);
@@ -1325,6 +1468,8 @@ static int ev3_uart_open(struct tty_struct *tty)
 	INIT_DELAYED_WORK(&port->fast_work, ev3_uart_fast_work);
 	init_completion(&port->probe_done);
 	INIT_WORK(&port->tx_work, ev3_uart_tx_work);
+	ratelimit_state_init(&port->log_rs, DEFAULT_RATELIMIT_INTERVAL,
+			     DEFAULT_RATELIMIT_BURST);
 	ev3_uart_parser_init(&port->parser);
 	port->select_mode = EV3_UART_NO_MODE;
 	port->requested_mode = EV3_UART_NO_MODE;
@@ -1377,6 +1522,12 @@ static void ev3_uart_close(struct tty_struct *tty)
 	port->sensor = NULL;
 	if (sd)
 		WRITE_ONCE(sd->gone, true);
+	/*
+	 * A sensor ack_work published after the first complete_all() may
+	 * have a mode change waiting: wake it, or the unregistering below
+	 * waits for it (up to 250 ms).
+	 */
+	complete_all(&port->select_done);
 	spin_unlock(&port->lock);
 	if (sd) {
 		ev3_uart_trace_sensor(port, EV3_UART_TRACE_CLOSED, &sd->desc, sd);
@@ -1384,9 +1535,15 @@ static void ev3_uart_close(struct tty_struct *tty)
 	}
 	debugfs_remove_recursive(port->debugfs);
 
-	/* No work writes any more: stop the wakeups, then their work. */
-	clear_bit(TTY_DO_WRITE_WAKEUP, &tty->flags);
+	/*
+	 * No work or user writes any more: the last tx_work, which sets the
+	 * wakeup flag when it writes, then the flag, which would else stay
+	 * set for the next discipline. No write_wakeup comes meanwhile to
+	 * queue tx_work again: the tty core holds the discipline locked
+	 * around close(), and tty_wakeup() calls no discipline then.
+	 */
 	cancel_work_sync(&port->tx_work);
+	clear_bit(TTY_DO_WRITE_WAKEUP, &tty->flags);
 	tty->disc_data = NULL;
 	kfree(port);
 }

@@ -1428,6 +1428,36 @@ static __always_inline size_t ev3_uart_msg_body(struct ev3_uart_parser *p,
 	return need;
 }
 
+/*
+ * A byte while the host waits for the answer to its probe: a Powered Up
+ * device's ACK (unless the byte is the type id of a TYPE message the window
+ * holds the header of: type 4 is valid), else a byte for the TYPE hunt at
+ * 2400 baud, which goes on meanwhile. On a UART a sensor talking at 2400
+ * only sends garbage at the probe's speed; but on a line that carries
+ * bytes whatever the speed (a pty, a socket) an EV3 sensor that started its
+ * handshake during the probe would otherwise lose it, and register only
+ * after its next one, 1.3 to 1.6 s later. Its TYPE ends the probe
+ * unanswered: the handshake is at 2400 baud.
+ */
+static void ev3_uart_probe_byte(struct ev3_uart_parser *p, u8 b,
+				struct ev3_uart_event *ev)
+{
+	if (b == EV3_UART_SYS_ACK &&
+	    !(p->msg_len && p->msg[p->msg_len - 1] ==
+	      (EV3_UART_MSG_CMD | EV3_UART_CMD_TYPE))) {
+		/* A fast sync: the handshake follows at this speed. */
+		p->state = EV3_UART_STATE_SYNC;
+		p->msg_len = 0;
+		ev->type = EV3_UART_EV_FAST;
+		return;
+	}
+	ev3_uart_sync_byte(p, b, ev);
+	if (ev->type == EV3_UART_EV_SYNC) {
+		p->sync_speed = EV3_UART_SPEED_MIN;
+		p->sensor.speed = EV3_UART_SPEED_MIN;
+	}
+}
+
 /* One byte, from @p->replay or from the caller's buffer. */
 static void ev3_uart_byte(struct ev3_uart_parser *p, u8 b,
 			  struct ev3_uart_event *ev)
@@ -1440,14 +1470,7 @@ static void ev3_uart_byte(struct ev3_uart_parser *p, u8 b,
 		p->garbage++;
 		break;
 	case EV3_UART_STATE_PROBE:
-		if (b != EV3_UART_SYS_ACK) {
-			p->garbage++;
-			break;
-		}
-		/* A fast sync: the handshake follows at this speed. */
-		p->state = EV3_UART_STATE_SYNC;
-		p->msg_len = 0;
-		ev->type = EV3_UART_EV_FAST;
+		ev3_uart_probe_byte(p, b, ev);
 		break;
 	default:
 		if (!p->msg_len)
@@ -1760,9 +1783,11 @@ void ev3_uart_parser_line_error(struct ev3_uart_parser *p,
 	case EV3_UART_STATE_INFO:
 		ev3_uart_error(p, ev, "line error in handshake");
 		break;
-	case EV3_UART_STATE_ACKED:
 	case EV3_UART_STATE_PROBE:
 		/* A device that cannot answer at the probe's speed, garbled. */
+		p->msg_len = 0;
+		break;
+	case EV3_UART_STATE_ACKED:
 		break;
 	case EV3_UART_STATE_DATA:
 		p->msg_len = 0;
@@ -1834,7 +1859,9 @@ EXPORT_SYMBOL_IF_KUNIT(ev3_uart_parser_select);
  * speed change follows the host's ACK. EV3 sensors and devices that do not
  * answer stay at 2400: the host calls ev3_uart_parser_probe_end() when it
  * has waited long enough (Pybricks waits 10 ms) and goes back to 2400. Meanwhile the
- * parser takes only the ACK (%EV3_UART_EV_FAST); other bytes and line
+ * parser takes the ACK (%EV3_UART_EV_FAST), and hunts for a TYPE message as
+ * at 2400 baud: on a line with no speeds (a pty) an EV3 sensor's TYPE starts
+ * its handshake at 2400 (%EV3_UART_EV_SYNC) and ends the probe; line
  * errors are dropped.
  *
  * Return: 0, -%EBUSY outside the SYNC state at 2400 baud (a handshake is
@@ -1847,9 +1874,9 @@ int ev3_uart_parser_probe(struct ev3_uart_parser *p, u32 speed)
 	if (p->state != EV3_UART_STATE_SYNC ||
 	    p->sync_speed != EV3_UART_SPEED_MIN)
 		return -EBUSY;
+	/* The TYPE hunt goes on: a TYPE may have begun at 2400. */
 	p->state = EV3_UART_STATE_PROBE;
 	p->sync_speed = speed;
-	p->msg_len = 0;
 	return 0;
 }
 EXPORT_SYMBOL_IF_KUNIT(ev3_uart_parser_probe);
@@ -1859,8 +1886,9 @@ EXPORT_SYMBOL_IF_KUNIT(ev3_uart_parser_probe);
  * @p: the parser
  *
  * Without an answer the parser hunts for a TYPE message at 2400 baud
- * again; after one (%EV3_UART_EV_FAST), at the probe's speed, whatever
- * state the handshake that followed has reached.
+ * again (as it did meanwhile: what it holds of one is kept); after one
+ * (%EV3_UART_EV_FAST), at the probe's speed, whatever state the handshake
+ * that followed has reached; after a TYPE at 2400, at 2400.
  *
  * Return: the speed the line must run at from now on, &p->sync_speed.
  */
@@ -1869,7 +1897,6 @@ u32 ev3_uart_parser_probe_end(struct ev3_uart_parser *p)
 	if (p->state == EV3_UART_STATE_PROBE) {
 		p->state = EV3_UART_STATE_SYNC;
 		p->sync_speed = EV3_UART_SPEED_MIN;
-		p->msg_len = 0;
 	}
 	return p->sync_speed;
 }
@@ -1899,3 +1926,40 @@ bool ev3_uart_parser_tick(struct ev3_uart_parser *p, struct ev3_uart_event *ev)
 	return ev->type == EV3_UART_EV_ERROR;
 }
 EXPORT_SYMBOL_IF_KUNIT(ev3_uart_parser_tick);
+
+/**
+ * ev3_uart_backoff_lost() - a sensor was lost: how long to hold off the
+ *	next connection on its line
+ * @b: the line's record (zeroed when the line is attached)
+ * @lived_ms: milliseconds from its registration to its loss
+ *
+ * A device that answers the fast sync probe, sends its handshake and a
+ * few bad DATA messages, again and again, would have a class device and an
+ * IIO device registered and unregistered every 100 ms or so, with their
+ * uevents. A sensor that lived %EV3_UART_SHORT_LIFE_MS or more ends such a
+ * run; the first %EV3_UART_FREE_RETRIES failures in a row cost nothing (a
+ * sensor plugged in badly), then the wait doubles from
+ * %EV3_UART_BACKOFF_MIN_MS to %EV3_UART_BACKOFF_MAX_MS.
+ *
+ * Return: the milliseconds during which the next handshakes must be left
+ * unanswered, 0 for none.
+ */
+unsigned int ev3_uart_backoff_lost(struct ev3_uart_backoff *b,
+				   unsigned int lived_ms)
+{
+	unsigned int shift;
+
+	if (lived_ms >= EV3_UART_SHORT_LIFE_MS) {
+		b->failures = 0;
+		return 0;
+	}
+	/* No further than the longest wait needs. */
+	if (b->failures <= EV3_UART_FREE_RETRIES + EV3_UART_BACKOFF_MAX_SHIFT)
+		b->failures++;
+	if (b->failures <= EV3_UART_FREE_RETRIES)
+		return 0;
+	shift = min_t(unsigned int, b->failures - EV3_UART_FREE_RETRIES - 1,
+		      EV3_UART_BACKOFF_MAX_SHIFT);
+	return EV3_UART_BACKOFF_MIN_MS << shift;
+}
+EXPORT_SYMBOL_IF_KUNIT(ev3_uart_backoff_lost);

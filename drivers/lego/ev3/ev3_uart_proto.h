@@ -200,9 +200,11 @@ struct ev3_uart_sensor {
  *	meanwhile are dropped: they come at a speed the tty is not set to.
  * @EV3_UART_STATE_DATA: data phase, at the sensor's speed
  * @EV3_UART_STATE_PROBE: the host sent SPEED at &ev3_uart_parser.sync_speed
- *	(the fast sync probe) and waits for a Powered Up device's ACK; any
- *	other byte or line error is dropped. The ACK makes it SYNC at that
- *	speed; no ACK, ev3_uart_parser_probe_end() makes it SYNC at 2400.
+ *	(the fast sync probe) and waits for a Powered Up device's ACK; the
+ *	TYPE hunt at 2400 goes on meanwhile, line errors are dropped. The ACK
+ *	makes it SYNC at that speed; a TYPE makes it INFO at 2400 (a sensor
+ *	that talks at 2400, on a line with no speeds such as a pty); neither,
+ *	ev3_uart_parser_probe_end() makes it SYNC at 2400.
  */
 enum ev3_uart_state {
 	EV3_UART_STATE_SYNC,
@@ -330,6 +332,28 @@ struct ev3_uart_parser {
 	u8 msg_info;
 };
 
+/*
+ * Back-off of a device that keeps failing (ev3_uart_backoff_lost()): a
+ * sensor lost less than EV3_UART_SHORT_LIFE_MS after it was registered
+ * failed (an unplugged one lives longer: silence takes 700 ms to be
+ * noticed); after EV3_UART_FREE_RETRIES failures in a row, its next
+ * handshakes are left unanswered for EV3_UART_BACKOFF_MIN_MS, doubled at
+ * every failure up to EV3_UART_BACKOFF_MAX_MS.
+ */
+#define EV3_UART_SHORT_LIFE_MS		500
+#define EV3_UART_FREE_RETRIES		3
+#define EV3_UART_BACKOFF_MIN_MS		1000
+#define EV3_UART_BACKOFF_MAX_SHIFT	5
+#define EV3_UART_BACKOFF_MAX_MS		(EV3_UART_BACKOFF_MIN_MS << EV3_UART_BACKOFF_MAX_SHIFT)
+
+/**
+ * struct ev3_uart_backoff - how a line's sensors have been failing
+ * @failures: sensors in a row lost soon after they were registered
+ */
+struct ev3_uart_backoff {
+	unsigned int failures;
+};
+
 u8 ev3_uart_checksum(const u8 *msg, size_t len);
 unsigned int ev3_uart_payload_len(u8 hdr);
 unsigned int ev3_uart_msg_len(u8 hdr);
@@ -347,6 +371,8 @@ int ev3_uart_parser_select(struct ev3_uart_parser *p, u8 mode);
 int ev3_uart_parser_probe(struct ev3_uart_parser *p, u32 speed);
 u32 ev3_uart_parser_probe_end(struct ev3_uart_parser *p);
 bool ev3_uart_parser_tick(struct ev3_uart_parser *p, struct ev3_uart_event *ev);
+unsigned int ev3_uart_backoff_lost(struct ev3_uart_backoff *b,
+				   unsigned int lived_ms);
 
 size_t ev3_uart_build_ack(u8 *buf);
 size_t ev3_uart_build_nack(u8 *buf);

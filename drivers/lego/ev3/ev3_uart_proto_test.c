@@ -282,6 +282,39 @@ static void connect(struct kunit *test, struct ctx *c, const struct tsensor *s)
 	c->r.n = 0;
 }
 
+/* ---- reconnects of a device that keeps failing ---- */
+
+/* Issue 28: register, one good DATA, seven bad ones, lost, again. */
+static void test_backoff(struct kunit *test)
+{
+	static const unsigned int want[] = {
+		0, 0, 0, 1000, 2000, 4000, 8000, 16000, 32000, 32000, 32000,
+	};
+	struct ev3_uart_backoff b = { };
+	unsigned int i;
+
+	for (i = 0; i < ARRAY_SIZE(want); i++)
+		KUNIT_EXPECT_EQ_MSG(test, ev3_uart_backoff_lost(&b, 60), want[i],
+				    "failure %u", i + 1);
+	/* A sensor that lived long enough ends the run... */
+	KUNIT_EXPECT_EQ(test, ev3_uart_backoff_lost(&b, EV3_UART_SHORT_LIFE_MS), 0U);
+	KUNIT_EXPECT_EQ(test, b.failures, 0U);
+	/* ...so failures far apart never back off. */
+	for (i = 0; i < 20; i++) {
+		KUNIT_EXPECT_EQ(test, ev3_uart_backoff_lost(&b, 0), 0U);
+		KUNIT_EXPECT_EQ(test, ev3_uart_backoff_lost(&b, 499), 0U);
+		KUNIT_EXPECT_EQ(test, ev3_uart_backoff_lost(&b, 3000), 0U);
+	}
+	/* An unplugged sensor is noticed after 700 ms of silence: no failure. */
+	KUNIT_EXPECT_EQ(test, ev3_uart_backoff_lost(&b, 700), 0U);
+	KUNIT_EXPECT_EQ(test, b.failures, 0U);
+	/* The count stops where the wait does: it never wraps. */
+	for (i = 0; i < 1000; i++)
+		ev3_uart_backoff_lost(&b, 0);
+	KUNIT_EXPECT_EQ(test, b.failures, EV3_UART_FREE_RETRIES + EV3_UART_BACKOFF_MAX_SHIFT + 1U);
+	KUNIT_EXPECT_EQ(test, ev3_uart_backoff_lost(&b, 0), (unsigned int)EV3_UART_BACKOFF_MAX_MS);
+}
+
 /* ---- framing ---- */
 
 static void test_checksum_real_messages(struct kunit *test)
@@ -1148,8 +1181,11 @@ static size_t enc_no_speed(u8 *buf)
 /* The probe answered: ACK, then the handshake at 115200, in any batches. */
 static void test_fast_sync_answered(struct kunit *test)
 {
-	/* What a probe meets: garbled bytes, a TYPE, SYNC, NACK, 0xff. */
-	static const u8 junk[] = { 0x00, 0xff, 0x40, 0x3d, 0x82, 0x02, 0x52 };
+	/*
+	 * What a probe meets: garbled bytes, a broken TYPE, SYNC, NACK, 0xff
+	 * (a whole TYPE starts a handshake at 2400: test_probe_meets_type).
+	 */
+	static const u8 junk[] = { 0x00, 0xff, 0x40, 0x3d, 0x83, 0x02, 0x52 };
 	struct ev3_uart_event ev;
 	size_t chunk, len;
 	struct ctx *c;
@@ -1167,13 +1203,17 @@ static void test_fast_sync_answered(struct kunit *test)
 		ev3_uart_parser_start_data(&c->p);
 		KUNIT_EXPECT_EQ(test, c->p.state, EV3_UART_STATE_PROBE);
 
-		/* Garbage and line errors are dropped, a TYPE too. */
+		/*
+		 * Garbage and line errors are dropped: all but the last three
+		 * bytes slid through the TYPE window, the line error emptied it.
+		 */
 		feed(&c->p, junk, sizeof(junk), chunk, &c->r);
 		ev3_uart_parser_line_error(&c->p, &ev);
 		KUNIT_EXPECT_EQ(test, ev.type, EV3_UART_EV_NONE);
 		KUNIT_EXPECT_EQ(test, c->r.n, 0U);
 		KUNIT_EXPECT_EQ(test, c->p.state, EV3_UART_STATE_PROBE);
-		KUNIT_EXPECT_EQ(test, c->p.garbage, (unsigned long)sizeof(junk));
+		KUNIT_EXPECT_EQ(test, c->p.garbage, (unsigned long)sizeof(junk) - 3);
+		KUNIT_EXPECT_EQ(test, c->p.msg_len, 0);
 
 		/* The ACK, and the handshake right behind it. */
 		c->buf[0] = EV3_UART_SYS_ACK;
@@ -1201,6 +1241,81 @@ static void test_fast_sync_answered(struct kunit *test)
 	feed(&c->p, c->buf, len, len, &c->r);
 	KUNIT_ASSERT_EQ(test, last(&c->r)->type, EV3_UART_EV_HANDSHAKE);
 	KUNIT_EXPECT_EQ(test, c->p.sensor.speed, EV3_UART_SPEED_FAST);
+}
+
+/*
+ * Issue 28: an EV3 sensor that starts its handshake (at 2400) while the host
+ * probes, on a line that carries bytes whatever the speed (a pty): its TYPE
+ * starts the handshake at 2400, in any batches, and its first handshake is
+ * the one that connects.
+ */
+static void test_probe_meets_type(struct kunit *test)
+{
+	static const u8 type4[] = { 0x40, 0x04, 0xbb };
+	struct ev3_uart_event ev;
+	size_t chunk, len;
+	struct ctx *c;
+
+	for (chunk = 1; chunk <= 64; chunk *= 4) {
+		c = new_ctx(test);
+		len = enc_handshake(c->buf, &sensors[0]);
+		/* Its first byte came before the probe, the rest during it. */
+		feed(&c->p, c->buf, 1, 1, &c->r);
+		KUNIT_ASSERT_EQ(test, ev3_uart_parser_probe(&c->p, EV3_UART_SPEED_FAST), 0);
+		feed(&c->p, c->buf + 1, 20, chunk, &c->r);
+		KUNIT_ASSERT_EQ(test, c->r.n, 1U);
+		KUNIT_EXPECT_EQ(test, c->r.ev[0].type, EV3_UART_EV_SYNC);
+		KUNIT_EXPECT_EQ(test, c->p.state, EV3_UART_STATE_INFO);
+		KUNIT_EXPECT_EQ(test, c->p.sync_speed, 2400U);
+		/* The host's wait ends: back to 2400, where the rest comes. */
+		KUNIT_EXPECT_EQ(test, ev3_uart_parser_probe_end(&c->p), 2400U);
+		feed(&c->p, c->buf + 21, len - 21, chunk, &c->r);
+		KUNIT_ASSERT_EQ(test, c->r.n, 2U);
+		KUNIT_EXPECT_EQ(test, c->r.ev[1].type, EV3_UART_EV_HANDSHAKE);
+		KUNIT_EXPECT_EQ(test, c->p.sensor.type, 29);
+		KUNIT_EXPECT_EQ(test, c->p.sensor.num_modes, 6);
+		KUNIT_EXPECT_EQ(test, c->p.sensor.speed, 57600U);
+		KUNIT_EXPECT_EQ(test, c->p.garbage, 0UL);
+	}
+
+	/* All of it within the probe; without SPEED it stays at 2400. */
+	c = new_ctx(test);
+	KUNIT_ASSERT_EQ(test, ev3_uart_parser_probe(&c->p, EV3_UART_SPEED_FAST), 0);
+	len = enc_no_speed(c->buf);
+	feed(&c->p, c->buf, len, len, &c->r);
+	KUNIT_ASSERT_EQ(test, c->r.n, 2U);
+	KUNIT_EXPECT_EQ(test, c->r.ev[0].type, EV3_UART_EV_SYNC);
+	KUNIT_EXPECT_EQ(test, c->r.ev[1].type, EV3_UART_EV_HANDSHAKE);
+	KUNIT_EXPECT_EQ(test, c->p.sensor.speed, 2400U);
+	KUNIT_EXPECT_EQ(test, ev3_uart_parser_probe_end(&c->p), 2400U);
+	KUNIT_EXPECT_EQ(test, c->p.state, EV3_UART_STATE_ACKED);
+
+	/* A TYPE of type 4: its 0x04 is no ACK to the probe. */
+	c = new_ctx(test);
+	KUNIT_ASSERT_EQ(test, ev3_uart_parser_probe(&c->p, EV3_UART_SPEED_FAST), 0);
+	feed(&c->p, type4, sizeof(type4), 1, &c->r);
+	KUNIT_ASSERT_EQ(test, c->r.n, 1U);
+	KUNIT_EXPECT_EQ(test, c->r.ev[0].type, EV3_UART_EV_SYNC);
+	KUNIT_EXPECT_EQ(test, c->p.sensor.type, 4);
+	/* But an ACK after other bytes is one; a broken TYPE is not a TYPE. */
+	c = new_ctx(test);
+	KUNIT_ASSERT_EQ(test, ev3_uart_parser_probe(&c->p, EV3_UART_SPEED_FAST), 0);
+	c->buf[0] = 0x40;
+	c->buf[1] = 0x1d;
+	c->buf[2] = EV3_UART_SYS_ACK;
+	feed(&c->p, c->buf, 3, 1, &c->r);
+	KUNIT_ASSERT_EQ(test, c->r.n, 1U);
+	KUNIT_EXPECT_EQ(test, c->r.ev[0].type, EV3_UART_EV_FAST);
+	KUNIT_EXPECT_EQ(test, c->p.sync_speed, EV3_UART_SPEED_FAST);
+	/* A line error in the probe empties the window. */
+	c = new_ctx(test);
+	KUNIT_ASSERT_EQ(test, ev3_uart_parser_probe(&c->p, EV3_UART_SPEED_FAST), 0);
+	feed(&c->p, type4, 2, 2, &c->r);
+	ev3_uart_parser_line_error(&c->p, &ev);
+	KUNIT_EXPECT_EQ(test, ev.type, EV3_UART_EV_NONE);
+	feed(&c->p, type4 + 2, 1, 1, &c->r);
+	KUNIT_EXPECT_EQ(test, c->r.n, 0U);
+	KUNIT_EXPECT_EQ(test, c->p.state, EV3_UART_STATE_PROBE);
 }
 
 /* The probe not answered, or a fast handshake that fails: 2400 again. */
@@ -2204,6 +2319,83 @@ static void test_chans_bounded(struct kunit *test)
 	KUNIT_EXPECT_EQ(test, ev3_uart_chans_build(s, NULL, 0), 0U);
 }
 
+/*
+ * Every channel's IIO name (type, modifier or index) is unique: the IIO
+ * core refuses a device with two attributes of one name.
+ */
+static void expect_unique_chans(struct kunit *test, const struct ev3_uart_sensor *s,
+				unsigned int want)
+{
+	struct ev3_uart_chan *chans;
+	unsigned int i, j, n;
+
+	n = ev3_uart_chans_build(s, NULL, 0);
+	KUNIT_EXPECT_EQ(test, n, want);
+	chans = kunit_kzalloc(test, (n ?: 1) * sizeof(*chans), GFP_KERNEL);
+	KUNIT_ASSERT_NOT_NULL(test, chans);
+	KUNIT_ASSERT_EQ(test, ev3_uart_chans_build(s, chans, n), n);
+	for (i = 0; i < n; i++) {
+		for (j = i + 1; j < n; j++) {
+			bool same = chans[i].type == chans[j].type &&
+				    chans[i].modifier == chans[j].modifier &&
+				    (chans[i].modifier ||
+				     chans[i].channel == chans[j].channel);
+
+			KUNIT_EXPECT_EQ_MSG(test, same, false,
+					    "type %u: channels %u and %u (modes %u and %u) share a name",
+					    s->type, i, j, chans[i].mode, chans[j].mode);
+		}
+	}
+}
+
+/* Issue 28: a colour sensor (or Powered Up one) with two RGB modes of one name. */
+static void test_chans_twin_rgb_modes(struct kunit *test)
+{
+	struct ev3_uart_sensor *s = kunit_kzalloc(test, sizeof(*s), GFP_KERNEL);
+	struct ev3_uart_chan chans[8];
+	unsigned int i;
+
+	KUNIT_ASSERT_NOT_NULL(test, s);
+	s->type = EV3_UART_TYPE_COLOR;
+	s->num_modes = 3;
+	for (i = 0; i < s->num_modes; i++) {
+		struct ev3_uart_mode *m = &s->modes[i];
+
+		strscpy(m->name, "RGB-RAW", sizeof(m->name));
+		m->raw_max = 1020;
+		m->si_max = 1020;
+		m->num_values = 4;
+		m->data_type = EV3_UART_DATA_S16;
+		m->figures = 4;
+	}
+	/* One mode: red, green, blue, then the fourth value indexed. */
+	s->num_modes = 1;
+	expect_unique_chans(test, s, 4);
+	s->num_modes = 3;
+	expect_unique_chans(test, s, 12);
+	/* The first mode keeps the modifiers; the twins' values are indexed. */
+	KUNIT_ASSERT_EQ(test, ev3_uart_chans_build(s, chans, ARRAY_SIZE(chans)), 12U);
+	KUNIT_EXPECT_EQ(test, chans[0].modifier, IIO_MOD_LIGHT_RED);
+	KUNIT_EXPECT_EQ(test, chans[2].modifier, IIO_MOD_LIGHT_BLUE);
+	KUNIT_EXPECT_EQ(test, chans[3].modifier, 0);
+	KUNIT_EXPECT_EQ(test, chans[3].channel, 0);
+	KUNIT_EXPECT_EQ(test, chans[4].mode, 1);
+	KUNIT_EXPECT_EQ(test, chans[4].modifier, 0);
+	KUNIT_EXPECT_EQ(test, chans[4].channel, 1);
+	KUNIT_EXPECT_EQ(test, chans[7].channel, 4);
+
+	/* Twin RGB I on the Powered Up colour sensors, after another mode. */
+	s->lump = true;
+	s->type = EV3_UART_TYPE_SPIKE_COLOR;
+	strscpy(s->modes[0].name, "REFLT", sizeof(s->modes[0].name));
+	s->modes[0].num_values = 1;
+	for (i = 1; i < s->num_modes; i++)
+		strscpy(s->modes[i].name, "RGB I", sizeof(s->modes[i].name));
+	expect_unique_chans(test, s, 9);
+	s->type = EV3_UART_TYPE_BOOST_CDS;
+	expect_unique_chans(test, s, 9);
+}
+
 static void test_version_string(struct kunit *test)
 {
 	char buf[EV3_UART_VERSION_LEN + 1];
@@ -2325,6 +2517,7 @@ static struct kunit_case ev3_uart_proto_cases[] = {
 	KUNIT_CASE(test_build_speed),
 	KUNIT_CASE(test_fast_sync_answered),
 	KUNIT_CASE(test_fast_sync_unanswered),
+	KUNIT_CASE(test_probe_meets_type),
 	KUNIT_CASE(test_ext_mode_ignored_for_ev3),
 	KUNIT_CASE(test_lump_16_modes_and_flags),
 	KUNIT_CASE(test_ext_mode_and_fast_path),
@@ -2353,6 +2546,8 @@ static struct kunit_case ev3_uart_proto_cases[] = {
 	KUNIT_CASE(test_chan_scale),
 	KUNIT_CASE(test_chan_scale_floats),
 	KUNIT_CASE(test_chans_bounded),
+	KUNIT_CASE(test_chans_twin_rgb_modes),
+	KUNIT_CASE(test_backoff),
 	KUNIT_CASE(test_mode_tokens),
 	KUNIT_CASE(test_version_string),
 	KUNIT_CASE(test_driver_names_fit),
