@@ -297,6 +297,12 @@ class Runner:
                 sd = ev3.open_sensor(self.address, timeout=REGISTER_TIMEOUT)
                 self.check(sd, 'the model accepts the handshake but no sensor registered '
                            'in %.0f s (emulator: %s)' % (REGISTER_TIMEOUT, emu.events[-3:]))
+                # Published (values in sysfs) once its IIO device is
+                # registered too: seconds for hundreds of channels on the
+                # debug kernel (ev3.wait_registered()).
+                self.check(ev3.wait_registered(self.address, timeout=REGISTER_TIMEOUT)
+                           is not False, '%s not published %.0f s after its class device appeared'
+                           % (sd.path, REGISTER_TIMEOUT))
                 self.bump('registered')
             iio = None
             try:

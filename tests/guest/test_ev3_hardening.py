@@ -73,7 +73,11 @@ def test_256_values_get_256_channels(line):
     emu = line.plug(sdef)
     path = find_sensor(line.address, timeout=20)
     assert path, 'not registered (events: %s)' % emu.events
-    dev = iio_device('ev3-uart-88')
+    # The IIO registration of 256 channels takes seconds on the debug
+    # kernel (ev3.wait_registered()): the sensor is published after it,
+    # and from then on its IIO device is there.
+    assert ev3.wait_registered(line.address) is not False, emu.events
+    dev = iio_device('ev3-uart-88', timeout=1)
     assert dev, emu.events
     attrs = iio_attrs(dev)
     raw = [a for a in attrs if a.endswith('_raw')]

@@ -19,6 +19,7 @@ import pytest
 
 import nxtdev as nxt
 from conftest import wait_for
+from ev3 import iio_device
 from tracing import DEBUGFS, Trace, counters, tracefs, write
 
 SERIAL = '0016530E1F2A'
@@ -213,6 +214,10 @@ def test_lego_sensors_trace(ev3_module):
             assert wait_for(lambda: open(tracefs() + '/events/lego_ev3_uart/enable').read()
                             .strip() == '1', 5.0), 'lego-sensors --trace did not enable the events'
             _, path = attach('color')
+            # The driver traces the registration once the IIO device is
+            # registered too, which comes after the class device that
+            # attach() waits for (seconds later on a loaded debug kernel).
+            assert iio_device('lego-ev3-color', timeout=20), 'no IIO device'
             time.sleep(0.5)
         finally:
             proc.send_signal(signal.SIGINT)
