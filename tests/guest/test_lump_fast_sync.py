@@ -232,7 +232,7 @@ def test_ev3_registers_on_its_first_handshake(trace, ev3_module, kind):
     that only the sensor's second handshake was answered, a whole
     handshake later. Its first one must be answered: from its first byte
     to the registration takes the handshake's time on the wire, and less
-    than half of it more."""
+    than the same again."""
     sdef = ev3_sensor.SENSORS[kind]
     wire = len(ev3_sensor.handshake(sdef)) * 10 / 2400     # 1.29 to 1.60 s
     master, slave, tty, emu, _ = attach_pty_and_go(kind, after_probe=True, boot_delay=0)
@@ -248,7 +248,10 @@ def test_ev3_registers_on_its_first_handshake(trace, ev3_module, kind):
         # Its first handshake was ACKed: no second one was sent.
         assert ev3.wait_handshakes(emu, 1, 5) == 1, emu.events
         assert len(emu.handshake_starts) == 1 and emu.sync_speeds == [2400], emu.events
-        assert wire <= took < 1.5 * wire, (took, wire, emu.events)
+        # A second handshake would take the wire time again (and the 80 ms
+        # the sensor waits for an ACK): registered before twice the wire
+        # time, whatever the load of the emulated machine adds.
+        assert wire <= took < 2 * wire, (took, wire, emu.events)
         # It began during the probe: its TYPE ended the probe's wait.
         ev = trace.of(tty)
         assert [f for _, n, f in ev if n == 'ev3_uart_state' and f['from'] == 'PROBE'
