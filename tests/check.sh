@@ -9,6 +9,7 @@
 #     for arm64 and armhf (tests/cross-build.sh),
 #  4. runs checkpatch --strict, a short fuzzing run of the protocol cores
 #     (tests/fuzz/run.sh --short), the packaging tests of tests/packaging,
+#     the emulators' and the harness's own tests (tests/emulator, tests/lib),
 #     the in-tree series' rules (tests/upstream/test_intree.py) and the
 #     series' quick checks (tests/upstream/check.sh without its builds), and
 #     dkms (on the host) for the guest's packaging test, `make deb` (with
@@ -16,7 +17,11 @@
 #     guest's tests/guest/test_deb.py,
 #  5. boots the test VM: every KUnit suite, then the guest tests,
 #  6. scans the guest console for splats,
-#  7. prints the time of each phase and one line "N passed, N failed".
+#  7. prints every skipped test with its reason (a skip that
+#     tests/expected-skips does not list fails the run), the ten slowest
+#     tests, whether tests/bench/results.md was measured on other driver
+#     code than HEAD's, the time of each phase and one line
+#     "N passed, N failed, N skipped" (KUnit, guest and host pytest tests).
 #
 # KVER is the test kernel's series: newest (default), or 6.12, 6.1, any X.Y
 # Debian serves; every phase runs against it. LEGO_CACHE moves the kernel
@@ -31,6 +36,10 @@ results=$build/results
 console=$build/console.log
 # shellcheck source=tests/lib/phases.sh
 . "$top/tests/lib/phases.sh"
+# KUnit's and the guest's results (the VM writes them), the host's pytest
+# phases' JUnit XML (host-*.xml): tests/summarize.py counts them all.
+rm -rf "$results"
+mkdir -p "$results"
 
 # The steps of tests/upstream/check.sh that take no kernel build.
 upstream_quick=(series am checkpatch kernel-doc refs abi headers coccicheck htmldocs lego-docs)
@@ -62,10 +71,11 @@ phase "fuzz (short, 2 x 30 s)" tests/fuzz/run.sh --short
 # install-deps.sh (Debian packages) in a clean Debian 12 root, with
 # coccicheck's semantic patches that have scripts; cached per inputs.
 phase "install-deps in a clean Debian 12 root" tests/packaging/clean-root.sh
-phase "make install, dkms-source (host)" env LEGO_KERNEL_TREE="$tree" \
-	python3 -m pytest -q -p no:cacheprovider tests/packaging
-phase "upstream series: in-tree rules (host)" \
-	python3 -m pytest -q -p no:cacheprovider tests/upstream
+LEGO_KERNEL_TREE="$tree" pytest_phase "make install, dkms-source (host)" \
+	"$results/host-packaging.xml" tests/packaging
+LEGO_KERNEL_TREE="$tree" pytest_phase "emulators, harness (host)" \
+	"$results/host-emulator.xml" tests/emulator tests/lib
+pytest_phase "upstream series: in-tree rules (host)" "$results/host-upstream.xml" tests/upstream
 # The in-tree series' quick checks (about 2 minutes cold, 1 warm); the
 # kernel builds and kunit.py runs are `make upstream-check`'s.
 phase "upstream series: git am, checkpatch, docs" env LEGO_UPSTREAM_OUT="$build/upstream" \
@@ -78,8 +88,6 @@ phase "make deb, lintian" make -s deb DEB_OUT="$build/deb"
 phase "deb: dkms package for $kver (host)" tests/packaging/deb-prepare.sh "$tree" \
 	"$build/deb" "$build/deb-root-$kver.tar"
 
-rm -rf "$results"
-mkdir -p "$results"
 # The guest suite takes 26 to 29 minutes on a loaded 2-core host before the
 # tests of issue 18 (nxtctl's command line, lego-sensors, examples, the
 # Debian packages) added about ten: vm-run's default 1800 s is too short.
@@ -89,4 +97,5 @@ PHASE_NOCOUNT=1 LEGO_VM_NO_BUILD=1 phase "VM: KUnit and guest tests" \
 vm_rc=$?
 phase "console splat scan" tests/scan-console.py "$console"
 
+PHASE_FOOTER=$(tests/bench/stale.sh)
 vm_totals "$results" "$tree" "$vm_rc"

@@ -12,7 +12,9 @@
 #  4. boots the arm64 VM (tests/vm-run --arch arm64): every KUnit suite, then
 #     the guest tests,
 #  5. scans the guest console for splats,
-#  6. prints the time of each phase and one line "N passed, N failed".
+#  6. prints every skipped test with its reason (a skip that
+#     tests/expected-skips does not list fails the run), the ten slowest
+#     tests, the time of each phase and one line "N passed, N failed, N skipped".
 #
 # Left out on arm64: tests/guest/test_packaging.py and test_deb.py, whose
 # modules are built by dkms on the host for the x86 test kernel

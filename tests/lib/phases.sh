@@ -1,15 +1,21 @@
 # shellcheck shell=bash
-# Timed phases and the closing "N passed, N failed" line, shared by
-# tests/check.sh and tests/arm64/check.sh (source this file).
+# Timed phases and the closing "N passed, N failed, N skipped" line, shared
+# by tests/check.sh and tests/arm64/check.sh (source this file).
 #
 #   phase NAME CMD...   runs CMD, records its time; a failure counts once
 #                       unless PHASE_NOCOUNT is set (the VM phase, whose
 #                       failures are counted from its results)
-#   summary [PASSED [FAILED]]   prints the phase times and exits 0 only
+#   pytest_phase NAME XML PYTEST_ARGS...   a phase running pytest on the
+#                       host, its results in the JUnit XML file XML (for
+#                       summarize.py: RESULTS/host-NAME.xml); its failures
+#                       are counted from XML, a run that failed with no
+#                       failed test in XML counts once
+#   summary [PASSED [FAILED [SKIPPED]]]   prints the phase times and exits 0 only
 #                       if nothing failed; PHASE_TITLE names the table,
 #                       PHASE_FOOTER is printed under it
-#   vm_totals RESULTS TREE VM_RC   summarizes the VM's results and calls
-#                       summary with its counts
+#   vm_totals RESULTS TREE VM_RC   summarizes the results (tests/summarize.py:
+#                       the VM's, the host's pytest phases', the skips, the
+#                       slowest tests) and calls summary with their counts
 
 phase_names=()
 phase_times=()
@@ -31,8 +37,20 @@ phase() {
 	return $rc
 }
 
+pytest_phase() {
+	local name=$1 xml=$2 rc
+	shift 2
+	rm -f "$xml"
+	PHASE_NOCOUNT=1 phase "$name" python3 -m pytest -q -p no:cacheprovider --junitxml="$xml" "$@"
+	rc=$?
+	if [ $rc -ne 0 ] && ! grep -qs -e '<failure' -e '<error' "$xml"; then
+		phase_fail=$((phase_fail + 1))
+	fi
+	return $rc
+}
+
 summary() {
-	local passed=${1:-0} failed=${2:-0} i
+	local passed=${1:-0} failed=${2:-0} skipped=${3:-0} i
 	echo
 	echo "${PHASE_TITLE:-Phase times}:"
 	for i in "${!phase_names[@]}"; do
@@ -41,17 +59,19 @@ summary() {
 	printf '  %-34s %5s s\n' "total" "$SECONDS"
 	[ -z "${PHASE_FOOTER:-}" ] || echo "$PHASE_FOOTER"
 	failed=$((failed + phase_fail))
-	echo "$passed passed, $failed failed"
+	echo "$passed passed, $failed failed, $skipped skipped"
 	[ "$failed" -eq 0 ]
 	exit $?
 }
 
 # Test failures in the VM are counted from its results; only a VM that
 # failed with no failed test (a crash, a timeout) counts as one more failure.
+# An unexpected skip counts as a failure (summarize.py).
 vm_totals() {
-	local results=$1 tree=$2 vm_rc=$3 passed failed
-	python3 tests/summarize.py "$results" "$tree" || phase_fail=$((phase_fail + 1))
-	read -r passed failed _ < "$results/totals" 2>/dev/null || { passed=0; failed=1; }
+	local results=$1 tree=$2 vm_rc=$3 passed failed skipped
+	rm -f "$results/totals"
+	python3 tests/summarize.py "$results" "$tree"
+	read -r passed failed skipped < "$results/totals" 2>/dev/null || { passed=0; failed=1; skipped=0; }
 	[ "$vm_rc" -ne 0 ] && [ "$failed" -eq 0 ] && phase_fail=$((phase_fail + 1))
-	summary "$passed" "$failed"
+	summary "$passed" "$failed" "$skipped"
 }
