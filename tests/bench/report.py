@@ -6,7 +6,8 @@
 Every ``*.json`` in DIR is one section: ``{"section": title, "figures": [...],
 "notes": [...]}``, each figure ``{"name", "value", "unit", "reference",
 "reference_value", "target", "met", "detail"}``. The results file (Markdown)
-gets the date, the machine and the commit, then one table per section with
+gets the date, the machine, the commit and the tree of drivers/ it was
+measured on (tests/bench/stale.sh compares it with HEAD's), then one table per section with
 each figure beside its reference, then the list of targets met and missed.
 """
 import argparse
@@ -121,11 +122,13 @@ def nxt_details(section):
     return out
 
 
-def markdown(sections, quick, stamp, kernel, commit):
+def markdown(sections, quick, stamp, kernel, commit, drivers=None):
     lines = ["# Benchmark results", "",
              f"Measured {stamp} on: {machine()}."] + \
         ([f"Guest: the {kernel}."] if kernel else []) + [
              f"Commit `{commit}`" + (" -- **quick run** (short durations; not for comparison)." if quick else "."),
+             f"Driver code: tree `{drivers or 'unknown'}` (`git rev-parse HEAD:drivers`"
+             "; +changes: with uncommitted changes).",
              "",
              "Reproduce with `make bench` (all of it: the protocol cores with callgrind on the host, then one",
              "VM for the EV3 and NXT figures; `tests/bench/run.sh --help`). Timing figures come from an",
@@ -206,7 +209,8 @@ def main():
         # began (the results file itself is part of the tree).
         commit = run_file(args.dir, "commit") or run(["git", "describe", "--always", "--dirty"]) \
             or "unknown"
-        text = markdown(sections, args.quick, stamp, run_file(args.dir, "kernel"), commit)
+        text = markdown(sections, args.quick, stamp, run_file(args.dir, "kernel"), commit,
+                        run_file(args.dir, "drivers"))
         with open(args.out, "w", encoding="utf-8") as f:
             f.write(text)
     missed = sum(1 for s in sections for f in s["figures"] if f.get("met") is False)

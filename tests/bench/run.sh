@@ -45,6 +45,11 @@ mkdir -p "$out"
 fail=0
 # What the figures come from, noted before anything runs (report.py).
 git describe --always --dirty > "$out/commit" 2>/dev/null || true
+# The tree of drivers/ (tests/bench/stale.sh compares it with HEAD's).
+if drivers=$(git rev-parse -q --verify HEAD:drivers); then
+	[ -z "$(git status --porcelain -- drivers)" ] || drivers+=+changes
+	echo "$drivers" > "$out/drivers"
+fi
 echo "$kernel" > "$out/kernel"
 
 tests/install-deps.sh >/dev/null
