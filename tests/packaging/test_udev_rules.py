@@ -7,8 +7,11 @@
    not a system group: the uaccess tag stands on lines without GROUP=;
  - every group the rules name is the system group the sysusers.d file makes
    (systemd-sysusers --root on an empty root shows the GID it picks);
- - `udevadm verify` accepts the files, where the installed systemd has it
-   (systemd 254 and later; not Debian 12's 252);
+ - udev accepts the files: `udevadm verify` where the installed systemd
+   has it (254 and later), else (Debian 12's 252) udev's own rule parser
+   through `udevadm test`, the files in a tmpfs over /etc/udev/rules.d in a
+   private mount namespace, which reports each line it refuses or ignores
+   (and the check is shown to catch a bad file);
  - every `groupadd` the README, the documentation and the Makefile tell a
    user to run makes a system group.
 
@@ -129,21 +132,68 @@ def test_systemd_sysusers_makes_a_system_group(tmp_path):
 
 
 def udevadm_has_verify():
-    if not shutil.which('udevadm'):
-        return False
     r = subprocess.run(['udevadm', 'verify', '--help'], capture_output=True, text=True)
     return r.returncode == 0
 
 
-def test_udevadm_verify():
-    if not udevadm_has_verify():
-        ver = subprocess.run(['udevadm', '--version'], capture_output=True,
-                             text=True).stdout.strip() if shutil.which('udevadm') else 'none'
-        pytest.skip('udevadm %s has no "verify" command (systemd 254 and later)' % ver)
-    # The group need not exist on the machine that runs the tests.
-    r = subprocess.run(['udevadm', 'verify', '--resolve-names=never'] + RULES,
+# udevadm test (systemd 252): the rule files in a tmpfs over
+# /etc/udev/rules.d, and an /etc/group that has the group "lego", in a
+# private mount namespace (a user namespace too when not root); udev's
+# parser says "FILE:LINE message" for every line it refuses or ignores.
+UDEVADM_TEST = r'''
+set -e
+group=$1
+shift
+mount -t tmpfs tmpfs /etc/udev/rules.d
+cp "$@" /etc/udev/rules.d/
+mount --bind "$group" /etc/group
+udevadm test --action=add /sys/class/mem/null 2>&1
+'''
+
+
+def udev_rule_errors(paths, tmp_path):
+    """What udev finds wrong in the rule files `paths` (an empty string if
+    nothing)."""
+    if not shutil.which('udevadm'):
+        pytest.skip('udevadm not installed')
+    if udevadm_has_verify():
+        # The group need not exist on the machine that runs the tests.
+        r = subprocess.run(['udevadm', 'verify', '--resolve-names=never'] + paths,
+                           capture_output=True, text=True)
+        return '' if r.returncode == 0 else r.stdout + r.stderr
+    group = tmp_path / 'group'
+    with open('/etc/group') as f:
+        group.write_text(f.read() + 'lego:x:987:\n')
+    unshare = ['unshare', '-m'] if os.getuid() == 0 else ['unshare', '-r', '-m']
+    r = subprocess.run(unshare + ['sh', '-c', UDEVADM_TEST, 'sh', str(group)] + paths,
                        capture_output=True, text=True)
     assert r.returncode == 0, r.stdout + r.stderr
+    names = '|'.join(re.escape(os.path.basename(p)) for p in paths)
+    bad = re.findall(r'^/etc/udev/rules\.d/(?:%s):\d+ .*$' % names, r.stdout, re.M)
+    # Each file was read.
+    for p in paths:
+        assert 'Reading rules file: /etc/udev/rules.d/' + os.path.basename(p) in r.stdout, r.stdout
+    return '\n'.join(bad)
+
+
+def test_udev_accepts_the_rules(tmp_path):
+    errors = udev_rule_errors(RULES, tmp_path)
+    assert not errors, errors
+
+
+def test_udev_rule_check_finds_errors(tmp_path):
+    """The check above can fail: an unknown key, a group that does not
+    exist, a line that is not a key/value list."""
+    bad = tmp_path / '99-bad.rules'
+    bad.write_text('SUBSYSTEM=="usb", NOSUCHKEY="x"\n'
+                   'KERNEL=="nxt*", GROUP="nosuchgroup", MODE="0660"\n'
+                   'ACTION=="add" garbage\n'
+                   'KERNEL=="fine", MODE="0660"\n')
+    errors = udev_rule_errors([str(bad)], tmp_path)
+    assert '99-bad.rules' in errors, errors
+    if not udevadm_has_verify():
+        lines = sorted(int(m) for m in re.findall(r'99-bad\.rules:(\d+) ', errors))
+        assert lines == [1, 2, 3], errors
 
 
 def test_docs_make_a_system_group():
