@@ -13,6 +13,9 @@ debs=(
 )
 # libusb for pyusb: nxt-python's usb backend in tests/guest/test_nxt_python.py
 debs+=(libusb-1.0-0)
+# systemd-analyze (tests/guest/test_ev3_attach.py's unit check; the guest
+# runs the host's root) and systemd-sysusers (tests/packaging/test_udev_rules.py)
+debs+=(systemd)
 # tests/cross-build.sh: the arm64 and armhf cross compilers (with their libc
 # for the userspace tools)
 debs+=(gcc-aarch64-linux-gnu gcc-arm-linux-gnueabihf libc6-dev-arm64-cross libc6-dev-armhf-cross)
