@@ -18,6 +18,10 @@
 #                     0 for none); not checked with --short
 #   TARGET            ev3, nxt (default both)
 #
+# The corpus each target grows is kept between runs in the cache,
+# ~/.cache/lego-mindstorms-linux/fuzz-corpus-TARGET (LEGO_CACHE moves it;
+# delete it to start again from the committed seeds alone).
+#
 # Exits 1 on a crash, sanitizer report or failed invariant (the input is
 # kept in .build/fuzz/artifacts/), on fewer executions than the target, or
 # on a build, KUnit or replay failure. Each target's log is
@@ -27,6 +31,9 @@ top=$(cd "$(dirname "$0")/../.." && pwd)
 cd "$top"
 
 out=${LEGO_BUILD_DIR:-$top/.build}/fuzz
+# shellcheck source=tests/kernel/lib.sh
+. "$top/tests/kernel/lib.sh"
+cache=$(kcache_dir)
 seconds=
 short=
 target_execs=10000000
@@ -92,9 +99,9 @@ touch "$out/.run-start"
 for t in "${targets[@]}"; do
 	secs=${seconds:-${default_seconds[$t]}}
 	secs_of[$t]=$secs
-	corpus=$out/corpus-$t
-	rm -rf "$corpus"
-	mkdir -p "$corpus"
+	corpus=$cache/fuzz-corpus-$t
+	mkdir -p "$corpus" || exit 1
+	echo "$t: corpus $corpus: $(find "$corpus" -type f | wc -l) inputs from earlier runs"
 	dict=()
 	[ -f tests/fuzz/"$t".dict ] && dict=(-dict=tests/fuzz/"$t".dict)
 	"$out/fuzz_$t" -max_total_time="$secs" -print_final_stats=1 -seed=1 \
@@ -105,7 +112,7 @@ for t in "${targets[@]}"; do
 done
 
 report=$out/summary.txt
-printf '%-5s %8s %12s %10s %6s %7s %s\n' target seconds executions exec/s cov ft result | tee "$report"
+printf '%-5s %8s %12s %10s %6s %7s %7s %s\n' target seconds executions exec/s cov ft corpus result | tee "$report"
 for t in "${targets[@]}"; do
 	wait "${pids[$t]}"
 	rc=$?
@@ -122,8 +129,8 @@ for t in "${targets[@]}"; do
 		result="too few executions (target $target_execs)"
 		fail=1
 	fi
-	printf '%-5s %8s %12s %10s %6s %7s %s\n' "$t" "${secs_of[$t]}" "${execs:-?}" "${rate:-?}" \
-		"${cov:-?}" "${ft:-?}" "$result" | tee -a "$report"
+	printf '%-5s %8s %12s %10s %6s %7s %7s %s\n' "$t" "${secs_of[$t]}" "${execs:-?}" "${rate:-?}" \
+		"${cov:-?}" "${ft:-?}" "$(find "$cache/fuzz-corpus-$t" -type f | wc -l)" "$result" | tee -a "$report"
 	if [ "${result#CRASH}" != "$result" ]; then
 		echo "--- $t: report (full log: $log)"
 		grep -E -B2 -A25 'ERROR: |runtime error:|invariant failed|^WARNING at' "$log" | head -n 60
