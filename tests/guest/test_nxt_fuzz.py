@@ -3,9 +3,9 @@
 A few hundred random sequences of open/write/read/poll/ioctl/close from
 three processes against honest and hostile emulated bricks, with USB
 resets and unplugs (about two minutes in the TCG guest). The run seed is
-LEGO_NXT_FUZZ_SEED if set, else a fixed one, and is printed with every
-failure, together with the command that replays the failed epoch. `make
-soak` runs thousands (part 8 of tests/soak/soak.py).
+random and printed (LEGO_NXT_FUZZ_SEED sets it), and every failure prints it
+with the command that replays the failed epoch. `make soak` runs thousands
+(part 8 of tests/soak/soak.py).
 
 The other tests show that the fuzzer's checks can fail: a brick whose
 replies the fuzzer did not see sent, a wrong errno expectation, a call
@@ -14,6 +14,7 @@ opcode (which the driver cannot tell), a reply of the wrong length or opcode.
 """
 import errno
 import os
+import random
 import subprocess
 import sys
 import time
@@ -24,18 +25,26 @@ sys.path.insert(0, os.path.join(os.path.dirname(__file__), '..', 'soak'))
 import nxt_fuzz  # noqa: E402
 
 TOP = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
-SEED = int(os.environ.get('LEGO_NXT_FUZZ_SEED', '0x17'), 0)
 SEQUENCES = int(os.environ.get('LEGO_NXT_FUZZ_SEQUENCES', '300'))
 
 
+def run_seed():
+    s = os.environ.get('LEGO_NXT_FUZZ_SEED')
+    return int(s, 0) if s else random.SystemRandom().randrange(1 << 32)
+
+
 def test_fuzz_sequences(record_testsuite_property):
-    fz = nxt_fuzz.run(SEQUENCES, SEED, workers=3, per_epoch=30)
+    seed = run_seed()
+    print('\nnxt_fuzz: %d sequences from seed %#x (LEGO_NXT_FUZZ_SEED=%#x to run them again)'
+          % (SEQUENCES, seed, seed))
+    record_testsuite_property('nxt_fuzz_seed', '%#x' % seed)
+    fz = nxt_fuzz.run(SEQUENCES, seed, workers=3, per_epoch=30)
     s = fz.summary()
     print(s)
     record_testsuite_property('nxt_fuzz_sequences', fz.sequences)
     record_testsuite_property('nxt_fuzz_calls', fz.calls)
     assert not fz.failures, 'seed %#x (replay: %s):\n%s' % (
-        SEED, fz.replay_command(fz.failed_epochs[0]), '\n'.join(fz.failures))
+        seed, fz.replay_command(fz.failed_epochs[0]), '\n'.join(fz.failures))
     assert fz.sequences >= SEQUENCES
     # The run did what it is for: hostile replies, unplugs, checked replies.
     assert sum(n for a, n in s['brick_actions'].items() if a != 'ok') > 20
