@@ -15,7 +15,10 @@
 #     dkms (on the host) for the guest's packaging test, `make deb` (with
 #     lintian) and the dkms package's installation (on the host) for the
 #     guest's tests/guest/test_deb.py,
-#  5. boots the test VM: every KUnit suite, then the guest tests,
+#  5. boots the test VM: every KUnit suite, then the guest tests; the
+#     phases of 3 and 4 that the VM does not need (all but the modules for
+#     the test kernel, the fuzzers, dkms and the packages) run beside it at
+#     nice 19, their output printed when the VM is done,
 #  6. scans the guest console for splats,
 #  7. prints every skipped test with its reason (a skip that
 #     tests/expected-skips does not list fails the run), the ten slowest
@@ -62,24 +65,32 @@ read -r kver _ < <(tests/kernel/fetch-source.sh "$kver")
 phase "test kernel $kver" tests/kernel/build-kernel.sh "$kver" >/dev/null || summary
 tree=$(tests/kernel/build-kernel.sh --tree-only "$kver")
 phase "modules for $kver (W=1, sparse)" tests/build-modules.sh --sparse "$tree" "$build/modules-$kver" || summary
-[ "$kver" = 6.12 ] || phase "modules, 6.12 tree (W=1, sparse)" modules_other 6.12
-h61=$(newest_61_headers)
-phase "modules, 6.1 headers (W=1, sparse)" tests/build-modules.sh --sparse "$h61" "$build/modules-6.1-headers"
-phase "cross: arm64, armhf (W=1, sparse)" tests/cross-build.sh "$build"
-phase "checkpatch --strict" env CHECKPATCH="$tree/scripts/checkpatch.pl" tests/checkpatch.sh
+# The host's own phases, which the VM does not need: they run beside it
+# (beside_start, at nice 19), in the time the emulated guest leaves idle
+# waiting on its 2400-baud handshakes and its timers.
+host_phases() {
+	[ "$kver" = 6.12 ] || phase "modules, 6.12 tree (W=1, sparse)" modules_other 6.12
+	h61=$(newest_61_headers)
+	phase "modules, 6.1 headers (W=1, sparse)" tests/build-modules.sh --sparse "$h61" "$build/modules-6.1-headers"
+	phase "cross: arm64, armhf (W=1, sparse)" tests/cross-build.sh "$build"
+	phase "checkpatch --strict" env CHECKPATCH="$tree/scripts/checkpatch.pl" tests/checkpatch.sh
+	# install-deps.sh (Debian packages) in a clean Debian 12 root, with
+	# coccicheck's semantic patches that have scripts; cached per inputs.
+	phase "install-deps in a clean Debian 12 root" tests/packaging/clean-root.sh
+	LEGO_KERNEL_TREE="$tree" pytest_phase "make install, dkms-source (host)" \
+		"$results/host-packaging.xml" tests/packaging
+	LEGO_KERNEL_TREE="$tree" pytest_phase "emulators, harness (host)" \
+		"$results/host-emulator.xml" tests/emulator tests/lib
+	pytest_phase "upstream series: in-tree rules (host)" "$results/host-upstream.xml" tests/upstream
+	# The in-tree series' quick checks (about 2 minutes cold, 1 warm); the
+	# kernel builds and kunit.py runs are `make upstream-check`'s.
+	phase "upstream series: git am, checkpatch, docs" env LEGO_UPSTREAM_OUT="$build/upstream" \
+		tests/upstream/check.sh "$kver" "${upstream_quick[@]}"
+}
+
+# Before the VM: what it needs, and the fuzzers, whose runs are timed and
+# would do less work at nice 19.
 phase "fuzz (short, 2 x 30 s)" tests/fuzz/run.sh --short
-# install-deps.sh (Debian packages) in a clean Debian 12 root, with
-# coccicheck's semantic patches that have scripts; cached per inputs.
-phase "install-deps in a clean Debian 12 root" tests/packaging/clean-root.sh
-LEGO_KERNEL_TREE="$tree" pytest_phase "make install, dkms-source (host)" \
-	"$results/host-packaging.xml" tests/packaging
-LEGO_KERNEL_TREE="$tree" pytest_phase "emulators, harness (host)" \
-	"$results/host-emulator.xml" tests/emulator tests/lib
-pytest_phase "upstream series: in-tree rules (host)" "$results/host-upstream.xml" tests/upstream
-# The in-tree series' quick checks (about 2 minutes cold, 1 warm); the
-# kernel builds and kunit.py runs are `make upstream-check`'s.
-phase "upstream series: git am, checkpatch, docs" env LEGO_UPSTREAM_OUT="$build/upstream" \
-	tests/upstream/check.sh "$kver" "${upstream_quick[@]}"
 # For tests/guest/test_packaging.py: a dkms build in the emulated guest is slow.
 phase "dkms build for $kver (host)" tests/packaging/dkms-prepare.sh "$tree" "$build/dkms-$kver"
 # For tests/guest/test_deb.py: the packages, and lego-mindstorms-dkms
@@ -88,6 +99,8 @@ phase "make deb, lintian" make -s deb DEB_OUT="$build/deb"
 phase "deb: dkms package for $kver (host)" tests/packaging/deb-prepare.sh "$tree" \
 	"$build/deb" "$build/deb-root-$kver.tar"
 
+beside_start "$build/beside.log" host_phases
+
 # The guest suite takes 26 to 29 minutes on a loaded 2-core host before the
 # tests of issue 18 (nxtctl's command line, lego-sensors, examples, the
 # Debian packages) added about ten: vm-run's default 1800 s is too short.
@@ -95,6 +108,7 @@ PHASE_NOCOUNT=1 LEGO_VM_NO_BUILD=1 phase "VM: KUnit and guest tests" \
 	tests/vm-run --timeout 3600 --kver "$kver" --log "$console" --share "$results" -- \
 	tests/guest/run-suite.sh "$results" tests/guest
 vm_rc=$?
+beside_wait
 phase "console splat scan" tests/scan-console.py "$console"
 
 PHASE_FOOTER=$(tests/bench/stale.sh)

@@ -13,6 +13,12 @@
 #   summary [PASSED [FAILED [SKIPPED]]]   prints the phase times and exits 0 only
 #                       if nothing failed; PHASE_TITLE names the table,
 #                       PHASE_FOOTER is printed under it
+#   beside_start LOG FUNC   runs FUNC (which calls phase) in the background
+#                       at nice 19 and idle I/O priority, its output to LOG:
+#                       the host's phases that the VM does not need run
+#                       beside it, in the time the emulated guest leaves idle
+#   beside_wait         waits for it, prints LOG and adds its phases, marked
+#                       "(beside)", to the table and its failures to the count
 #   vm_totals RESULTS TREE VM_RC   summarizes the results (tests/summarize.py:
 #                       the VM's, the host's pytest phases', the skips, the
 #                       slowest tests) and calls summary with their counts
@@ -62,6 +68,39 @@ summary() {
 	echo "$passed passed, $failed failed, $skipped skipped"
 	[ "$failed" -eq 0 ]
 	exit $?
+}
+
+beside_start() {
+	beside_log=$1
+	rm -f "$beside_log" "$beside_log.phases" "$beside_log.failed"
+	(
+		renice -n 19 -p "$BASHPID" >/dev/null
+		ionice -c 3 -p "$BASHPID" 2>/dev/null
+		phase_names=()
+		phase_times=()
+		phase_fail=0
+		"$2"
+		for i in "${!phase_names[@]}"; do
+			printf '%s (beside)\t%s\n' "${phase_names[$i]}" "${phase_times[$i]}"
+		done > "$beside_log.phases"
+		echo "$phase_fail" > "$beside_log.failed"
+	) > "$beside_log" 2>&1 &
+	beside_pid=$!
+}
+
+beside_wait() {
+	local name t n
+	wait "$beside_pid"
+	echo "==> the phases beside the VM (log: $beside_log)"
+	cat "$beside_log"
+	if [ -f "$beside_log.phases" ]; then
+		while IFS=$'\t' read -r name t; do
+			phase_names+=("$name")
+			phase_times+=("$t")
+		done < "$beside_log.phases"
+	fi
+	read -r n < "$beside_log.failed" 2>/dev/null || n=1
+	phase_fail=$((phase_fail + n))
 }
 
 # Test failures in the VM are counted from its results; only a VM that
