@@ -79,7 +79,7 @@ phase "upstream series: git am, checkpatch, docs" env LEGO_UPSTREAM_OUT="$build/
 phase "dkms build for $kver (host)" tests/packaging/dkms-prepare.sh "$tree" "$build/dkms-$kver"
 # For tests/guest/test_deb.py: the packages, and lego-mindstorms-dkms
 # installed in a private root (its DKMS build, too slow in the guest).
-phase "make deb, lintian" make -s deb DEB_OUT="$build/deb"
+phase "make deb, lintian" make -s deb DEB_OUT="$build/deb" DEB_LINTIAN=1
 phase "deb: dkms package for $kver (host)" tests/packaging/deb-prepare.sh "$tree" \
 	"$build/deb" "$build/deb-root-$kver.tar"
 
