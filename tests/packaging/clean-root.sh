@@ -20,7 +20,12 @@
 # What is not a new machine's: the root reaches the package mirror as the
 # host does, through the host's apt settings for it (/etc/apt/apt.conf.d
 # lines about Release files' dates: mirrors here serve a snapshot whose
-# Release files are past their Valid-Until); PyPI is reached directly.
+# Release files are past their Valid-Until), and PyPI as the host's pip
+# reaches it: through the proxies of the environment (http_proxy,
+# https_proxy, no_proxy), the index of PIP_INDEX_URL, and trusting the CA
+# bundle the host's pip trusts (PIP_CERT, or "cert =" of a pip.conf: a
+# TLS-inspecting proxy's CA). Nothing else of the host's pip settings (no
+# PIP_FIND_LINKS: the wheels come from the index).
 #
 # Environment: LEGO_DEBIAN_MIRROR (default http://deb.debian.org/debian),
 # LEGO_DEBIAN_SECURITY_MIRROR (default http://deb.debian.org/debian-security).
@@ -44,7 +49,7 @@ mapfile -t cocci < <(grep -l -E '^@ *(script|initialize|finalize) *: *(ocaml|pyt
 	xargs grep -l -E '^virtual\b.*\breport\b' | sort)
 [ ${#cocci[@]} -gt 0 ] || { echo "$prog: no semantic patch with scripts in $ktree" >&2; exit 1; }
 
-recipe=2
+recipe=3
 deps_files=("$top/tests/install-deps.sh" "$top/tests/requirements.txt" "$top/tests/lib/venv.sh"
 	"$top/tests/lib/check-requirements.py")
 key=$( { echo "recipe $recipe"; cat "${deps_files[@]}" "${cocci[@]}"; } |
@@ -75,6 +80,21 @@ printf 'deb %s %s main\n' "$mirror" bookworm "$mirror" bookworm-updates \
 grep -h -E '^Acquire::Check-(Valid-Until|Date)' /etc/apt/apt.conf.d/* 2>/dev/null |
 	sort -u >"$root/etc/apt/apt.conf.d/99mirror-snapshot" || true
 
+# The host's pip trust and proxies (see the top).
+pip_env=()
+cert=${PIP_CERT:-}
+if [ -z "$cert" ]; then
+	cert=$(sed -n 's/^[[:space:]]*cert[[:space:]]*=[[:space:]]*//p' \
+		"$HOME/.config/pip/pip.conf" "$HOME/.pip/pip.conf" /etc/pip.conf 2>/dev/null | head -n 1)
+fi
+if [ -n "$cert" ] && [ -f "$cert" ]; then
+	cp "$cert" "$root/etc/lego-host-pip-ca.crt"
+	pip_env+=(PIP_CERT=/etc/lego-host-pip-ca.crt)
+fi
+for v in http_proxy https_proxy no_proxy HTTP_PROXY HTTPS_PROXY NO_PROXY PIP_INDEX_URL; do
+	[ -z "${!v:-}" ] || pip_env+=("$v=${!v}")
+done
+
 mkdir -p "$root/lego/tests/lib" "$root/lego/cocci" "$root/lego/src"
 cp "$top/tests/install-deps.sh" "$top/tests/requirements.txt" "$root/lego/tests/"
 cp "$top/tests/lib/venv.sh" "$top/tests/lib/check-requirements.py" "$root/lego/tests/lib/"
@@ -82,12 +102,14 @@ cp "${cocci[@]}" "$root/lego/cocci/"
 cp "$top"/drivers/lego/ev3/*.c "$top"/drivers/lego/nxt/*.c "$root/lego/src/"
 
 # In a private mount namespace: /proc, /sys and /dev for apt and dpkg.
-unshare -m --propagation private bash -s "$root" >"$work/run.log" 2>&1 <<'EOF' || { tail -n 40 "$work/run.log" >&2; exit 1; }
+unshare -m --propagation private bash -s "$root" "${pip_env[@]}" >"$work/run.log" 2>&1 <<'EOF' || { tail -n 40 "$work/run.log" >&2; exit 1; }
 set -eu
 root=$1
+shift
+pip_env=("$@")
 for d in proc sys dev; do mount --rbind "/$d" "$root/$d"; done
 in_root() {
-	chroot "$root" env -i PATH=/usr/sbin:/usr/bin:/sbin:/bin HOME=/root "$@"
+	chroot "$root" env -i PATH=/usr/sbin:/usr/bin:/sbin:/bin HOME=/root "${pip_env[@]}" "$@"
 }
 in_root bash /lego/tests/install-deps.sh
 echo "installed: $(in_root dpkg-query -W -f '${Package}\n' | wc -l) packages"
