@@ -66,3 +66,23 @@ def test_examples_build_into_a_new_directory(tree, tmp_path):
     assert r.returncode == 0, r.stderr[-2000:]
     assert os.access(out / 'nxt-ioctl', os.X_OK)
     assert os.access(out / 'iio-capture', os.X_OK)
+
+
+def test_make_deb_runs_lintian_only_when_asked():
+    """`make deb` is a user's build: lintian (the project's check, which make
+    check asks for with DEB_LINTIAN=1) is neither run nor required."""
+    def cmd(*args):
+        r = subprocess.run(['make', '-n', '-C', TOP, 'deb', 'DEB_OUT=/tmp/x', *args],
+                           capture_output=True, text=True)
+        assert r.returncode == 0, r.stderr
+        return [ln for ln in r.stdout.splitlines() if 'make-deb.sh' in ln]
+    assert cmd() == ['tests/packaging/make-deb.sh /tmp/x'] or \
+        [ln.split() for ln in cmd()] == [['tests/packaging/make-deb.sh', '/tmp/x']], cmd()
+    assert [ln.split() for ln in cmd('DEB_LINTIAN=1')] == \
+        [['tests/packaging/make-deb.sh', '--lintian', '/tmp/x']], cmd('DEB_LINTIAN=1')
+    with open(os.path.join(TOP, 'tests/check.sh')) as f:
+        assert 'make -s deb DEB_OUT="$build/deb" DEB_LINTIAN=1' in f.read()
+    # make-deb.sh asks for lintian only with --lintian.
+    with open(os.path.join(TOP, 'tests/packaging/make-deb.sh')) as f:
+        text = f.read()
+    assert 'tools=(dpkg-buildpackage dh dh_dkms)\n[ "$lint" = 0 ] || tools+=(lintian)' in text
