@@ -76,8 +76,7 @@ def test_make_deb_runs_lintian_only_when_asked():
                            capture_output=True, text=True)
         assert r.returncode == 0, r.stderr
         return [ln for ln in r.stdout.splitlines() if 'make-deb.sh' in ln]
-    assert cmd() == ['tests/packaging/make-deb.sh /tmp/x'] or \
-        [ln.split() for ln in cmd()] == [['tests/packaging/make-deb.sh', '/tmp/x']], cmd()
+    assert [ln.split() for ln in cmd()] == [['tests/packaging/make-deb.sh', '/tmp/x']], cmd()
     assert [ln.split() for ln in cmd('DEB_LINTIAN=1')] == \
         [['tests/packaging/make-deb.sh', '--lintian', '/tmp/x']], cmd('DEB_LINTIAN=1')
     with open(os.path.join(TOP, 'tests/check.sh')) as f:
