@@ -4,7 +4,8 @@
 
 Needs:  the lego_ev3_uart module and the sensor attached to its tty (see
         Documentation/lego/ev3-uart.rst), python-ev3dev2
-        (pip install python-ev3dev2, in a venv on Debian 12), and write
+        (pip install python-ev3dev2, in a venv on Debian 12: apt install
+        python3-venv, python3 -m venv DIR, DIR/bin/pip install ...), and write
         access to the sensor's mode attribute: the udev rule
         tools/udev/90-lego-ev3-sensors.rules makes it group-writable for
         the group "lego" (python-ev3dev2 opens it read-write only then).

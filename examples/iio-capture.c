@@ -9,8 +9,8 @@
  * Needs:  the lego_ev3_uart module and a sensor attached to its tty (see
  *         Documentation/lego/ev3-uart.rst), libiio and its headers
  *         (Debian: apt install libiio-dev), and read/write access to the
- *         IIO device's sysfs attributes and /dev/iio:deviceN (root, or a
- *         udev rule of yours).
+ *         IIO device's sysfs attributes and /dev/iio:deviceN: root, or
+ *         the group "lego" with tools/udev/70-lego-ev3-iio.rules.
  * Build:  make iio-capture          (in this directory; by hand, link
  *         with -liio)
  * Run:    ./iio-capture [-n SAMPLES] DEVICE CHANNEL

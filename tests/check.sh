@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # `make check`: the project's one test command.
 #
-#  1. installs what it needs (Debian and PyPI packages),
+#  1. installs what it needs (Debian packages, and PyPI packages in a
+#     virtual environment whose python3 runs the tests: tests/lib/venv.sh),
 #  2. builds (or takes from the cache) the test kernel of the newest
 #     linux-source-X.Y that Debian serves (tests/kernel/fetch-source.sh),
 #  3. builds the modules against it with W=1 and sparse, against a prepared
@@ -60,6 +61,10 @@ modules_other() {
 }
 
 phase "install dependencies" tests/install-deps.sh || summary
+# The Python of the tests: tests/install-deps.sh's venv (tests/lib/venv.sh).
+# shellcheck source=tests/lib/venv.sh
+. "$top/tests/lib/venv.sh"
+lego_venv_activate "$top"
 phase "kernel source: $kver" tests/kernel/fetch-source.sh "$kver" || summary
 read -r kver _ < <(tests/kernel/fetch-source.sh "$kver")
 phase "test kernel $kver" tests/kernel/build-kernel.sh "$kver" >/dev/null || summary
@@ -95,7 +100,7 @@ phase "fuzz (short, 2 x 30 s)" tests/fuzz/run.sh --short
 phase "dkms build for $kver (host)" tests/packaging/dkms-prepare.sh "$tree" "$build/dkms-$kver"
 # For tests/guest/test_deb.py: the packages, and lego-mindstorms-dkms
 # installed in a private root (its DKMS build, too slow in the guest).
-phase "make deb, lintian" make -s deb DEB_OUT="$build/deb"
+phase "make deb, lintian" make -s deb DEB_OUT="$build/deb" DEB_LINTIAN=1
 phase "deb: dkms package for $kver (host)" tests/packaging/deb-prepare.sh "$tree" \
 	"$build/deb" "$build/deb-root-$kver.tar"
 

@@ -1,7 +1,10 @@
 #!/usr/bin/env bash
-# Install everything `make check` needs on a fresh Debian machine: the kernel
-# sources, QEMU, sparse, the kernel build dependencies and the Python packages
-# the guest tests use. Does nothing (and needs no network) when all is there.
+# Install everything `make check` needs on a fresh Debian 12 machine: the
+# kernel sources, QEMU, sparse, the kernel build dependencies (apt), and the
+# Python packages the tests use (tests/requirements.txt, pip, in a virtual
+# environment in the cache: tests/lib/venv.sh). Checks the versions
+# requirements.txt names. Does nothing (and needs no network) when all is
+# there.
 set -euo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
 
@@ -11,6 +14,8 @@ debs=(
 	cpio busybox-static kmod util-linux rsync python3 perl libiio-utils
 	dkms udev
 )
+# The virtual environment of the PyPI packages (python3 -m venv, with pip)
+debs+=(python3-venv)
 # libusb for pyusb: nxt-python's usb backend in tests/guest/test_nxt_python.py
 debs+=(libusb-1.0-0)
 # systemd-analyze (tests/guest/test_ev3_attach.py's unit check; the guest
@@ -56,26 +61,28 @@ if [ ${#missing[@]} -gt 0 ]; then
 	$sudo apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
 fi
 
-# tests/packaging/clean-root.sh checks the Debian packages alone.
+# The PyPI packages of tests/requirements.txt, in a virtual environment
+# (tests/lib/venv.sh): Debian's python3 refuses `pip install` (PEP 668).
+# LEGO_DEPS_NO_PIP=1 leaves them out.
 [ -z "${LEGO_DEPS_NO_PIP:-}" ] || exit 0
 
-py=$(command -v python3)
-if ! "$py" - "$here/requirements.txt" <<'PYEOF'
-import sys, importlib.metadata as md
-import re
-ok = True
-for line in open(sys.argv[1]):
-    line = line.split('#')[0].strip()
-    if not line:
-        continue
-    name = re.split(r'[<>=!~ ]', line)[0]
-    try:
-        md.version(name)
-    except md.PackageNotFoundError:
-        ok = False
-sys.exit(0 if ok else 1)
-PYEOF
-then
-	echo "install-deps: pip install -r tests/requirements.txt"
-	"$py" -m pip install -q -r "$here/requirements.txt"
+top=$(dirname "$here")
+# shellcheck source=tests/lib/venv.sh
+. "$here/lib/venv.sh"
+venv=$(lego_venv_dir "$top")
+mkdir -p "$(dirname "$venv")"
+# One maker at a time (make check and make demo may start together).
+exec 9>"$venv.lock"
+flock 9
+if [ ! -f "$venv/.done" ]; then
+	echo "install-deps: python3 -m venv $venv; pip install -r tests/requirements.txt"
+	rm -rf "$venv"
+	/usr/bin/python3 -m venv --system-site-packages "$venv"
+	"$venv/bin/python3" -m pip install -q --disable-pip-version-check -r "$here/requirements.txt"
+	touch "$venv/.done"
 fi
+# The versions requirements.txt names, every time (no network needed).
+"$venv/bin/python3" "$here/lib/check-requirements.py" "$here/requirements.txt" || {
+	echo "install-deps: the venv $venv does not match tests/requirements.txt (remove it to remake it)" >&2
+	exit 1
+}

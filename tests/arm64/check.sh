@@ -43,6 +43,10 @@ PHASE_FOOTER="Skipped on arm64: tests/guest/test_packaging.py, test_deb.py (thei
 quiet() { "$@" >/dev/null; }
 
 phase "install dependencies" tests/install-deps.sh || summary
+# The Python of the tests: tests/install-deps.sh's venv (tests/lib/venv.sh).
+# shellcheck source=tests/lib/venv.sh
+. "$top/tests/lib/venv.sh"
+lego_venv_activate "$top"
 phase "arm64 test kernel $kver" quiet nice -n 15 tests/kernel/build-kernel.sh --arch arm64 "$kver" || summary
 tree=$(tests/kernel/build-kernel.sh --tree-only --arch arm64 "$kver")
 phase "arm64 root file system" quiet tests/arm64/mkrootfs.sh || summary

@@ -53,6 +53,10 @@ fi
 echo "$kernel" > "$out/kernel"
 
 tests/install-deps.sh >/dev/null
+# The Python of the tests: tests/install-deps.sh's venv (tests/lib/venv.sh).
+# shellcheck source=tests/lib/venv.sh
+. "$top/tests/lib/venv.sh"
+lego_venv_activate "$top"
 # The guest runs the host's binaries: the EV3 sensor streamer, the NXT client.
 make -s -C tests/bench/ev3
 make -s -C tests/bench/nxt

@@ -16,6 +16,10 @@ mkdir -p "$build"
 t0=$SECONDS
 echo "==> [1/4] packages (Debian and PyPI; nothing to do when all are there)"
 tests/install-deps.sh
+# The Python of the tests: tests/install-deps.sh's venv (tests/lib/venv.sh).
+# shellcheck source=tests/lib/venv.sh
+. "$top/tests/lib/venv.sh"
+lego_venv_activate "$top"
 # The newest kernel source Debian serves (KVER= picks another series).
 read -r kver _ < <(tests/kernel/fetch-source.sh "${KVER:-newest}")
 echo "==> [2/4] the $kver test kernel (cached; the first build takes 5-20 minutes on 2 cores: a dot a minute)"

@@ -181,6 +181,12 @@ def test_install_the_other_packages(state):
     state['gid'] = gid
     for path in ('/usr/bin/nxtctl', '/usr/sbin/lego-ev3-attach',
                  '/usr/lib/udev/rules.d/70-lego-nxt.rules',
+                 '/usr/lib/udev/rules.d/70-lego-ev3-iio.rules',
+                 '/usr/share/doc/lego-mindstorms-tools/README.md.gz',
+                 '/usr/share/doc/lego-mindstorms-tools/ev3-attach.rst.gz',
+                 '/usr/share/doc/lego-mindstorms-tools/examples/nxt-ioctl.c',
+                 '/usr/share/doc/lego-mindstorms-tools/examples/Makefile',
+                 '/usr/share/doc/python3-lego-nxt-linux/nxt-python.rst.gz',
                  '/usr/lib/sysusers.d/lego-mindstorms.conf',
                  '/usr/lib/python3/dist-packages/lego_nxt_linux/__init__.py'):
         assert path in state['files']['lego-mindstorms-tools'] + \
@@ -196,6 +202,16 @@ def test_install_the_other_packages(state):
         missing = [ln.split(',')[0] for ln in f if ln.strip()
                    and not os.path.isfile(os.path.join(site, ln.split(',')[0]))]
     assert not missing, 'in RECORD, not installed: %s' % missing
+
+
+def test_packaged_example_builds_with_the_installed_headers(state):
+    """The examples of lego-mindstorms-tools, copied out of /usr/share/doc,
+    build against lego-mindstorms-dev's headers (pkg-config)."""
+    assert 'files' in state, 'the packages are not installed'
+    chroot(['rm', '-rf', '/tmp/ex'])
+    chroot(['cp', '-r', '/usr/share/doc/lego-mindstorms-tools/examples', '/tmp/ex'])
+    chroot(['make', '-C', '/tmp/ex', 'O=/tmp/ex/out', '/tmp/ex/out/nxt-ioctl'])
+    assert os.access(os.path.join(ROOT, 'tmp/ex/out/nxt-ioctl'), os.X_OK)
 
 
 def test_headers_compile_with_pkg_config(state):

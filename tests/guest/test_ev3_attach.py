@@ -203,6 +203,62 @@ def test_daemon_pidfile_and_detach(nm, tmp_path):
     assert r.returncode == 0 and 'not attached' in r.stderr
 
 
+def test_daemon_wait_returns_with_the_sensor(nm, tmp_path):
+    """--daemon --wait returns once the sensor is there, and prints its
+    directory: the next command reads it without racing the handshake."""
+    ln = nm(3)
+    pidfile = tmp_path / 'attach.pid'
+    p = subprocess.Popen([tool(), '--daemon', '--wait=60', '--pidfile', str(pidfile),
+                          '--label=in2', ln.host], stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True)
+    pid = None
+    try:
+        # Still waiting: no sensor yet, the daemon attached.
+        assert wait_for_file(pidfile, 10), 'no pidfile'
+        pid = int(pidfile.read_text())
+        time.sleep(1.0)
+        assert p.poll() is None, ('--wait returned without a sensor', p.communicate())
+        ln.plug('color')
+        out, err = p.communicate(timeout=70)
+        assert p.returncode == 0, (p.returncode, err)
+        path = out.strip()
+        assert re.fullmatch(CLASS + r'/sensor\d+', path), out
+        assert read_attr(path, 'address') == ln.address + ':in2'
+        assert read_attr(path, 'driver_name') == 'lego-ev3-color'
+    finally:
+        if p.poll() is None:
+            p.kill()
+        if pid and pid_alive(pid):
+            run('--detach', ln.host)
+            assert wait_pid_gone(pid), 'the daemon did not exit after --detach'
+
+
+def test_daemon_wait_times_out_and_stays(nm, tmp_path):
+    ln = nm(3)
+    pidfile = tmp_path / 'attach.pid'
+    t0 = time.monotonic()
+    r = run('--daemon', '-w2', '--pidfile', str(pidfile), ln.host, timeout=60)
+    took = time.monotonic() - t0
+    pid = int(pidfile.read_text())
+    try:
+        assert r.returncode == 8, (r.returncode, r.stderr)
+        assert 'no sensor on %s after 2 s' % ln.address in r.stderr, r.stderr
+        assert r.stdout == ''
+        assert 2 <= took, took
+        # The daemon holds the tty still.
+        assert pid_alive(pid) and ldisc(ln.host) == N_LEGOEV3
+    finally:
+        run('--detach', ln.host)
+        assert wait_pid_gone(pid), 'the daemon did not exit after --detach'
+
+
+def wait_for_file(path, timeout):
+    deadline = time.monotonic() + timeout
+    while not path.exists() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    return path.exists()
+
+
 def test_attach_on_8250(ev3_module, procs):
     """On a real UART: the helper's termios and the discipline's speed
     changes on an 8250, the emulator on the other port of the pair."""
@@ -306,6 +362,10 @@ def test_not_a_tty_writable(ev3_module, tmp_path, what):
     ['--label=in 1', 'ttyNM0'],
     ['--ldisc=-1', 'ttyNM0'],
     ['--detach', '--daemon', 'ttyNM0'],
+    ['--wait', 'ttyNM0'],
+    ['--daemon', '--wait=0', 'ttyNM0'],
+    ['--daemon', '--wait=x', 'ttyNM0'],
+    ['--detach', '--wait', 'ttyNM0'],
     ['--label'],
 ])
 def test_usage_errors(ev3_module, args):

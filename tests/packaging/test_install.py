@@ -6,6 +6,7 @@ running kernel's headers:
 
   python3 -m pytest -v tests/packaging
 """
+import glob
 import os
 import re
 import shutil
@@ -144,6 +145,32 @@ def test_pkg_config_file_compiles_a_program(src, tmp_path):
     r = subprocess.run(['cc', '-Wall', '-Werror'] + r.stdout.split() +
                        ['-o', str(tmp_path / 'p'), str(prog)], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
+
+
+def test_unit_documentation_is_installed(src, tmp_path):
+    """Each man page the systemd unit's Documentation= names is one that
+    `make install-userspace` installs: the unit's own program's, not
+    ldattach(8)."""
+    dest = str(tmp_path / 'stage')
+    make(src, 'install-userspace', 'DESTDIR=' + dest, 'PREFIX=/usr')
+    units = glob.glob(os.path.join(dest, 'usr/lib/systemd/system/*.service'))
+    assert units, listing(dest)
+    for unit in units:
+        with open(unit) as f:
+            text = f.read()
+        docs = re.findall(r'^Documentation=(.*)$', text, re.M)
+        assert docs, unit
+        pages = [p for d in docs for p in d.split()]
+        execs = re.findall(r'^ExecStart=(\S+)', text, re.M)
+        for page in pages:
+            m = re.fullmatch(r'man:([\w.@-]+)\((\d)\)', page)
+            assert m, (unit, page)
+            path = os.path.join(dest, 'usr/share/man/man%s/%s.%s' % (m.group(2), m.group(1),
+                                                                     m.group(2)))
+            assert os.path.exists(path) or os.path.exists(path + '.gz'), \
+                '%s: %s is not installed by this project' % (os.path.basename(unit), page)
+        assert any('man:%s(' % os.path.basename(e) in ' '.join(pages) for e in execs), \
+            (unit, execs, pages)
 
 
 def test_dkms_source_has_only_the_build_files(src, tmp_path):

@@ -13,13 +13,20 @@
    private mount namespace, which reports each line it refuses or ignores
    (and the check is shown to catch a bad file);
  - every `groupadd` the README, the documentation and the Makefile tell a
-   user to run makes a system group.
+   user to run makes a system group;
+ - an EV3 sensor's IIO node gets the group and the seat's access, and the
+   rules' commands, run on a copy of a sensor's sysfs directories, make
+   every attribute the driver lets userspace write (DEVICE_ATTR_RW/WO,
+   BIN_ATTR_RW, IIO_DEVICE_ATTR_RW in drivers/lego/ev3, and the IIO
+   buffer's) writable for the group.
 
   python3 -m pytest -v tests/packaging/test_udev_rules.py
 """
 import glob
+import grp
 import os
 import re
+import shlex
 import shutil
 import subprocess
 
@@ -92,6 +99,103 @@ def test_nxt_node_and_usb_device_get_both():
         assert any('TAG+="uaccess"' in line for line in mine), subsystem
         grouped = [line for line in mine if 'GROUP="lego"' in line]
         assert grouped and all('MODE="0660"' in line for line in grouped), mine
+
+
+def test_ev3_iio_node_gets_both():
+    """/dev/iio:deviceN of a sensor (an IIO device under a tty): the group
+    lego with 0660, and the uaccess tag, before the seat rules."""
+    found = {}
+    for path in RULES:
+        for line in rule_lines(path):
+            if 'SUBSYSTEM=="iio"' in line and 'KERNEL=="iio:device*"' in line:
+                assert 'SUBSYSTEMS=="tty"' in line, \
+                    'a rule for every IIO device, not only the sensors\': ' + line
+                if 'TAG+="uaccess"' in line:
+                    found['uaccess'] = os.path.basename(path)
+                if 'GROUP="lego"' in line:
+                    assert 'MODE="0660"' in line, line
+                    found['group'] = os.path.basename(path)
+    assert set(found) == {'uaccess', 'group'}, found
+    assert all(name < SEAT_FILES[0] for name in found.values()), found
+
+
+def driver_writable():
+    """The attributes drivers/lego/ev3 lets userspace write: the lego-sensor
+    class's and the IIO device's own."""
+    out = {'lego-sensor': set(), 'iio': set()}
+    for src in glob.glob(os.path.join(TOP, 'drivers/lego/ev3/*.c')):
+        with open(src) as f:
+            text = f.read()
+        for kind, name in re.findall(r'\b(DEVICE_ATTR_(?:RW|WO)|BIN_ATTR_(?:RW|WO)|'
+                                     r'IIO_DEVICE_ATTR_(?:RW|WO))\((\w+)', text):
+            out['iio' if kind.startswith('IIO') else 'lego-sensor'].add(name)
+    return out
+
+
+def run_commands(subsystem):
+    """The RUN commands of the rules for SUBSYSTEM, as argv lists."""
+    cmds = []
+    for path in RULES:
+        for line in rule_lines(path):
+            if 'SUBSYSTEM=="%s"' % subsystem in line:
+                cmds += re.findall(r'RUN\+="([^"]*)"', line)
+    return cmds
+
+
+def apply_run(subsystem, sysdir, group):
+    for cmd in run_commands(subsystem):
+        # udev: %p the device path under /sys, $$ a $.
+        cmd = cmd.replace('/sys%p', str(sysdir)).replace('$$', '$')
+        argv = [group if a == 'lego' else a for a in shlex.split(cmd)]
+        if argv[:2] == ['/bin/sh', '-c']:
+            argv[2] = argv[2].replace('chgrp lego ', 'chgrp %s ' % group)
+        subprocess.run(argv, check=True, capture_output=True)
+
+
+def fake_sysfs(root, files):
+    for name in files:
+        p = root / name
+        p.parent.mkdir(parents=True, exist_ok=True)
+        p.write_text('')
+        os.chmod(p, 0o644 if not name.endswith(('command', '_en')) else 0o200)
+    return root
+
+
+def group_writable(path, gid):
+    st = os.stat(path)
+    return st.st_gid == gid and st.st_mode & 0o020
+
+
+def test_rules_open_every_writable_sensor_attribute(tmp_path):
+    """Each attribute the driver lets root write is group-writable after the
+    rules' commands, and nothing read-only becomes writable."""
+    writable = driver_writable()
+    assert {'mode', 'direct'} <= writable['lego-sensor'], writable
+    assert 'mode' in writable['iio'], writable
+    # The group of the files: ours (chgrp to a group one is in needs no root).
+    gid = os.getgid()
+    group = grp.getgrgid(gid).gr_name
+
+    sensor = fake_sysfs(tmp_path / 'sensor0', sorted(writable['lego-sensor']) +
+                        ['address', 'value0', 'modes'])
+    apply_run('lego-sensor', sensor, group)
+    for name in writable['lego-sensor']:
+        assert group_writable(sensor / name, gid), 'lego-sensor attribute %s: not for the group' % name
+    for name in ('address', 'value0', 'modes'):
+        assert not os.stat(sensor / name).st_mode & 0o022, name
+
+    # The IIO buffer's attributes, in the old layout and the buffer0/ one.
+    buffer = ['buffer/enable', 'buffer/length', 'buffer/watermark',
+              'scan_elements/in_anglvel0_en', 'scan_elements/in_timestamp_en',
+              'buffer0/enable', 'buffer0/length', 'buffer0/watermark',
+              'buffer0/in_anglvel0_en']
+    readonly = ['modes', 'name', 'in_anglvel0_raw', 'scan_elements/in_anglvel0_index']
+    iio = fake_sysfs(tmp_path / 'iio:device0', sorted(writable['iio']) + buffer + readonly)
+    apply_run('iio', iio, group)
+    for name in sorted(writable['iio']) + buffer:
+        assert group_writable(iio / name, gid), 'IIO attribute %s: not for the group' % name
+    for name in readonly:
+        assert not os.stat(iio / name).st_mode & 0o022, name
 
 
 def test_groups_of_the_rules_are_made_by_sysusers():

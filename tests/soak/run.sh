@@ -32,6 +32,10 @@ args=()
 for a in "$@"; do
 	if [ "$a" = --no-kcsan ]; then kcsan=0; else args+=("$a"); fi
 done
+# The Python of the tests: tests/install-deps.sh's venv (tests/lib/venv.sh).
+# shellcheck source=tests/lib/venv.sh
+. "$top/tests/lib/venv.sh"
+lego_venv_activate "$top"
 # The full soak takes hours under TCG; leave room for a slow host.
 tests/vm-run --timeout 21600 --log "$console" --share "$out" -- \
 	python3 tests/soak/soak.py --json "$out/results.json" "${args[@]}"

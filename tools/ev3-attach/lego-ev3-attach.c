@@ -3,13 +3,15 @@
  * lego-ev3-attach: attach the lego_ev3_uart line discipline to a tty and
  * keep the tty open until SIGTERM or SIGINT, then put N_TTY back.
  *
- *   lego-ev3-attach [--label=NAME] [--foreground|--daemon [--pidfile=FILE]] TTY
+ *   lego-ev3-attach [--label=NAME] [--foreground|--daemon [--pidfile=FILE]
+ *                   [--wait[=SECONDS]]] TTY
  *   lego-ev3-attach --detach TTY
  *   lego-ev3-attach --help | --version
  *
  * Exit codes are listed in print_help() and in Documentation/lego/ev3-attach.rst.
  */
 #define _GNU_SOURCE	/* fopencookie() */
+#include <dirent.h>
 #include <errno.h>
 #include <fcntl.h>
 #include <getopt.h>
@@ -24,7 +26,9 @@
 #include <sys/signalfd.h>
 #include <sys/stat.h>
 #include <sys/types.h>
+#include <sys/wait.h>
 #include <syslog.h>
+#include <time.h>
 #include <termios.h>
 #include <unistd.h>
 
@@ -49,7 +53,12 @@ enum {
 	EXIT_PERM = 5,		/* permission denied */
 	EXIT_BUSY = 6,		/* tty busy or already attached */
 	EXIT_GONE = 7,		/* the tty was hung up (device unplugged) */
+	EXIT_NOSENSOR = 8,	/* --wait: no sensor in time (still attached) */
 };
+
+/* --wait without a number: long enough for a sensor's handshake. */
+#define WAIT_DEFAULT_S	30
+#define SENSOR_CLASS	"/sys/class/lego-sensor"
 
 static const char *prog = "lego-ev3-attach";
 static FILE *err_out;
@@ -96,6 +105,9 @@ static void print_help(FILE *f)
 		"  -f, --foreground    stay in the foreground (default; systemd)\n"
 		"  -d, --daemon        run in the background\n"
 		"  -p, --pidfile=FILE  with --daemon (default /run/lego-ev3-attach-TTY.pid)\n"
+		"  -w, --wait[=SECS]   with --daemon: return once a sensor on TTY is\n"
+		"                      there (and udev is done with it), printing its\n"
+		"                      sysfs directory; give up after SECS (default %d)\n"
 		"  -n, --ldisc=NUM     line discipline number (default %d)\n"
 		"  -D, --detach        put N_TTY back on TTY and exit; a lego-ev3-attach\n"
 		"                      holding TTY notices it and exits\n"
@@ -105,8 +117,9 @@ static void print_help(FILE *f)
 		"Exit codes: 0 stopped by a signal (or detached), 1 other error,\n"
 		"2 usage or bad label, 3 no such tty or not a tty, 4 line discipline\n"
 		"not available (module not loaded), 5 permission denied, 6 tty busy\n"
-		"or already attached, 7 tty hung up (device unplugged).\n",
-		prog, prog, N_LEGOEV3);
+		"or already attached, 7 tty hung up (device unplugged), 8 --wait:\n"
+		"no sensor in time (the daemon stays: --detach TTY stops it).\n",
+		prog, prog, WAIT_DEFAULT_S, N_LEGOEV3);
 }
 
 /* A usage error: what is wrong, then where to look. */
@@ -293,11 +306,105 @@ static int write_pidfile(const char *pidfile)
 	return close(fd);
 }
 
+static double now_s(void)
+{
+	struct timespec ts;
+
+	clock_gettime(CLOCK_MONOTONIC, &ts);
+	return ts.tv_sec + ts.tv_nsec / 1e9;
+}
+
+/*
+ * The sensorN directory whose address is @tty or @tty:LABEL, into @out;
+ * false if there is none (yet).
+ */
+static bool find_sensor(const char *tty, char *out, size_t len)
+{
+	size_t n = strlen(tty);
+	struct dirent *de;
+	bool found = false;
+	char path[PATH_MAX], addr[64];
+	DIR *d;
+	FILE *f;
+
+	d = opendir(SENSOR_CLASS);
+	if (!d)
+		return false;
+	while (!found && (de = readdir(d))) {
+		if (de->d_name[0] == '.')
+			continue;
+		snprintf(path, sizeof(path), "%s/%s/address", SENSOR_CLASS, de->d_name);
+		f = fopen(path, "r");
+		if (!f)
+			continue;
+		if (fgets(addr, sizeof(addr), f) && !strncmp(addr, tty, n) &&
+		    (addr[n] == '\n' || addr[n] == ':' || !addr[n])) {
+			snprintf(out, len, "%s/%s", SENSOR_CLASS, de->d_name);
+			found = true;
+		}
+		fclose(f);
+	}
+	closedir(d);
+	return found;
+}
+
+/* Let udevd finish the sensor's events (its rules give the group access). */
+static void udev_settle(double secs)
+{
+	char arg[32];
+	pid_t pid;
+	int st;
+
+	if (access("/run/udev/control", F_OK) || secs < 1)
+		return;
+	snprintf(arg, sizeof(arg), "--timeout=%d", (int)secs);
+	pid = fork();
+	if (pid == 0) {
+		int null = open("/dev/null", O_RDWR);
+
+		if (null >= 0) {
+			dup2(null, STDOUT_FILENO);
+			dup2(null, STDERR_FILENO);
+		}
+		execlp("udevadm", "udevadm", "settle", arg, (char *)NULL);
+		_exit(127);
+	}
+	if (pid > 0)
+		waitpid(pid, &st, 0);
+}
+
+/*
+ * --wait: poll for the sensor the daemon's tty brings, print its
+ * directory; EXIT_NOSENSOR after @secs.
+ */
+static int wait_sensor(const char *tty, int secs)
+{
+	double end = now_s() + secs;
+	char dir[PATH_MAX];
+
+	for (;;) {
+		if (find_sensor(tty, dir, sizeof(dir))) {
+			udev_settle(end - now_s());
+			printf("%s\n", dir);
+			/* The caller leaves with _exit(), which flushes nothing. */
+			fflush(stdout);
+			return EXIT_OK;
+		}
+		if (now_s() >= end)
+			break;
+		usleep(100 * 1000);
+	}
+	msg("no sensor on %s after %d s; still attached (lego-ev3-attach --detach %s stops it)",
+	    tty, secs, tty);
+	return EXIT_NOSENSOR;
+}
+
 /*
  * Fork; the parent returns only once the child has written its pidfile, so
- * that the pidfile exists when the command returns.
+ * that the pidfile exists when the command returns; with @wait_s > 0, once
+ * a sensor on @tty is there too.
  */
-static int daemonize(const char *pidfile)
+static int daemonize(const char *pidfile, const char *tty, int wait_s)
 {
 	int pfd[2], null;
 	char ok = 0;
@@ -316,7 +423,7 @@ static int daemonize(const char *pidfile)
 		close(pfd[1]);
 		if (read(pfd[0], &ok, 1) != 1 || !ok)
 			_exit(EXIT_FAIL);
-		_exit(EXIT_OK);
+		_exit(wait_s > 0 ? wait_sensor(tty, wait_s) : EXIT_OK);
 	}
 	close(pfd[0]);
 	setsid();
@@ -390,6 +497,7 @@ int main(int argc, char **argv)
 		{ "foreground", no_argument, NULL, 'f' },
 		{ "daemon", no_argument, NULL, 'd' },
 		{ "pidfile", required_argument, NULL, 'p' },
+		{ "wait", optional_argument, NULL, 'w' },
 		{ "ldisc", required_argument, NULL, 'n' },
 		{ "detach", no_argument, NULL, 'D' },
 		{ "help", no_argument, NULL, 'h' },
@@ -402,12 +510,12 @@ int main(int argc, char **argv)
 	struct termios saved;
 	bool have_saved;
 	sigset_t block;
-	int c, fd, sfd, ret, num = N_LEGOEV3, ntty = N_TTY;
+	int c, fd, sfd, ret, num = N_LEGOEV3, ntty = N_TTY, wait_s = 0;
 	char *end;
 	long v;
 
 	err_out = stderr;
-	while ((c = getopt_long(argc, argv, "l:fdp:n:DhV", opts, NULL)) != -1) {
+	while ((c = getopt_long(argc, argv, "l:fdp:w::n:DhV", opts, NULL)) != -1) {
 		switch (c) {
 		case 'l':
 			label = optarg;
@@ -420,6 +528,18 @@ int main(int argc, char **argv)
 			break;
 		case 'p':
 			pidfile = optarg;
+			break;
+		case 'w':
+			wait_s = WAIT_DEFAULT_S;
+			if (!optarg)
+				break;
+			errno = 0;
+			v = strtol(optarg, &end, 10);
+			if (errno || *end || end == optarg || v < 1 || v > 3600) {
+				msg("bad --wait \"%s\": 1 to 3600 seconds", optarg);
+				return EXIT_USAGE;
+			}
+			wait_s = (int)v;
 			break;
 		case 'n':
 			errno = 0;
@@ -457,8 +577,12 @@ int main(int argc, char **argv)
 		    label, LEGO_EV3_LABEL_LEN - 1);
 		return EXIT_USAGE;
 	}
-	if (do_detach && (label || daemon_mode || pidfile)) {
-		msg("--detach takes no --label, --daemon or --pidfile");
+	if (do_detach && (label || daemon_mode || pidfile || wait_s)) {
+		msg("--detach takes no --label, --daemon, --pidfile or --wait");
+		return EXIT_USAGE;
+	}
+	if (wait_s && !daemon_mode) {
+		msg("--wait needs --daemon");
 		return EXIT_USAGE;
 	}
 
@@ -520,7 +644,7 @@ int main(int argc, char **argv)
 				 "/run/lego-ev3-attach-%s.pid", name);
 			pidfile = defpid;
 		}
-		ret = daemonize(pidfile);
+		ret = daemonize(pidfile, strrchr(path, '/') + 1, wait_s);
 		if (ret)
 			goto out_ldisc;
 	}

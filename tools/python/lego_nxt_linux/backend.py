@@ -26,6 +26,7 @@ import glob
 import logging
 import os
 import re
+import stat
 import struct
 
 import nxt.brick
@@ -43,6 +44,8 @@ TELEGRAM_MAX = 64
 
 #: _IOW(0xE4, 0x01, __u32) from include/uapi/linux/lego_nxt.h.
 NXT_IOC_SET_TIMEOUT = (1 << 30) | (4 << 16) | (0xE4 << 8) | 0x01
+#: _IOR(0xE4, 0x02, __u32): sends nothing, works on any open file of ours.
+NXT_IOC_GET_TIMEOUT = (2 << 30) | (4 << 16) | (0xE4 << 8) | 0x02
 TIMEOUT_MAX_MS = 60000
 
 _NODE_RE = re.compile(r"^nxt([0-9]+)$")
@@ -62,6 +65,34 @@ def _sysfs_dir(path):
     except OSError:
         return None
     return intf if driver == DRIVER else None
+
+
+def _check_node(fd, filename):
+    """Raise OSError unless fd is a lego_nxt_usb node (/dev/nxtN).
+
+    A char device whose driver answers NXT_IOC_GET_TIMEOUT, and where sysfs
+    shows the device's driver, lego_nxt_usb: anything else (/dev/null, a
+    file, a tty) would take the telegrams and fail later, obscurely.
+    """
+    def refuse(why, err=errno.ENODEV):
+        raise OSError(err, "%s is not an NXT brick of lego_nxt_usb (%s); "
+                      "the bricks are /dev/nxtN" % (filename, why))
+
+    st = os.fstat(fd)
+    if not stat.S_ISCHR(st.st_mode):
+        refuse("not a character device")
+    try:
+        fcntl.ioctl(fd, NXT_IOC_GET_TIMEOUT, b"\0" * 4)
+    except OSError as e:
+        refuse("its driver does not know the lego_nxt ioctls: %s" % os.strerror(e.errno))
+    sysdev = "/sys/dev/char/%d:%d" % (os.major(st.st_rdev), os.minor(st.st_rdev))
+    if os.path.isdir("/sys/dev/char"):
+        try:
+            driver = os.path.basename(os.readlink(os.path.join(sysdev, "device", "driver")))
+        except OSError:
+            driver = None
+        if driver != DRIVER:
+            refuse("its driver is %s" % (driver or "unknown"))
 
 
 def _read_attr(directory, name):
@@ -144,11 +175,13 @@ class DevNodeSock:
 
         :return: Connected brick.
         :rtype: nxt.brick.Brick
-        :raises OSError: When the node cannot be opened or the timeout set.
+        :raises OSError: When the node cannot be opened, is not a brick's
+           node of lego_nxt_usb (``ENODEV``), or the timeout cannot be set.
         """
         logger.info("connecting via %s", self)
         fd = os.open(self.filename, os.O_RDWR | os.O_CLOEXEC)
         try:
+            _check_node(fd, self.filename)
             if self.timeout_ms is not None:
                 fcntl.ioctl(fd, NXT_IOC_SET_TIMEOUT, struct.pack("I", self.timeout_ms))
         except OSError:
@@ -235,7 +268,8 @@ class Backend:
                 brick = sock.connect()
             except OSError as e:
                 # EACCES: see the group and udev rule in the documentation.
-                logger.warning("cannot use %s: %s", node, os.strerror(e.errno or errno.EIO))
+                logger.warning("cannot use %s: %s", node,
+                               e.strerror or os.strerror(e.errno or errno.EIO))
                 continue
             yield brick
 
