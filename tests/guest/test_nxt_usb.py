@@ -24,6 +24,8 @@ import nxtdev as nxt
 from conftest import module_path
 
 SERIAL = '001653A0B1C2'
+# The module's brick has the firmware's 1 ms scheduler tick (conftest.brick).
+BRICK_TICK = 0.001
 SERIAL2 = '0016530D0E0F'
 STALL_ROUNDS = 30
 # The driver's attributes (Documentation/ABI/testing/sysfs-driver-lego-nxt-usb).
