@@ -824,6 +824,7 @@ class Case:
         self.desc, self.reasons = desc, reasons
         self.values, self.origin = values, origin
         self.bugs = known_bugs(desc)
+        self.rude = rude(seed)
 
     def describe(self):
         lines = ['seed %d: %s (%s), %d bytes' % (self.seed, self.kind, self.origin,
@@ -835,8 +836,21 @@ class Case:
             lines.append('model: refused: %s' % '; '.join(self.reasons))
         if self.bugs:
             lines.append('known bugs: %s' % ', '.join(self.bugs))
+        if self.rude:
+            lines.append('rude sensor: %s' % ', '.join(self.rude))
         lines.append('bytes: ' + self.data.hex())
         return '\n'.join(lines)
+
+
+# The share of cases whose sensor is rude (ev3_sensor's rude option: old-mode
+# DATA during a SELECT, the glitch at the baud switch, unflagged garbage).
+RUDE_SHARE = 0.3
+
+
+def rude(seed):
+    """The rude behaviours of the case of `seed` (all or none), drawn
+    apart from the case's bytes, which stay what they were."""
+    return es.RUDE_ALL if random.Random(seed ^ 0x7275de).random() < RUDE_SHARE else ()
 
 
 def gen_values(rng, m):

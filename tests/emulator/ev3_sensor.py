@@ -31,6 +31,30 @@ ev3dev.md):
 The `hostile` option sends garbage, truncated and oversized messages, bad
 checksums and absurd handshake values before a valid handshake.
 
+The `rude` option (off by default, so that tests that measure something
+else precisely keep a polite sensor) adds what real sensors do on a real
+wire and a host must survive (shared/research/uart-peers.md 1.7, 3.2, 3.4;
+ev3dev.md 1.9), each on its own or all of them (rude=True):
+
+- 'old-mode': while a SELECT is being carried out the sensor goes on in the
+  old mode: one DATA message of the old mode right after the SELECT (one
+  that was on its way, as seen with the gyro), then the old mode's cadence
+  and NACK replies until the switch; the new mode's first message is a
+  spontaneous one (the ultrasonic sensor's US-DC-IN: tagged mode 5);
+- 'glitch': one byte, 0xfe, 0xfc or 0xff, at the new speed right after the
+  switch to the data phase's speed (the glitch frame the JV captures show
+  at the baud switch);
+- 'garbage': bursts of random bytes, any value, at the line's speed (so
+  the host's UART flags none of them): a few before the handshake's TYPE,
+  and 1 to 3 before about one DATA message in 20. A burst never holds a
+  message the host could take (a TYPE, or a DATA or EXT_MODE message with a
+  right checksum, or the RGB-RAW header of type 29, which hosts do not check), nor one
+  that would run past the message it precedes: an XOR checksum lets one
+  such message in 65536 through on any host, and a test could not tell it
+  from a driver's bug. No 0x04 before the handshake either: on a line that
+  carries no speed (a pty) the host's fast sync probe would take it for a
+  Powered Up device's ACK, which no EV3 sensor sends.
+
 Two test aids go beyond a real sensor:
 
 - stream(): in the data phase, one write of a long run of DATA frames of the
@@ -298,6 +322,16 @@ SENSORS = {'color': COLOR, 'us': US, 'gyro': GYRO, 'gyro-old': GYRO_OLD, 'ir': I
            'spike-dist': SPIKE_DIST}
 
 IR_STALE_TIME = 1.1
+# The `rude` option's behaviours (see the top of the file).
+RUDE_OLD_MODE, RUDE_GLITCH, RUDE_GARBAGE = 'old-mode', 'glitch', 'garbage'
+RUDE_ALL = (RUDE_OLD_MODE, RUDE_GLITCH, RUDE_GARBAGE)
+# What the host reads when the sensor's UART is reprogrammed (uart-peers.md 1.7).
+GLITCH_BYTES = (0xfe, 0xfc, 0xff)
+# Data phase garbage: a burst before this share of DATA messages, of 1 to
+# GARBAGE_MAX bytes; before a handshake, 1 to GARBAGE_SYNC_MAX bytes.
+GARBAGE_SHARE = 0.05
+GARBAGE_MAX = 3
+GARBAGE_SYNC_MAX = 6
 # Bytes written at a time when the emulator paces a line itself (pace=True).
 PACE_CHUNK = 4
 # The host's ACK must come within ACK_WAIT of the handshake's end; the
@@ -406,7 +440,7 @@ class EmulatedSensor(threading.Thread):
 
     def __init__(self, path, kind, hostile=False, seed=1, boot_delay=0.5, period_scale=1.0,
                  host_tty=None, retry_delay=None, fast_sync=None, pace=False, gate=None,
-                 flaky=False, ignore_select=False):
+                 flaky=False, ignore_select=False, rude=None):
         """period_scale > 1 slows the spontaneous cadence of continuous modes
         (NACK replies stay immediate): several emulators in one Python
         process inside an emulated machine cannot all keep real cadences
@@ -435,8 +469,23 @@ class EmulatedSensor(threading.Thread):
         before the first handshake's first byte (or, for a device that
         syncs fast, before it first listens for the probe), after the
         reset: a test can so attach the host and have the sensor talk
-        within the same millisecond."""
+        within the same millisecond.
+
+        rude: True for all of RUDE_ALL, or some of their names (see the top
+        of the file); None or () for a polite sensor."""
         super().__init__(daemon=True)
+        if rude is True:
+            rude = RUDE_ALL
+        elif isinstance(rude, str):
+            rude = (rude,)
+        self.rude = frozenset(rude or ())
+        if not self.rude <= set(RUDE_ALL):
+            raise ValueError('rude: %s' % ', '.join(sorted(self.rude - set(RUDE_ALL))))
+        self.old_mode_frames = 0    # (rude) old-mode frames sent while a SELECT was pending
+        self.glitches = 0           # (rude) glitch bytes sent at the baud switch
+        self.garbage_bytes = 0      # (rude) random bytes sent in the data phase
+        self.sync_garbage_bytes = 0     # (rude) and before handshakes
+        self.rude_rng = random.Random(seed ^ 0x7275de)
         self.host_tty = host_tty
         self.host_fd = None
         self.speed = 0
@@ -640,6 +689,8 @@ class EmulatedSensor(threading.Thread):
             self.wait_gate()
         if self.hostile:
             self.send_hostile()
+        if RUDE_GARBAGE in self.rude and speed == 2400:
+            self.send(self.sync_garbage(hs))
         self.handshake_starts.append(time.monotonic())
         self.send(hs)
         termios.tcdrain(self.fd)
@@ -647,9 +698,67 @@ class EmulatedSensor(threading.Thread):
         self.log('handshake sent' if speed == 2400 else 'handshake sent at %d' % speed)
         if self.wait_ack():
             self.handshakes += 1
+            switch = self.speed != self.sdef.speed
             self.set_speed(self.sdef.speed)
+            if switch and RUDE_GLITCH in self.rude:
+                glitch = self.rude_rng.choice(GLITCH_BYTES)
+                self.send(bytes([glitch]))
+                self.glitches += 1
+                self.log('glitch %02x' % glitch)
             return True
         return False
+
+    def sync_garbage(self, hs):
+        """(rude) Random bytes for before the handshake `hs`, none of
+        which starts a TYPE message the host could take (see the top of
+        the file), and no 0x04."""
+        r = self.rude_rng
+        while True:
+            junk = bytes(r.choice([b for b in range(256) if b != SYS_ACK])
+                         for _ in range(r.randint(1, GARBAGE_SYNC_MAX)))
+            data = junk + hs[:2]
+            if not any(data[i] == 0x40 and data[i + 2] == checksum(data[i:i + 2])
+                       for i in range(len(junk))):
+                self.sync_garbage_bytes += len(junk)
+                return junk
+
+    def takes(self, data, i):
+        """(rude) The length of the message the host would take at
+        data[i] in the data phase if the bytes were there, 0 if none
+        starts there; -1 for the colour sensor's RGB-RAW header, whose
+        checksum nobody checks (hosts know it by the type: a generated
+        sensor of type 29 too)."""
+        h = data[i]
+        if h == 0x46 and getattr(self.sdef, 'lump', False):
+            n = 3
+        elif h & 0xc0 == 0xc0 and (h >> 3) & 7 <= 5:
+            n = (1 << ((h >> 3) & 7)) + 2
+        else:
+            return 0
+        if h == 0xdc and self.sdef.type == 29 and not getattr(self.sdef, 'lump', False):
+            return -1
+        return n
+
+    def data_garbage(self, msg):
+        """(rude) b'', or, before about one message in 20, a burst of
+        random bytes to send before `msg`: none starts a message the host
+        could take or one that runs past `msg` (see the top of the file)."""
+        r = self.rude_rng
+        if RUDE_GARBAGE not in self.rude or r.random() >= GARBAGE_SHARE:
+            return b''
+        while True:
+            junk = bytes(r.randrange(256) for _ in range(r.randint(1, GARBAGE_MAX)))
+            data = junk + msg
+            ok = True
+            for i in range(len(junk)):
+                n = self.takes(data, i)
+                if n < 0 or i + n > len(data) or \
+                        (n and data[i + n - 1] == checksum(data[i:i + n - 1])):
+                    ok = False
+                    break
+            if ok:
+                self.garbage_bytes += len(junk)
+                return junk
 
     def listen_for_probe(self, delay):
         """The reset of a device that can sync fast: TX held low (a
@@ -720,7 +829,9 @@ class EmulatedSensor(threading.Thread):
                  % (watched * 1e3, (time.monotonic() - start) * 1e3))
         return False
 
-    def frame(self, mode, spontaneous):
+    def frame(self, mode, spontaneous, old=False):
+        """Send a DATA message of `mode`; `old`: (rude) of the old mode
+        while a SELECT is pending."""
         m = self.sdef.modes[mode]
         with self.lock:
             values = list(self.values[mode])
@@ -735,8 +846,11 @@ class EmulatedSensor(threading.Thread):
             tag = 5
         bad = (self.sdef.type == 29 and mode == 4 and self.sdef.quirks and
                self.rng.random() < 0.99)
-        self.send(data_frame(self.sdef, tag, pack_values(m, values), bad_checksum=bad))
+        msg = data_frame(self.sdef, tag, pack_values(m, values), bad_checksum=bad)
+        self.send(self.data_garbage(msg) + msg)
         self.frames_sent += 1
+        if old:
+            self.old_mode_frames += 1
 
     def flaky_data(self):
         """A broken device's data phase: one good frame, seven bad (after
@@ -763,6 +877,8 @@ class EmulatedSensor(threading.Thread):
         quiet = False
         looked = False
         host_ext = 0                # the host's last EXT_MODE (Powered Up)
+        # (rude) the old mode goes on while a SELECT is pending.
+        old = RUDE_OLD_MODE in self.rude
         self.changed = True
         while not self.stopping.is_set():
             now = time.monotonic()
@@ -787,23 +903,27 @@ class EmulatedSensor(threading.Thread):
                 m = self.sdef.modes[mode]
                 pending = None
                 deaf = m.deaf
-                self.frame(mode, False)
+                # A rude sensor's first message of the new mode is one it
+                # sends on its own, not a NACK reply.
+                self.frame(mode, old)
                 self.log('mode %d' % mode)
                 next_spont = now + m.period * self.period_scale
             elif self.stream_req is not None and not deaf and not pending:
                 quiet = self.send_stream(self.stream_req)
-            elif not deaf and not pending:
+            elif not deaf and (not pending or old):
                 if m.cadence == 'continuous' and now >= next_spont:
-                    self.frame(mode, True)
+                    self.frame(mode, True, old=bool(pending))
                     next_spont = now + m.period * self.period_scale
                 elif m.cadence == 'change' and self.changed:
                     self.changed = False
-                    self.frame(mode, True)
+                    self.frame(mode, True, old=bool(pending))
             wait = 0.05
             if quiet:
                 wait = 0
             elif pending:
                 wait = pending[0] - now
+                if old and m.cadence == 'continuous' and not deaf:
+                    wait = min(wait, next_spont - now)
             elif m.cadence == 'continuous' and not deaf:
                 wait = next_spont - now
             buf += self.read(min(wait, 0.05))
@@ -813,8 +933,8 @@ class EmulatedSensor(threading.Thread):
                     buf = buf[1:]
                     last_nack = time.monotonic()
                     looked = False
-                    if not deaf and not pending and not quiet:
-                        self.frame(self.mode, False)
+                    if not deaf and (not pending or old) and not quiet:
+                        self.frame(self.mode, False, old=bool(pending))
                 elif b == 0x43:             # SELECT
                     if len(buf) < 3:
                         break
@@ -822,6 +942,9 @@ class EmulatedSensor(threading.Thread):
                             not self.ignore_select:
                         new = buf[1]
                         pending = (time.monotonic() + self.sdef.modes[new].first_reply, new)
+                        if old and not deaf and new != self.mode:
+                            # One of the old mode's that was on its way.
+                            self.frame(self.mode, True, old=True)
                     buf = buf[3:]
                 elif b == 0x46:             # EXT_MODE (Powered Up host)
                     if len(buf) < 3:

@@ -73,7 +73,8 @@ What dummy_hcd and raw-gadget cannot reproduce, and other simplifications:
   sees a disconnect, as when VBUS goes away.
 - BootCommand replies "Yes" and then unplugs; SAM-BA (03EB:6124) is not
   emulated.
-- The 1 ms scheduler is modelled only with `tick` (--tick-ms 1): a command
+- The 1 ms scheduler is modelled only with `tick` (--tick-ms 1; the tests
+  turn it on for a share of the bricks, tests/guest/conftest.py): a command
   is then handled at the first tick at or after its arrival, and at most
   one per tick (the next pass comes at the first tick after the last one,
   its wait for the host included, has ended). Without it commands are
@@ -100,6 +101,7 @@ import argparse
 import collections
 import ctypes
 import errno
+import math
 import os
 import random
 import signal
@@ -1178,7 +1180,7 @@ class RawGadgetBrick:
         self.reply_timeout = reply_timeout
         self.verbose = verbose
         self.tick = tick                # seconds per scheduler pass, or None
-        self._next_pass = 0.0           # (tick) the earliest next pass
+        self._next_pass = 0             # (tick) the earliest next pass, in ticks
         self.configured = threading.Event()
         self.events = []
         self.commands = 0
@@ -1406,10 +1408,21 @@ class RawGadgetBrick:
         that has just come: the first tick at or after now and after the
         last pass ended."""
         now = time.monotonic()
-        start = max(now, self._next_pass)
-        at = -(-start // self.tick) * self.tick
-        if at > now:
+        at = max(self._ticks(now, math.ceil), self._next_pass) * self.tick
+        if at - now > 1e-9:
             time.sleep(at - now)
+
+    def _pass_done(self):
+        """(tick) The pass that handled a command has ended: the next one
+        is on the next tick."""
+        self._next_pass = self._ticks(time.monotonic(), math.floor) + 1
+
+    def _ticks(self, t, rounding):
+        """(tick) Time `t` in ticks, rounded by `rounding` (math.ceil or
+        math.floor), to the nanosecond: t / tick is not exact in floating
+        point, and a command that comes on a tick must not wait for the
+        next."""
+        return rounding(round(t / self.tick, 6))
 
     def _command_loop(self):
         while not self._stopping.is_set():
@@ -1428,8 +1441,7 @@ class RawGadgetBrick:
             if reply is not None:
                 self._send(reply)
             if self.tick:
-                # The next pass is on the next tick after this one ended.
-                self._next_pass = (time.monotonic() // self.tick + 1) * self.tick
+                self._pass_done()
             if self.fw.rebooting:
                 self._unplug_soon('rebooting into SAM-BA (not emulated)')
                 return

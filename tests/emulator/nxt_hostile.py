@@ -269,6 +269,8 @@ class HostileBrick(nb.RawGadgetBrick):
             packet = self._next_command()
             if packet is None:
                 continue
+            if self.tick:
+                self._wait_for_pass()
             reply = self.fw.handle(packet)
             action = self.choose(packet, reply)
             self.actions[action] += 1
@@ -283,6 +285,8 @@ class HostileBrick(nb.RawGadgetBrick):
             except OSError as e:
                 if not self._stopping.is_set():
                     self.log('%s failed: %s' % (action, e))
+            if self.tick:
+                self._pass_done()
             if action == 'vanish':
                 return
             if self.fw.rebooting:

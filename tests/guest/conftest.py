@@ -87,9 +87,12 @@ def line(ev3_module):
 @pytest.fixture(scope='module')
 def brick(request):
     """An emulated NXT brick on dummy_udc.0, with the test module's SERIAL,
-    plugged in (with its /dev/nxtN) for the module's tests, then unplugged."""
+    plugged in (with its /dev/nxtN) for the module's tests, then unplugged.
+    A module with BRICK_TICK (seconds) gets a brick with the firmware's
+    scheduler tick (nxt_brick.py `tick`: one command per 1 ms tick)."""
     import nxtdev
-    b = nxtdev.Brick('dummy_udc.0', request.module.SERIAL)
+    b = nxtdev.Brick('dummy_udc.0', request.module.SERIAL,
+                     tick=getattr(request.module, 'BRICK_TICK', None))
     b.plug()
     yield b
     b.unplug()

@@ -272,7 +272,9 @@ class Runner:
                             speed=speed, raw_handshake=c.data, quirks=False,
                             lump=bool(d and d.lump))
         emu = es.EmulatedSensor(self.far, sdef, seed=c.seed, boot_delay=0.05,
-                                retry_delay=1.0)
+                                retry_delay=1.0, rude=c.rude)
+        if c.rude:
+            self.bump('rude_sensors')
         for i, vals in c.values.items():
             emu.values[i] = list(vals)
         return emu

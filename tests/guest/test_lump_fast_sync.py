@@ -152,8 +152,9 @@ def test_fast_sync_is_much_faster_than_2400(trace, line):
 @pytest.mark.parametrize('kind', ['boost-cds', 'color'])
 def test_others_register_at_2400_on_a_probing_port(trace, line, kind):
     """The BOOST sensor and an EV3 sensor ignore the probe (it reaches them
-    garbled: they listen at 2400)."""
-    emu, path, _ = plug_and_find(line, kind)
+    garbled: they listen at 2400). Rude ones (ev3_sensor's `rude`): garbage
+    before their TYPE, a glitch at the baud switch."""
+    emu, path, _ = plug_and_find(line, kind, rude=True)
     sdef = ev3_sensor.SENSORS[kind]
     assert ev3.read_attr(path, 'driver_name') == sdef.driver
     assert emu.fast_syncs == 0 and emu.sync_speeds[-1] == 2400, emu.events
@@ -168,6 +169,7 @@ def test_others_register_at_2400_on_a_probing_port(trace, line, kind):
     assert c['fast_syncs'] == 0 and c['tx_speed'] == len(probes), c
     emu.set_values(0, [3])
     assert wait_value(path, 0, 3) == 3
+    assert emu.sync_garbage_bytes > 0 and emu.glitches == 1, emu.events
 
 
 def test_spike_at_2400_when_the_probe_misses_it(ev3_module):

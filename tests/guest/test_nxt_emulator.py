@@ -14,6 +14,7 @@ import struct
 import subprocess
 import sys
 import time
+import types
 
 import pytest
 
@@ -155,7 +156,9 @@ def no_nxt_driver():
 
 @pytest.fixture(scope='module')
 def brick0(no_nxt_driver):
-    brick = nxt_brick.RawGadgetBrick(udc='dummy_udc.0', serial=SERIAL0)
+    # With the firmware's 1 ms scheduler tick, as a share of the tests'
+    # bricks have it (nxt_brick.py `tick`).
+    brick = nxt_brick.RawGadgetBrick(udc='dummy_udc.0', serial=SERIAL0, tick=0.001)
     brick.start()
     assert brick.wait_configured(60), brick.events
     yield brick
@@ -366,3 +369,37 @@ def test_hostile_brick(no_nxt_driver, mode):
     finally:
         brick.stop()
     assert wait_gone(SERIAL1)
+
+
+def test_tick_one_command_per_pass(monkeypatch):
+    """The firmware's 1 ms scheduler (`tick`): a command waits for the
+    first tick at or after its arrival, and the next one for the tick after
+    the pass that handled the last one ended."""
+    clock = [5.0003]
+
+    def sleep(s):
+        assert s > 0
+        clock[0] += s
+    monkeypatch.setattr(nxt_brick, 'time', types.SimpleNamespace(
+        monotonic=lambda: clock[0], sleep=sleep))
+    b = nxt_brick.RawGadgetBrick(tick=0.001)
+    b._wait_for_pass()
+    assert clock[0] == pytest.approx(5.001)
+    clock[0] = 5.0012
+    b._pass_done()
+    clock[0] = 5.0013                  # the next command came at once
+    b._wait_for_pass()
+    assert clock[0] == pytest.approx(5.002)
+    clock[0] = 5.0020004               # it was handled within its tick
+    b._pass_done()
+    clock[0] = 5.0107                  # a command long after
+    b._wait_for_pass()
+    assert clock[0] == pytest.approx(5.011)
+    b._pass_done()
+    clock[0] = 5.012                   # comes on a tick: no wait
+    b._wait_for_pass()
+    assert clock[0] == 5.012
+    b._pass_done()
+    clock[0] = 5.0125
+    b._wait_for_pass()
+    assert clock[0] == pytest.approx(5.013)

@@ -49,6 +49,12 @@ def test_fuzz_sequences(record_testsuite_property):
     # The run did what it is for: hostile replies, unplugs, checked replies.
     assert sum(n for a, n in s['brick_actions'].items() if a != 'ok') > 20
     assert s['info'].get('replies_checked', 0) > 50
+    # The epochs whose plan says so had the firmware's 1 ms tick
+    # (nxt_fuzz.TICK_SHARE of them).
+    epochs = sum(n for k, n in s['info'].items() if k.startswith('profile_'))
+    ticked = sum(1 for k in range(epochs)
+                 if nxt_fuzz.epoch_plan(nxt_fuzz.derive(SEED, 'epoch', k), 1)['tick'])
+    assert s['info'].get('tick_epochs', 0) == ticked, s['info']
     assert fz.calls > 5 * SEQUENCES
 
 

@@ -33,6 +33,8 @@ import lego_nxt_linux                    # noqa: E402
 assert lego_nxt_linux.__file__.startswith(TOOLS_PYTHON), lego_nxt_linux.__file__
 
 SERIAL = '001653A0B1C2'
+# The module's brick has the firmware's 1 ms scheduler tick (conftest.brick).
+BRICK_TICK = 0.001
 HOST = '00:16:53:A0:B1:C2'
 SERIAL2 = '0016530D0E0F'
 HOST2 = '00:16:53:0D:0E:0F'

@@ -659,7 +659,8 @@ def test_usb_reset_keeps_the_driver_bound(brick, fd):
 
 
 def test_two_bricks_at_once(brick):
-    other = nxt.Brick('dummy_udc.1', SERIAL2, name='Second')
+    # The second one with the firmware's 1 ms scheduler tick (nxt_brick.py).
+    other = nxt.Brick('dummy_udc.1', SERIAL2, name='Second', tick=0.001)
     other.plug()
     try:
         assert other.node != brick.node
@@ -682,7 +683,7 @@ def test_two_bricks_at_once(brick):
 
 
 def test_unplug_during_io():
-    b = nxt.Brick('dummy_udc.1', SERIAL2)
+    b = nxt.Brick('dummy_udc.1', SERIAL2, tick=0.001)   # the firmware's 1 ms tick
     b.plug()
     f = b.open()
     errors = []

@@ -469,6 +469,10 @@ def describe(op):
     return ' '.join(str(x) for x in op)
 
 
+TICK = 0.001
+TICK_SHARE = 0.3
+
+
 def epoch_plan(seed, sequences):
     r = random.Random(seed)
     profile = r.choices(['honest', 'flaky', 'hostile', 'silent', 'babbler', 'liar'],
@@ -484,6 +488,9 @@ def epoch_plan(seed, sequences):
     if profile == 'honest' and r.random() < 0.6:
         # Left alone until the end: the strictest checks apply.
         plan['unplug_after'], plan['resets'] = None, []
+    # The firmware's 1 ms scheduler (nxt_brick.py `tick`) in a share of the
+    # epochs, drawn apart so that the rest of a seed's plan stays as it was.
+    plan['tick'] = TICK if random.Random(seed ^ 0x7469636b).random() < TICK_SHARE else None
     return plan
 
 
@@ -1024,8 +1031,10 @@ class Fuzzer:
             eseed = derive(self.seed, 'epoch', k)
             before = self.sequences
             self.run_epoch(eseed, n)
-            self.log('nxt_fuzz: epoch %d (%#x, %s): %d sequences; %d of %d in %.0f s, '
-                     '%d failure(s)' % (k, eseed, epoch_plan(eseed, n)['profile'],
+            plan = epoch_plan(eseed, n)
+            self.log('nxt_fuzz: epoch %d (%#x, %s%s): %d sequences; %d of %d in %.0f s, '
+                     '%d failure(s)' % (k, eseed, plan['profile'],
+                                        ', 1 ms tick' if plan['tick'] else '',
                                         self.sequences - before, self.sequences, sequences,
                                         time.monotonic() - self.t0, len(self.failures)))
             k += 1
@@ -1035,11 +1044,14 @@ class Fuzzer:
         plan = epoch_plan(eseed, n)
         self.epochs += 1
         self.info['profile_' + plan['profile']] += 1
+        if plan['tick']:
+            self.info['tick_epochs'] += 1
         for ln in self.kmsg.splats():
             self.fail(eseed, 'kernel splat before the epoch: %s' % ln)
         brick = nh.HostileBrick(profile=plan['profile'], seed=eseed, udc=self.udc,
                                 serial=self.serial, late_max=plan['late_max'],
-                                noreply_hostility=plan['noreply_hostility'])
+                                noreply_hostility=plan['noreply_hostility'],
+                                tick=plan['tick'])
         honest = plan['profile'] == 'honest'
         brick.start()
         node = None

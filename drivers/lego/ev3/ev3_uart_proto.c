@@ -1143,6 +1143,39 @@ static void ev3_uart_ext_mode(struct ev3_uart_parser *p,
 	}
 }
 
+/*
+ * Quirk: in US-DC-IN (mode 6) the ultrasonic sensor tags the DATA messages
+ * it sends on its own with mode 5 (US-DC-CM) and only its NACK replies with
+ * mode 6; both carry the mode 6 value. So a message tagged mode 5 is mode
+ * 6's in mode 6 and mode 5's in mode 5. While a SELECT switches between the
+ * two, the sensor goes on in the old mode until it has switched, and such a
+ * message may be of either mode: nobody can tell. From 5 to 6, a mode 6
+ * message (a NACK reply: within a keep-alive period) confirms the switch.
+ * From 6 to 5 no message says that the sensor has switched, but one says
+ * it has not: a mode 6 message, its reply to a NACK. So once
+ * %EV3_UART_US_SELECT_TICKS keep-alive ticks have passed since the SELECT
+ * or the last mode 6 message, the NACK of the first was answered in mode
+ * 5, and the messages tagged 5 are mode 5's (the real sensor switches
+ * within a few ms: 100 to 200 ms after the SELECT). Until then they are
+ * nobody's.
+ *
+ * Return: the mode of a DATA message tagged mode 5 from the ultrasonic
+ * sensor, or %EV3_UART_NO_MODE while it cannot be told.
+ */
+#define EV3_UART_US_SELECT_TICKS	2
+
+static u8 ev3_uart_us_mode5(const struct ev3_uart_parser *p)
+{
+	u8 from = p->mode, to = p->pending_mode;
+
+	if (to == 6)
+		return from == 5 ? EV3_UART_NO_MODE : 6;
+	if (from == 6 && to == 5)
+		return p->select_ticks >= EV3_UART_US_SELECT_TICKS ? 5 :
+		       EV3_UART_NO_MODE;
+	return from == 6 ? 6 : 5;
+}
+
 static void ev3_uart_data_msg(struct ev3_uart_parser *p,
 			      struct ev3_uart_event *ev)
 {
@@ -1160,16 +1193,20 @@ static void ev3_uart_data_msg(struct ev3_uart_parser *p,
 	    !ev3_uart_rgb_raw_quirk(s, hdr))
 		return ev3_uart_bad_frame(p, ev);
 
-	/*
-	 * Quirk: in US-DC-IN (mode 6) the ultrasonic sensor tags its own
-	 * DATA messages with mode 5 (US-DC-CM) and only its NACK replies with
-	 * mode 6; both carry the mode 6 value. (A SELECT of mode 5 itself is
-	 * confirmed by mode 5 messages as usual.)
-	 */
-	if (s->type == EV3_UART_TYPE_US && mode == 5 && p->pending_mode != 5 &&
-	    (p->mode == 6 || p->pending_mode == 6)) {
-		mode = 6;
-		us_dc_in = true;
+	/* Quirk: US-DC-IN's messages tagged mode 5 (see above). */
+	if (s->type == EV3_UART_TYPE_US && !s->lump && mode == 5) {
+		mode = ev3_uart_us_mode5(p);
+		if (mode == EV3_UART_NO_MODE) {
+			/* The sensor is there, but whose value is it? */
+			p->data_since_tick = true;
+			p->msg_len = 0;
+			return;
+		}
+		us_dc_in = mode == 6;
+	} else if (s->type == EV3_UART_TYPE_US && !s->lump && mode == 6 &&
+		   p->pending_mode == 5) {
+		/* Not switched yet: count again. */
+		p->select_ticks = 0;
 	}
 
 	if (mode >= s->num_modes)
@@ -1815,6 +1852,7 @@ void ev3_uart_parser_start_data(struct ev3_uart_parser *p)
 	p->mode = 0;
 	p->ext_mode = 0;
 	p->pending_mode = EV3_UART_NO_MODE;
+	p->select_ticks = 0;
 	p->data_err = 0;
 	p->silent_ticks = 0;
 	p->data_since_tick = false;
@@ -1840,6 +1878,9 @@ int ev3_uart_parser_select(struct ev3_uart_parser *p, u8 mode)
 		return -ENODEV;
 	if (mode >= p->sensor.num_modes)
 		return -EINVAL;
+	/* A SELECT sent again goes on counting from the first. */
+	if (mode != p->pending_mode)
+		p->select_ticks = 0;
 	p->pending_mode = mode;
 	ev3_uart_fast_clear(p);
 	return 0;
@@ -1918,6 +1959,8 @@ bool ev3_uart_parser_tick(struct ev3_uart_parser *p, struct ev3_uart_event *ev)
 	memset(ev, 0, sizeof(*ev));
 	if (p->state != EV3_UART_STATE_DATA)
 		return false;
+	if (p->pending_mode != EV3_UART_NO_MODE && p->select_ticks < U8_MAX)
+		p->select_ticks++;
 	if (p->data_since_tick)
 		p->silent_ticks = 0;
 	else if (++p->silent_ticks > EV3_UART_MAX_DATA_ERR)

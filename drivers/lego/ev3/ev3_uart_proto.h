@@ -285,6 +285,7 @@ struct ev3_uart_event {
  * @stash: the RAW, PCT and SI ranges of @info_mode as sent (f32 bit patterns)
  * @mode: the sensor's current mode in the data phase
  * @pending_mode: the mode a SELECT asked for, or %EV3_UART_NO_MODE
+ * @select_ticks: keep-alive ticks since @pending_mode was set (at most 255)
  * @data_err: bad frames, less good ones (never below 0)
  * @silent_ticks: keep-alive periods in a row without a good DATA message
  * @data_since_tick: a good DATA message arrived since the last tick
@@ -319,6 +320,7 @@ struct ev3_uart_parser {
 	u32 stash[3][2];
 	u8 mode;
 	u8 pending_mode;
+	u8 select_ticks;
 	u8 data_err;
 	u8 silent_ticks;
 	bool data_since_tick;

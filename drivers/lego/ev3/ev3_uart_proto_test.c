@@ -1579,6 +1579,15 @@ static void test_rgb_raw_checksum_quirk(struct kunit *test)
 	KUNIT_EXPECT_EQ(test, c->p.bad_frames, 1UL);
 }
 
+/* @n keep-alive ticks, none of which may lose the sensor. */
+static void tick(struct kunit *test, struct ev3_uart_parser *p, unsigned int n)
+{
+	struct ev3_uart_event ev;
+
+	while (n--)
+		KUNIT_EXPECT_FALSE(test, ev3_uart_parser_tick(p, &ev));
+}
+
 static void test_us_dc_in_mode5_tags(struct kunit *test)
 {
 	struct ctx *c = new_ctx(test);
@@ -1601,15 +1610,98 @@ static void test_us_dc_in_mode5_tags(struct kunit *test)
 	KUNIT_EXPECT_EQ(test, ev3_uart_read_value(&c->p.sensor.modes[6], c->p.data, 2, 0, &v), 0);
 	KUNIT_EXPECT_EQ(test, v, 76);
 
-	/* Selecting mode 5 from mode 6 still works. */
+	/*
+	 * Selecting mode 5 from mode 6 still works, once the sensor has had
+	 * time to switch (see test_us_dc_old_mode_during_select()).
+	 */
 	c->r.n = 0;
 	KUNIT_ASSERT_EQ(test, ev3_uart_parser_select(&c->p, 5), 0);
+	tick(test, &c->p, 2);
 	len = enc_data(frames, 5, v5, 2);
 	feed(&c->p, frames, len, len, &c->r);
 	KUNIT_ASSERT_EQ(test, count(&c->r, EV3_UART_EV_DATA), 1U);
 	KUNIT_EXPECT_EQ(test, c->r.ev[0].mode, 5);
 	KUNIT_EXPECT_TRUE(test, c->r.ev[0].mode_changed);
 	KUNIT_EXPECT_FALSE(test, c->r.ev[0].us_dc_in);
+}
+
+/*
+ * Issue 29: a sensor goes on in the old mode until it has carried out a
+ * SELECT. Between US-DC-CM (5) and US-DC-IN (6) a message tagged mode 5 may
+ * then be of either mode: it must confirm neither, nor be shown as the
+ * old mode's, until the switch is known to be done.
+ */
+static void test_us_dc_old_mode_during_select(struct kunit *test)
+{
+	u8 cm[2] = { 111, 0 }, in[2] = { 76, 0 }, frames[8];
+	struct ctx *c = new_ctx(test);
+	size_t len;
+	s32 v;
+
+	connect(test, c, &sensors[1]);
+	KUNIT_ASSERT_EQ(test, ev3_uart_parser_select(&c->p, 5), 0);
+	len = enc_data(frames, 5, cm, 2);
+	feed(&c->p, frames, len, len, &c->r);
+	KUNIT_ASSERT_EQ(test, count(&c->r, EV3_UART_EV_DATA), 1U);
+	KUNIT_EXPECT_EQ(test, c->r.ev[0].mode, 5);
+
+	/* 5 to 6: mode 5's 11.1 cm, then mode 6's own 7.6 in tagged 5. */
+	c->r.n = 0;
+	KUNIT_ASSERT_EQ(test, ev3_uart_parser_select(&c->p, 6), 0);
+	len = enc_data(frames, 5, cm, 2);
+	feed(&c->p, frames, len, len, &c->r);
+	len = enc_data(frames, 5, in, 2);
+	feed(&c->p, frames, len, len, &c->r);
+	KUNIT_EXPECT_EQ(test, count(&c->r, EV3_UART_EV_DATA), 0U);
+	KUNIT_EXPECT_EQ(test, c->p.pending_mode, 6);
+	/* A NACK reply, tagged 6, confirms it. */
+	len = enc_data(frames, 6, in, 2);
+	feed(&c->p, frames, len, len, &c->r);
+	KUNIT_ASSERT_EQ(test, count(&c->r, EV3_UART_EV_DATA), 1U);
+	KUNIT_EXPECT_EQ(test, c->r.ev[0].mode, 6);
+	KUNIT_EXPECT_TRUE(test, c->r.ev[0].mode_changed);
+	KUNIT_EXPECT_EQ(test, ev3_uart_read_value(&c->p.sensor.modes[6], c->p.data, 2, 0, &v), 0);
+	KUNIT_EXPECT_EQ(test, v, 76);
+	/* Then the messages tagged 5 are mode 6's. */
+	len = enc_data(frames, 5, in, 2);
+	feed(&c->p, frames, len, len, &c->r);
+	KUNIT_ASSERT_EQ(test, count(&c->r, EV3_UART_EV_DATA), 2U);
+	KUNIT_EXPECT_EQ(test, c->r.ev[1].mode, 6);
+	KUNIT_EXPECT_TRUE(test, c->r.ev[1].us_dc_in);
+
+	/* 6 to 5: what is tagged 5 is of either mode for a while... */
+	c->r.n = 0;
+	KUNIT_ASSERT_EQ(test, ev3_uart_parser_select(&c->p, 5), 0);
+	len = enc_data(frames, 5, in, 2);
+	feed(&c->p, frames, len, len, &c->r);
+	tick(test, &c->p, 1);
+	KUNIT_EXPECT_EQ(test, c->p.select_ticks, 1);
+	/* ...a NACK reply tagged 6 is the old mode's, and counts again... */
+	len = enc_data(frames, 6, in, 2);
+	feed(&c->p, frames, len, len, &c->r);
+	KUNIT_ASSERT_EQ(test, count(&c->r, EV3_UART_EV_DATA), 1U);
+	KUNIT_EXPECT_EQ(test, c->r.ev[0].mode, 6);
+	KUNIT_EXPECT_FALSE(test, c->r.ev[0].mode_changed);
+	KUNIT_EXPECT_EQ(test, c->p.select_ticks, 0);
+	tick(test, &c->p, 1);
+	/* ...a SELECT sent again goes on counting... */
+	KUNIT_ASSERT_EQ(test, ev3_uart_parser_select(&c->p, 5), 0);
+	KUNIT_EXPECT_EQ(test, c->p.select_ticks, 1);
+	len = enc_data(frames, 5, cm, 2);
+	feed(&c->p, frames, len, len, &c->r);
+	KUNIT_EXPECT_EQ(test, count(&c->r, EV3_UART_EV_DATA), 1U);
+	/* ...and from the second keep-alive tick on, they are mode 5's. */
+	tick(test, &c->p, 1);
+	len = enc_data(frames, 5, cm, 2);
+	feed(&c->p, frames, len, len, &c->r);
+	KUNIT_ASSERT_EQ(test, count(&c->r, EV3_UART_EV_DATA), 2U);
+	KUNIT_EXPECT_EQ(test, c->r.ev[1].mode, 5);
+	KUNIT_EXPECT_TRUE(test, c->r.ev[1].mode_changed);
+	KUNIT_EXPECT_FALSE(test, c->r.ev[1].us_dc_in);
+	KUNIT_EXPECT_EQ(test, ev3_uart_read_value(&c->p.sensor.modes[5], c->p.data, 2, 0, &v), 0);
+	KUNIT_EXPECT_EQ(test, v, 111);
+	/* The sensor was heard all along: no silent tick. */
+	KUNIT_EXPECT_EQ(test, c->p.silent_ticks, 0);
 }
 
 static void test_select_and_stale_frames(struct kunit *test)
@@ -2524,6 +2616,7 @@ static struct kunit_case ev3_uart_proto_cases[] = {
 	KUNIT_CASE(test_data_decode_real_frames),
 	KUNIT_CASE(test_rgb_raw_checksum_quirk),
 	KUNIT_CASE(test_us_dc_in_mode5_tags),
+	KUNIT_CASE(test_us_dc_old_mode_during_select),
 	KUNIT_CASE(test_select_and_stale_frames),
 	KUNIT_CASE(test_data_resync_after_garbage),
 	KUNIT_CASE(test_too_many_bad_frames),
