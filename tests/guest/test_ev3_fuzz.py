@@ -210,9 +210,9 @@ def test_the_runs_bounds_can_fail():
     assert ev3_fuzz.verdict({'count': 100, 'failures': [], 'info': good}, 100) == []
     broken = {
         'registered that the model refuses': dict(registered_despite_model=1),
-        'lost for want of data': dict(sensor_lost_sysfs=2, sensor_lost_write=2),
+        'lost for want of data': dict(sensor_lost_sysfs=3, sensor_lost_write=3),
         'ambiguous': dict(iio_ambiguous=2),
-        'timed out on saturated lines': dict(mode_timeout_saturated=3),
+        'timed out on saturated lines': dict(mode_timeout_saturated=5),
         'handshakes timed on the wire': dict(wire_handshakes=2),
         'stage written': dict(reached_written=8, excused_miss_written=1),
         'generator made no case': dict(model_switched=0, reached_switched=0),
@@ -293,16 +293,18 @@ def test_the_wire_checks_can_fail():
         'ACK before 10 ms': (moved(c.ack_ns, -6 * MS), recs, "after the sensor's"),
         'no sensor ACK': ([r for r in recs if r[4] != 'a'], None, 'no ACK of the sensor'),
         'a NACK dropped': ([r for r in recs if r[1] != c.nacks[4]], None, 'periods out of'),
-        'first NACK late': (moved(c.nacks[0], 110 * MS), None, 'first keep-alive'),
+        'first NACK late': (moved(c.nacks[0], 200 * MS), None, 'first keep-alive'),
         'a NACK early': (moved(c.nacks[6], -15 * MS), None, 'periods out of'),
     }
     for what, (recs2, _, want) in broken.items():
         errs = wire.check(recs2, 0, end)[0]
         assert any(want in e for e in errs), (what, errs)
-    # Every 92 ms: each period within the slack, the median not.
-    fast, end2 = good_records(period=92)
-    errs = wire.check(fast, 0, end2)[0]
-    assert len(errs) == 1 and 'median keep-alive period 92.0' in errs[0], errs
+    # Every 92 ms: each period within the slack, the median not; every
+    # 115 ms: late beyond a few ticks of wake-up.
+    for period in (92, 115):
+        recs2, end2 = good_records(period=period)
+        errs = wire.check(recs2, 0, end2)[0]
+        assert len(errs) == 1 and 'median keep-alive period %d.0' % period in errs[0], errs
     # Keep-alives that stop 300 ms before the detach.
     errs = wire.check(recs, 0, end + 300 * MS)[0]
     assert any('no keep-alive in the last' in e for e in errs), errs

@@ -16,14 +16,21 @@ and checks, against uart-peers.md (1.7, 1.10) and ev3dev.md (1.6):
   must be on the wire 10 ms plus the byte's own time after the sensor's, and
   less than 80 ms after it;
 - the keep-alive period: a NACK every 100 ms from the speed switch on, as
-  long as the connection lasts: the first one within a period of the ACK,
-  then each one 100 ms after the last, within KEEPALIVE_SLACK_MS either way
-  (the test kernel's timers tick every 4 ms, and the null modem sends what
-  was written at its next tick: up to two ticks of jitter, either way), the
-  median within a tick of 100 ms, and no more than a period plus the slack
-  between the last NACK and the end of the connection: a detach, the time
-  the caller gives, or the discipline's probe after a loss (plus the time
-  its work takes to run).
+  long as the connection lasts. The discipline queues each keep-alive
+  100 ms after the last one ran, so a period is 100 ms plus the time its
+  work took to wake up: never less than 100 ms less PERIOD_SLACK_MS (the
+  test kernel's timers tick every 4 ms, and the null modem sends what was
+  written at its next tick), the median no more than MEDIAN_LATE_MS over
+  100 ms (a few ticks of wake-up), and no period, nor the time from the ACK
+  to the first NACK or from the last NACK to the end of the connection (a
+  detach, the time the caller gives, or the discipline's probe after a
+  loss, plus the time its work takes), of two periods or more: a keep-alive
+  missed.
+
+The guest's clock is the host's (TCG): a guest starved by its host sees
+late timers in kernel time too, so these bounds hold on a host with CPU to
+spare; with four test VMs on two cores the discipline's keep-alive
+periods were measured up to 1084 ms and its ACKs up to 535 ms late.
 """
 import os
 import statistics
@@ -33,8 +40,9 @@ SYS_NACK, SYS_ACK = 0x02, 0x04
 ACK_DELAY_MS = 10           # the discipline's wait before its ACK (on purpose)
 ACK_DEADLINE_MS = 80        # the sensor's wait for it
 KEEPALIVE_MS = 100
-KEEPALIVE_SLACK_MS = 12     # three 4 ms ticks: timer, work, null-modem pacing
-TICK_MS = 4
+PERIOD_SLACK_MS = 12        # three 4 ms ticks: timer, work, null-modem pacing
+MEDIAN_LATE_MS = 12         # the work's wake-up, a few ticks
+MISSED_MS = 2 * KEEPALIVE_MS
 PROBE_WORK_MS = 50          # from the keep-alive that finds a sensor lost to the probe
 
 
@@ -188,34 +196,35 @@ def check_connection(c, end_ns=None):
     elif not low <= d < ACK_DEADLINE_MS:
         errs.append('%s: ACK %.1f ms after the sensor\'s (want %.1f <= d < %d ms): %r'
                     % (name, d, low, ACK_DEADLINE_MS, c))
-    hi = KEEPALIVE_MS + KEEPALIVE_SLACK_MS
-    lo = KEEPALIVE_MS - KEEPALIVE_SLACK_MS
+    hi = MISSED_MS
+    lo = KEEPALIVE_MS - PERIOD_SLACK_MS
     end = c.end_ns if c.end_ns is not None else end_ns
     if not c.nacks:
-        if end is not None and (end - c.ack_ns) / 1e6 > hi:
+        if end is not None and (end - c.ack_ns) / 1e6 >= hi:
             errs.append('%s: no keep-alive in the %.0f ms from the ACK to the %s'
                         % (name, (end - c.ack_ns) / 1e6, c.end_why or 'end'))
         return errs
     first = (c.nacks[0] - c.ack_ns) / 1e6
-    if first > hi:
-        errs.append('%s: first keep-alive %.1f ms after the ACK (want <= %d ms): %r'
+    if first >= hi:
+        errs.append('%s: first keep-alive %.1f ms after the ACK (want < %d ms): %r'
                     % (name, first, hi, c))
     periods = c.periods_ms()
-    bad = [p for p in periods if not lo <= p <= hi]
+    bad = [p for p in periods if not lo <= p < hi]
     if bad:
-        errs.append('%s: keep-alive periods out of %d..%d ms: %s (%s): %r'
+        errs.append('%s: keep-alive periods out of %d..<%d ms: %s (%s): %r'
                     % (name, lo, hi, ', '.join('%.1f' % p for p in bad[:10]),
                        summary(periods), c))
     if len(periods) >= 5:
         med = statistics.median(periods)
-        if abs(med - KEEPALIVE_MS) > TICK_MS:
-            errs.append('%s: median keep-alive period %.1f ms, want %d +- %d ms: %r'
-                        % (name, med, KEEPALIVE_MS, TICK_MS, c))
+        if not KEEPALIVE_MS - PERIOD_SLACK_MS / 3 <= med <= KEEPALIVE_MS + MEDIAN_LATE_MS:
+            errs.append('%s: median keep-alive period %.1f ms, want %d..%d ms: %r'
+                        % (name, med, KEEPALIVE_MS - PERIOD_SLACK_MS / 3,
+                           KEEPALIVE_MS + MEDIAN_LATE_MS, c))
     # A lost sensor: the keep-alive that finds no data sends nothing, and
     # the probe follows from the port's work queue. Before another ACK
     # without a probe (a tty that cannot probe) the line may rest.
     last = hi + (PROBE_WORK_MS if c.end_why == 'probe' else 0)
-    if end is not None and c.end_why != 'next ACK' and (end - c.nacks[-1]) / 1e6 > last:
-        errs.append('%s: no keep-alive in the last %.0f ms before the %s (want <= %d): %r'
+    if end is not None and c.end_why != 'next ACK' and (end - c.nacks[-1]) / 1e6 >= last:
+        errs.append('%s: no keep-alive in the last %.0f ms before the %s (want < %d): %r'
                     % (name, (end - c.nacks[-1]) / 1e6, c.end_why or 'end', last, c))
     return errs
