@@ -323,8 +323,10 @@ def test_a_wire_misreport_fails_a_fuzz_case(ev3_module, monkeypatch):
 
     def dropping(since=0):
         recs, lost = real(since)
-        nacks = [r for r in recs if r[2] == 0 and r[4] == 'b' and r[5] == wire.SYS_NACK]
-        drop = {r[0] for r in nacks[2::3]}
+        drop = set()
+        for kind in 'bw':               # on the wire, and as written
+            nacks = [r for r in recs if r[2] == 0 and r[4] == kind and r[5] == wire.SYS_NACK]
+            drop |= {r[0] for r in nacks[2::3]}
         return [r for r in recs if r[0] not in drop], lost
     monkeypatch.setattr(wire, 'read', dropping)
     err, info = one_case(seed, 'nullmodem')

@@ -2,7 +2,8 @@
 
 The null modem (tests/kmod/lego_nullmodem.c) logs in debugfs
 (lego_nullmodem/wire) when each byte the discipline's end of a line (an
-even port, ttyNM0, ttyNM2...) sent was on the wire, and when each burst of
+even port, ttyNM0, ttyNM2...) wrote was written and when it was on the
+wire, and when each burst of
 the sensor's end (the odd port) that ended in 0x04 did: a sensor's ACK ends
 its handshake so. The times are ktime_get_ns(), the guest's CLOCK_MONOTONIC
 (time.monotonic_ns() reads the same clock): what the emulator's thread or
@@ -15,12 +16,13 @@ and checks, against uart-peers.md (1.7, 1.10) and ev3dev.md (1.6):
   the discipline waits 10 ms on purpose (LEGO's UART_ACK_DELAY): its ACK
   must be on the wire 10 ms plus the byte's own time after the sensor's, and
   less than 80 ms after it;
-- the keep-alive period: a NACK every 100 ms from the speed switch on, as
-  long as the connection lasts. The discipline queues each keep-alive
+- the keep-alive period (when the NACKs were written): a NACK every 100 ms
+  from the speed switch on, as long as the connection lasts. The
+  discipline queues each keep-alive
   100 ms after the last one ran, so a period is 100 ms plus the time its
   work took to wake up: never less than 100 ms less PERIOD_SLACK_MS (the
-  test kernel's timers tick every 4 ms, and the null modem sends what was
-  written at its next tick), the median no more than MEDIAN_LATE_MS over
+  test kernel's timers tick every 4 ms; on the wire, the null modem sends
+  what was written at its next tick), the median no more than MEDIAN_LATE_MS over
   100 ms (a few ticks of wake-up), and no period, nor the time from the ACK
   to the first NACK or from the last NACK to the end of the connection (a
   detach, the time the caller gives, or the discipline's probe after a
@@ -93,12 +95,12 @@ def msg_len(hdr):
 MSG_GAP_NS = 50 * 10 ** 6
 
 
-def host_messages(recs, port):
+def host_messages(recs, port, which='b'):
     """The messages port sent, framed by their headers: [(ns of the last
-    byte, baud, bytes)]."""
+    byte, baud, bytes)], when they were on the wire ('b') or written ('w')."""
     out, cur, last = [], b'', (0, 0)
     for _, ns, p, baud, kind, byte in recs:
-        if p != port or kind != 'b':
+        if p != port or kind != which:
             continue
         if cur and (baud != last[1] or ns - last[0] > MSG_GAP_NS + 10 ** 10 // baud):
             cur = b''
@@ -163,6 +165,14 @@ def connections(recs, port):
             cur.nacks.append(ns)
         elif msg[0] & 0xc7 == 0x42:             # SPEED: the next probe
             cur.end_ns, cur.end_why = ns, 'probe'
+    # The keep-alives as the discipline wrote them, where the log has that:
+    # the null modem's pacing (a late tick sends two at once) is not the
+    # discipline's doing.
+    written = [ns for ns, _, msg in host_messages(recs, port, 'w') if msg == bytes([SYS_NACK])]
+    if written:
+        for c in conns:
+            c.nacks = [t for t in written
+                       if t > c.ack_ns and (c.end_ns is None or t < c.end_ns)]
     return conns
 
 

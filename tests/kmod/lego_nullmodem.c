@@ -29,7 +29,8 @@
  *    and the end of every burst of an odd port (the sensor's end) whose
  *    last byte is 0x04 (a sensor's ACK ends its handshake this way), so
  *    that tests can time the discipline's ACK and keep-alive period on
- *    every handshake from kernel time alone (see nm_wire_log()).
+ *    every handshake from kernel time alone (see nm_wire_log()); and,
+ *    for the even ports, when each byte was written (before the pacing).
  *
  * And a sensor stream generator for the sample-delivery benchmark
  * (tests/bench/guest/ev3_bench.py), so that the sender's rate is exact and
@@ -187,8 +188,9 @@ static struct tty_driver *nm_driver;
 /*
  * The wire log (debugfs lego_nullmodem/wire): the last NM_WIRE_LOG records,
  * one a line, oldest first: "seq ns port baud kind byte", kind 'b' for a
- * byte of an even port and 'a' for the end of an odd port's burst that
- * ended in 0x04 (byte is then 04); seq counts every record since the module
+ * byte of an even port on the wire, 'w' for one written to it (taken by
+ * nm_write()), and 'a' for the end of an odd port's burst that ended in
+ * 0x04 (byte is then 04); seq counts every record since the module
  * was loaded (or the log was cleared: write anything to the file), so that
  * a reader can take only what is new and see what was overwritten.
  */
@@ -218,9 +220,10 @@ static void nm_wire_log(struct nm_port *p, const u8 *buf, unsigned int n,
 	unsigned int port = p - nm_ports, i;
 	u64 byte_ns = div_u64(10ULL * NSEC_PER_SEC, baud ?: 9600);
 	struct nm_wire_rec *r;
+	unsigned long flags;
 
 	if (!(port & 1) || (end && buf[n - 1] == 0x04)) {
-		spin_lock(&nm_wire_lock);
+		spin_lock_irqsave(&nm_wire_lock, flags);
 		for (i = (port & 1) ? n - 1 : 0; i < n; i++) {
 			r = &nm_wire[nm_wire_head++ % NM_WIRE_LOG];
 			r->ns = now - (n - 1 - i) * byte_ns;
@@ -229,15 +232,36 @@ static void nm_wire_log(struct nm_port *p, const u8 *buf, unsigned int n,
 			r->byte = buf[i];
 			r->kind = (port & 1) ? 'a' : 'b';
 		}
-		spin_unlock(&nm_wire_lock);
+		spin_unlock_irqrestore(&nm_wire_lock, flags);
 	}
+}
+
+/* @n bytes were written to the even port @port at @baud (any context). */
+static void nm_wire_log_write(unsigned int port, const u8 *buf, unsigned int n,
+			      unsigned int baud)
+{
+	u64 now = ktime_get_ns();
+	struct nm_wire_rec *r;
+	unsigned long flags;
+	unsigned int i;
+
+	spin_lock_irqsave(&nm_wire_lock, flags);
+	for (i = 0; i < n; i++) {
+		r = &nm_wire[nm_wire_head++ % NM_WIRE_LOG];
+		r->ns = now;
+		r->baud = baud;
+		r->port = port;
+		r->byte = buf[i];
+		r->kind = 'w';
+	}
+	spin_unlock_irqrestore(&nm_wire_lock, flags);
 }
 
 static void *nm_wire_start(struct seq_file *m, loff_t *pos)
 {
 	u64 oldest;
 
-	spin_lock_bh(&nm_wire_lock);
+	spin_lock_irq(&nm_wire_lock);
 	oldest = nm_wire_head > NM_WIRE_LOG ? nm_wire_head - NM_WIRE_LOG : 0;
 	if (*pos < oldest)
 		*pos = oldest;
@@ -252,7 +276,7 @@ static void *nm_wire_next(struct seq_file *m, void *v, loff_t *pos)
 
 static void nm_wire_stop(struct seq_file *m, void *v)
 {
-	spin_unlock_bh(&nm_wire_lock);
+	spin_unlock_irq(&nm_wire_lock);
 }
 
 static int nm_wire_show(struct seq_file *m, void *v)
@@ -281,9 +305,9 @@ static int nm_wire_open(struct inode *inode, struct file *file)
 static ssize_t nm_wire_write(struct file *file, const char __user *buf,
 			     size_t count, loff_t *ppos)
 {
-	spin_lock_bh(&nm_wire_lock);
+	spin_lock_irq(&nm_wire_lock);
 	nm_wire_head = 0;
-	spin_unlock_bh(&nm_wire_lock);
+	spin_unlock_irq(&nm_wire_lock);
 	return count;
 }
 
@@ -522,6 +546,8 @@ static LEGO_TTY_WRITE_RET nm_write(struct tty_struct *tty, const u8 *buf,
 			      READ_ONCE(fifo_room) - min(kfifo_len(&p->fifo),
 							 READ_ONCE(fifo_room)));
 	n = kfifo_in(&p->fifo, buf, count);
+	if (n && !(tty->index & 1))
+		nm_wire_log_write(tty->index, buf, n, READ_ONCE(p->baud));
 	if (n && !p->running) {
 		p->running = true;
 		p->last = ktime_get();
