@@ -71,17 +71,33 @@ def ev3_module():
         subprocess.run(['insmod', module_path('lego_ev3_uart')], check=True)
 
 
+def pytest_configure(config):
+    config.addinivalue_line('markers', 'no_wire_timing(why): the line fixture does not check '
+                            'the ACK deadline and keep-alive period (the test breaks them)')
+
+
 @pytest.fixture
-def line(ev3_module):
-    """A null-modem line with the EV3 discipline attached on ttyNM0."""
+def line(ev3_module, request):
+    """A null-modem line with the EV3 discipline attached on ttyNM0. After
+    the test, every handshake the discipline answered on it is checked for
+    its ACK deadline and keep-alive period on the wire (wire.py), unless
+    the test is marked no_wire_timing."""
     import ev3
+    import wire
+    ev3.load_nullmodem()
+    since = wire.head() if wire.available() else None
     ln = ev3.Line(0)
     ln.attach()
     yield ln
+    end = time.monotonic_ns()
     ln.close()
     left = [d for d in ev3.glob.glob(ev3.CLASS + '/sensor*')
             if ev3.read_attr(d, 'address').split(':')[0] == ln.address]
     assert not left, 'sensor left behind after detach: %s' % left
+    if since is not None and not request.node.get_closest_marker('no_wire_timing'):
+        recs, lost = wire.read(since)
+        errors, conns = wire.check(recs, 0, end, lost, ln.detached_ns)
+        assert not errors, 'timing on the wire:\n' + '\n'.join(errors)
 
 
 @pytest.fixture(scope='module')

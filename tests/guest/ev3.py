@@ -257,6 +257,7 @@ class Line:
         self.address = os.path.basename(self.host)
         self.fd = None
         self.emu = None
+        self.detached_ns = []       # when detach() was called (wire.check())
 
     def attach(self):
         self.fd = os.open(self.host, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
@@ -282,6 +283,7 @@ class Line:
 
     def detach(self):
         if self.fd is not None:
+            self.detached_ns.append(time.monotonic_ns())
             os.close(self.fd)
             self.fd = None
 

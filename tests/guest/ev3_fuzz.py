@@ -5,7 +5,16 @@ Each case (tests/emulator/ev3_gen.py: case(seed)) is played by an emulated
 sensor on a pty or on a null-modem line, and goes through attach,
 registration (or a refusal with a log line), reading every sysfs and IIO
 attribute, a buffered capture, mode switches, a WRITE, and a detach; the
-kernel log must stay free of splats. Runs inside the test VM.
+kernel log must stay free of splats. On a null-modem line the driver's ACK
+deadline and keep-alive period are checked too, from the null modem's
+kernel timestamps (wire.py). Runs inside the test VM.
+
+What a case may get away with, each counted on its own (the test bounds
+them): a sensor lost mid-case for want of data (an emulator starved of
+CPU), only when the kernel log says so for its port; a mode write that
+times out on a null-modem line whose DATA messages take 100 ms or more
+(the emulated sensor's answers queue up), only with the driver's log line.
+Anything else that differs from the model or the ABI fails the case.
 
 Usage (in the VM):
   python3 tests/guest/ev3_fuzz.py --seed S [--count N] [--transport pty|nullmodem]
@@ -38,6 +47,7 @@ import ev3  # noqa: E402
 from kstacks import kernel_stacks  # noqa: E402
 import ev3_gen as gen  # noqa: E402
 import ev3_sensor as es  # noqa: E402
+import wire  # noqa: E402
 
 N_TTY, N_LEGOEV3 = 0, 29
 TIOCVHANGUP = 0x5437
@@ -72,8 +82,110 @@ class Hang(Exception):
 
 
 class SensorLost(Exception):
-    """The driver dropped the sensor for missing keep-alive answers (an
-    emulator starved of CPU): the case ends with the detach checks."""
+    """The driver dropped the sensor for want of data (an emulator starved
+    of CPU), and said so in the log for its port: the case ends with the
+    detach checks."""
+
+
+# The driver's lines for a lost sensor (ev3_uart_event(), reset_work): the
+# reason, then the loss; only a loss for want of data is the emulator's.
+LOST_REASON = 'no data from the sensor'
+
+
+def lost_lines(address, lines):
+    """The reasons the log gives for sensors lost on `address` in `lines`:
+    the last reason line before each "<address>: <driver> disconnected".
+    A sensor may be lost while it registers: the reason comes first, then
+    "... connected as ..." and "reconnected after: <reason>" (the work
+    that registers it holds up the one that drops it)."""
+    pre = re.compile(r'(?:^|: )%s: (.*)$' % re.escape(address))
+    reasons, last = [], None
+    for line in lines:
+        m = pre.search(line)
+        if not m:
+            continue
+        text = m.group(1)
+        if text.endswith(' disconnected'):
+            reasons.append(last)
+        elif ' connected as ' in text:
+            continue
+        else:
+            last = text.split('reconnected after: ', 1)[-1]
+    return reasons
+
+
+SCALE_MIN_NANO = 1000                       # ev3_uart_chan.c
+SCALE_MAX_NANO = (2 ** 31 - 1) * 10 ** 9 + 10 ** 9 - 1
+
+
+def _mul_div(a, b, c):
+    """ev3_uart_mul_div(), rounded: None where the quotient needs > 64 bits."""
+    q = (a * b + c // 2) // c
+    return q if q < 2 ** 64 else None
+
+
+def chan_shown(m, nano):
+    """Whether the driver gives a value of mode m (with IIO units of `nano`
+    per SI unit) a channel: ev3_uart_chan_scale() leaves out a value whose
+    scale or offset IIO cannot show, or whose scale would be mostly
+    rounding."""
+    dec = min(m.dec, gen.MAX_DECIMALS)
+    if m.t == es.FLOAT:
+        for d in range(dec, -1, -1):
+            if d == 0 or nano // 10 ** d >= SCALE_MIN_NANO:
+                break
+        scale = (nano + 10 ** d // 2) // 10 ** d
+        return SCALE_MIN_NANO <= scale <= SCALE_MAX_NANO
+    raw_span, si_span = m.raw[1] - m.raw[0], m.si[1] - m.si[0]
+    if not raw_span or not si_span:
+        scale = _mul_div(nano, 1, 10 ** dec)
+        return scale is not None and SCALE_MIN_NANO <= scale <= SCALE_MAX_NANO
+    scale = _mul_div(abs(si_span), nano, abs(raw_span) * 10 ** dec)
+    if scale is None or not SCALE_MIN_NANO <= scale <= SCALE_MAX_NANO:
+        return False
+    neg = (si_span < 0) != (raw_span < 0)
+    off = _mul_div(abs(m.si[0]) * abs(raw_span), 10 ** 6, abs(si_span))
+    if off is None:
+        return False
+    offset = -off if (m.si[0] < 0) != neg else off
+    offset -= m.raw[0] * 10 ** 6
+    if not -2 ** 63 <= offset < 2 ** 63:
+        return False
+    q = abs(offset) // 10 ** 6
+    q = -q if offset < 0 else q                  # div_s64_rem truncates
+    return -2 ** 31 <= q <= 2 ** 31 - 1
+
+
+def model_channels(d, mode):
+    """How many IIO channels the driver gives mode `mode` of d."""
+    nano = gen.iio_nano(d, mode)
+    if nano is None:
+        return 0
+    m = d.modes[mode]
+    return m.n if chan_shown(m, nano) else 0
+
+
+def model_stages(c):
+    """The stages the model says case c reaches if nothing is lost: a set
+    of 'registered', 'refused', 'values' (sysfs values checked), 'iio' (an
+    IIO device), 'captured' (scans of mode 0), 'switched' (a mode switch),
+    'written' (a WRITE), 'detached'. The IIO channels as the driver makes
+    them (ev3_uart_chans_build(), chan_shown()). None where the model cannot tell
+    (a case that hits a known driver bug: what the fixed driver makes of
+    it is not modelled)."""
+    if c.desc is None:
+        return {'refused'}
+    if c.bugs:
+        return None
+    d = c.desc
+    st = {'registered', 'values', 'written', 'detached'}
+    if any(model_channels(d, i) for i in range(d.num_modes)):
+        st.add('iio')
+        if model_channels(d, 0):
+            st.add('captured')
+    if d.num_modes > 1:
+        st.add('switched')
+    return st
 
 
 def replay_command(seed, transport, known):
@@ -167,6 +279,12 @@ class Runner:
     def bump(self, key, n=1):
         self.info[key] = self.info.get(key, 0) + n
 
+    def extreme(self, key, v):
+        """Keep the least (key ending in _min) or greatest (_max) value."""
+        if key in self.info:
+            v = min(v, self.info[key]) if key.endswith('_min') else max(v, self.info[key])
+        self.info[key] = v
+
     def run(self, seed):
         """Run the case of `seed`; None if it passed, else the failure text."""
         c = gen.case(seed, self.transport, self.known)
@@ -177,6 +295,9 @@ class Runner:
         self.step = 'setup'
         self._seen = []
         self._sd = None
+        self.stages = set()
+        self.excuses = set()
+        self.wire_since = None
         err = None
         old = signal.signal(signal.SIGALRM, self._alarm)
         signal.alarm(CASE_TIMEOUT)
@@ -194,14 +315,40 @@ class Runner:
         splats = [line for line in self.kmsg.read() if SPLAT.search(line)]
         if splats:
             err = (err + '\n' if err else '') + 'kernel splat:\n  ' + '\n  '.join(splats[:20])
+        if not err and self.wire_since is not None:
+            err = self._check_wire(c)
         self.bump('cases')
         self.bump('cases_' + c.kind)
+        for ex in self.excuses:
+            self.bump('excused_' + ex)
+        want = model_stages(c)
+        if want is not None:
+            self.bump('model_cases')
+            for st in want:
+                self.bump('model_' + st)
+            for st in want & self.stages:
+                self.bump('reached_' + st)
+            missed = want - self.stages
+            for st in missed:
+                self.bump(('excused_miss_' if self.excused(st) else 'missed_') + st)
+            unexcused = sorted(st for st in missed if not self.excused(st))
+            if unexcused and not err:
+                err = ('the model says the case reaches %s; it reached %s only'
+                       % (', '.join(unexcused), ', '.join(sorted(self.stages)) or 'none'))
         if err:
             return ('seed %d (%s, %s): %s\n  %s\n  replay: %s'
                     % (seed, c.kind, self.transport, err,
                        c.describe().replace('\n', '\n  '),
                        replay_command(seed, self.transport, self.known)))
         return None
+
+    # What a tolerated event excuses: the stages after it.
+    EXCUSES = {'lost': {'values', 'iio', 'captured', 'switched', 'written'},
+               'iio_ambiguous': {'iio', 'captured'},
+               'mode_timeout': {'switched'}}
+
+    def excused(self, stage):
+        return any(stage in self.EXCUSES[ex] for ex in self.excuses)
 
     def _alarm(self, signum, frame):
         raise Hang()
@@ -212,11 +359,17 @@ class Runner:
     def check(self, cond, msg):
         if not cond:
             if ('ENODEV' in msg or 'ENOENT' in msg) and self._sd is not None:
-                # Dropped (its log line may be rate-limited): the directory
-                # must be gone too. Counted; the test bounds how often.
+                # Lost? Only if the directory is gone and the log says, for
+                # this port, that the sensor sent no data. Counted; the test
+                # bounds how often.
+                gone = self._sd.wait_gone(10)
                 self.kmsg_lines()
-                if self._sd.wait_gone(10):
+                reasons = lost_lines(self.address, self._seen)
+                if gone and reasons and reasons[-1] == LOST_REASON:
                     raise SensorLost()
+                self.fail('%s (the sensor %s; the log says for %s: %s)' % (
+                    msg, 'is gone' if gone else 'is still there', self.address,
+                    ', '.join('lost after %r' % r for r in reasons) or 'no loss'))
             self.fail(msg)
 
     # -- the line --
@@ -229,6 +382,8 @@ class Runner:
             self.far = master
         else:
             ev3.load_nullmodem()
+            if wire.available():
+                self.wire_since = wire.head()
             self.master = None
             self.host = os.open('/dev/ttyNM%d' % (2 * self.pair),
                                 os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
@@ -248,6 +403,29 @@ class Runner:
             os.close(self.host)
             self.host = None
         return how
+
+    def _check_wire(self, c):
+        """The driver's ACKs and keep-alives on the null-modem line, from
+        the null modem's timestamps: None, or what is wrong."""
+        recs, lost = wire.read(self.wire_since)
+        errors, conns = wire.check(recs, 2 * self.pair, self.detached_ns, lost)
+        registered = 'registered' in self.stages
+        if registered and not conns:
+            errors.append('a sensor registered, but no ACK of the driver is on the wire')
+        if c.desc is None and conns:
+            errors.append('the driver ACKed a handshake the model refuses: %r' % conns)
+        self.bump('wire_handshakes', len(conns))
+        self.bump('wire_keepalives', sum(len(x.nacks) for x in conns))
+        for x in conns:
+            if x.ack_delay_ms is not None:
+                self.extreme('wire_ack_ms_min', round(x.ack_delay_ms))
+                self.extreme('wire_ack_ms_max', round(x.ack_delay_ms))
+            for p in x.periods_ms():
+                self.extreme('wire_period_ms_min', round(p))
+                self.extreme('wire_period_ms_max', round(p))
+        if errors:
+            return 'timing on the wire:\n  ' + '\n  '.join(errors)
+        return None
 
     def _close_line(self):
         for fd in (self.host, self.master):
@@ -282,6 +460,7 @@ class Runner:
     def _run(self, c):
         rng = random.Random(c.seed ^ 0x5eed)
         self.master = self.host = None
+        self.detached_ns = None
         emu = None
         sd = None
         self.iio_before = set(glob.glob(IIO + '/iio:device*'))
@@ -306,14 +485,18 @@ class Runner:
                            is not False, '%s not published %.0f s after its class device appeared'
                            % (sd.path, REGISTER_TIMEOUT))
                 self.bump('registered')
+                self.bump(self.transport + '_registered')
+                self.stages.add('registered')
             iio = None
             try:
                 self.step = 'sysfs'
                 self._sd = sd
                 self._check_sysfs(c, sd, emu, 0)
+                self.stages.add('values')
                 self.step = 'iio'
                 iio = self._find_iio(c, sd)
                 if iio:
+                    self.stages.add('iio')
                     self._check_iio(c, sd, iio, emu)
                     self.step = 'buffer'
                     self._capture(c, sd, iio, emu)
@@ -321,9 +504,12 @@ class Runner:
                 self._switch_modes(c, sd, emu, rng, iio)
                 self.step = 'write'
                 self._write(sd, emu, rng)
+                self.stages.add('written')
             except SensorLost:
                 self.bump('sensor_lost_' + self.step.replace(' ', '_'))
+                self.excuses.add('lost')
             self.step = 'detach'
+            self.detached_ns = time.monotonic_ns()
             how = self._detach(rng)
             self.bump('detach_' + how)
             self.check(sd.wait_gone(GONE_TIMEOUT),
@@ -332,6 +518,7 @@ class Runner:
             if iio:
                 self.check(ev3.wait_gone(iio, GONE_TIMEOUT),
                            'the IIO device %s outlived the detach (%s)' % (iio, how))
+            self.stages.add('detached')
         finally:
             if sd:
                 sd.close()
@@ -345,8 +532,7 @@ class Runner:
 
     def _expect_refusal(self, c):
         """The model refuses the handshake: the driver must not crash and
-        must say why in the log. If it registers a sensor anyway, that is
-        counted (the model cannot check it) and the case ends."""
+        must say why in the log, and must not register a sensor."""
         wait = REFUSE_WAIT
         if self.transport == 'nullmodem':
             wait += len(c.data) * 10 / 2400         # the handshake's time on the line
@@ -354,8 +540,10 @@ class Runner:
         if sd:
             self.bump('registered_despite_model')
             sd.close()
-            return None
+            self.fail('the driver registered %s, which the model refuses (%s)'
+                      % (sd.path, '; '.join(c.reasons)))
         self.bump('refused')
+        self.stages.add('refused')
         # pr_info_ratelimited: a burst of refusals may hide the line.
         logged = any(self.address + ':' in line or 'callbacks suppressed' in line
                      for line in self.kmsg_lines())
@@ -467,6 +655,7 @@ class Runner:
                 return found[0]
             if len(found) > 1:
                 self.bump('iio_ambiguous')
+                self.excuses.add('iio_ambiguous')
                 return None
             if time.monotonic() > deadline:
                 break
@@ -582,14 +771,15 @@ class Runner:
         fd = os.open('/dev/iio:device' + num, os.O_RDONLY | os.O_NONBLOCK)
         data = b''
         try:
+            # The channels are those of the current mode, and no other
+            # buffer holds the sensor: the driver has nothing to switch, so
+            # no errno (EINVAL, EBUSY, ETIMEDOUT) is right here.
             try:
                 with open(iio + '/buffer/enable', 'w') as f:
                     f.write('1')
             except OSError as e:
-                self.check(e.errno in (errno.EINVAL, errno.EBUSY, errno.ETIMEDOUT),
-                           'buffer enable: %s' % ename(e.errno))
-                self.bump('capture_refused_' + ename(e.errno))
-                return
+                self.check(False, 'buffer enable with the channels of the current mode: %s'
+                           % ename(e.errno))
             emu.stream(16, timeout=3)
             deadline = time.monotonic() + 4
             while time.monotonic() < deadline and len(data) < scan_size * 8:
@@ -628,6 +818,7 @@ class Runner:
             else:
                 self.fail('timestamps not increasing: %s' % stamps[:10])
         self.bump('captured_scans', len(stamps))
+        self.stages.add('captured')
 
     # -- modes --
 
@@ -639,6 +830,7 @@ class Runner:
         e = try_write(sd, 'mode', '#%d' % d.num_modes)
         self.check(e == errno.EINVAL, 'writing an unknown mode: %s, want EINVAL' % ename(e))
         count = 1 if d.type == gen.TYPE_IR else rng.randint(1, 3)
+        cur = 0
         for k in range(count):
             if d.num_modes == 1:
                 break
@@ -659,25 +851,42 @@ class Runner:
                     e = err.errno
             else:
                 e = try_write(sd, 'mode', name)
-            if e == errno.ETIMEDOUT and self.saturated(d):
-                # At this speed the messages the sensor sends (one per
-                # NACK, every 100 ms) take longer than 100 ms: the line
-                # is full, and the first message of the new mode can wait
-                # longer than the driver's 3 x 250 ms.
+            saturated = self.saturated(d, cur)
+            if saturated:
+                self.bump('mode_switches_saturated')
+            if e == errno.ETIMEDOUT and saturated:
+                # The current mode's messages (one per NACK, every 100 ms)
+                # take 100 ms or more on this line: the emulated sensor's
+                # answers queue up in its tty, and the first message of
+                # the new mode can wait longer than the driver's 3 x 250
+                # ms. The driver must say so, and keep a mode it has.
+                self.kmsg_lines()
+                self.check(any('mode %s not confirmed by the sensor' % d.modes[first].name in line
+                               or 'callbacks suppressed' in line for line in self._seen),
+                           'mode %r timed out without the log line' % name)
+                got, e = try_read(sd, 'mode')
+                self.check(e is None and got in (tokens(d)[cur], tokens(d)[first]),
+                           'mode reads %r (%s) after a timed-out switch from %r to %r'
+                           % (got, ename(e), tokens(d)[cur], tokens(d)[first]))
                 self.bump('mode_timeout_saturated')
-                continue
+                self.excuses.add('mode_timeout')
+                # Which mode the sensor ends in is not known: no more switches.
+                break
             self.check(e is None, 'mode %r (%d) through %s: %s' % (
                 name, first, 'IIO' if use_iio else 'sysfs', ename(e)))
             self.bump('mode_switches')
+            self.stages.add('switched')
+            cur = first
             self._check_mode_fields(sd, d.modes[first], tokens(d)[first])
             self._check_values(c, sd, emu, first)
 
-    def saturated(self, d):
-        """Whether some mode's DATA message takes 100 ms or more on the line."""
+    def saturated(self, d, mode):
+        """Whether the DATA messages of `mode` take 100 ms or more on the
+        line (so that the sensor's answers to the keep-alives queue up)."""
         if self.transport == 'pty':
             return False
-        sizes = [2 + gen.pow2_at_least(gen.SIZE[m.t] * m.n) for m in d.modes[:d.num_modes]]
-        return max(sizes) * 10 / d.speed >= 0.1
+        m = d.modes[mode]
+        return (2 + gen.pow2_at_least(gen.SIZE[m.t] * m.n)) * 10 / d.speed >= 0.1
 
     def _write(self, sd, emu, rng):
         n = rng.choice([1, 2, 3, 5, 8, 16, 31, 32, rng.randint(1, 32)])
@@ -753,7 +962,13 @@ def run_many(plan, known, verbose=False, timeout_per_case=CASE_TIMEOUT, max_fail
         total['count'] += res['count']
         total['failures'] += res['failures']
         for k, v in res['info'].items():
-            total['info'][k] = total['info'].get(k, 0) + v
+            if k in total['info'] and k.endswith('_min'):
+                v = min(v, total['info'][k])
+            elif k in total['info'] and k.endswith('_max'):
+                v = max(v, total['info'][k])
+            else:
+                v += total['info'].get(k, 0)
+            total['info'][k] = v
 
     got = 0
     while got < len(procs):
@@ -803,6 +1018,58 @@ def plan_for(count, seed, pty_workers=2, nullmodem_lines=(), nullmodem_share=0.0
     return [p for p in plan if p[2]]
 
 
+STAGES = ['registered', 'refused', 'values', 'iio', 'captured', 'switched', 'written',
+          'detached']
+# The tolerances, each bounded on its own (a share of the cases it can
+# happen in, and at least this many).
+LOST_SHARE, LOST_MIN = 0.05, 1              # of the sensors registered
+AMBIGUOUS_MAX = 1                           # two identical sensors at once
+# Of the switches off a saturated mode: its answers to the keep-alives
+# (10 a second, each longer on the line than 100 ms) queue up in the
+# emulated sensor's tty for as long as the mode lasts, so that any of
+# them may time out; each one is checked on its own (log line, mode).
+TIMEOUT_SHARE, TIMEOUT_MIN = 1.0, 1
+
+
+def verdict(res, count):
+    """What is wrong with a run beyond its cases' own failures: the model
+    and the driver disagreed on a registration, a stage the generator says
+    the cases reach was reached less often than that (less the cases
+    excused by a tolerated event), a tolerance exceeded its bound, or a
+    null-modem case had no handshake timed on the wire. A list of texts."""
+    info = res['info']
+    errs = []
+    if res['count'] != count:
+        errs.append('%d cases run of %d' % (res['count'], count))
+    if info.get('registered_despite_model', 0):
+        errs.append('%d sensors registered that the model refuses'
+                    % info['registered_despite_model'])
+    for st in STAGES:
+        model = info.get('model_' + st, 0)
+        reached = info.get('reached_' + st, 0)
+        excused = info.get('excused_miss_' + st, 0)
+        if reached < model - excused:
+            errs.append('stage %s: reached in %d cases, the generator says %d (%d excused)'
+                        % (st, reached, model, excused))
+        if count >= 100 and not model:
+            errs.append('stage %s: the generator made no case that reaches it' % st)
+    lost = sum(v for k, v in info.items() if k.startswith('sensor_lost_'))
+    bound = max(LOST_MIN, int(LOST_SHARE * info.get('registered', 0)))
+    if lost > bound:
+        errs.append('%d sensors lost for want of data, more than %d' % (lost, bound))
+    if info.get('iio_ambiguous', 0) > AMBIGUOUS_MAX:
+        errs.append('%d IIO devices ambiguous, more than %d'
+                    % (info['iio_ambiguous'], AMBIGUOUS_MAX))
+    bound = max(TIMEOUT_MIN, int(TIMEOUT_SHARE * info.get('mode_switches_saturated', 0)))
+    if info.get('mode_timeout_saturated', 0) > bound:
+        errs.append('%d mode switches timed out on saturated lines, more than %d'
+                    % (info['mode_timeout_saturated'], bound))
+    if info.get('nullmodem_registered', 0) > info.get('wire_handshakes', 0):
+        errs.append('%d sensors registered on the null modem, %d handshakes timed on the wire'
+                    % (info['nullmodem_registered'], info.get('wire_handshakes', 0)))
+    return errs
+
+
 def ensure_modules():
     if not os.path.isdir('/sys/module/lego_ev3_uart'):
         import subprocess
@@ -843,7 +1110,10 @@ def main():
              ' '.join('%s=%d' % kv for kv in sorted(res['info'].items()))), flush=True)
     for f in res['failures']:
         print('ev3fuzz: FAIL %s' % f)
-    return 1 if res['failures'] or res['count'] < args.count else 0
+    bad = verdict(res, args.count)
+    for f in bad:
+        print('ev3fuzz: FAIL (run) %s' % f)
+    return 1 if res['failures'] or bad else 0
 
 
 if __name__ == '__main__':

@@ -239,6 +239,7 @@ def test_failing_device_is_backed_off(line):
     assert ev3.read_attr(path, 'driver_name') == 'ev3-uart-99'
 
 
+@pytest.mark.no_wire_timing('its writes fail on purpose: the keep-alives stop')
 def test_write_errors_are_logged_once(line):
     """Issue 28: a tty whose writes fail (the null modem's fail_writes)
     had a warning for each keep-alive, every 100 ms, as long as it lasted.

@@ -22,7 +22,15 @@
  *  - ack_ns records, per port, when its last burst of bytes at 2400 baud
  *    that ended in 0x04 (an EV3 ACK) was on the wire, so that a test can
  *    time the discipline's ACK against the sensor's on the line itself,
- *    whatever the emulator's thread was doing.
+ *    whatever the emulator's thread was doing;
+ *  - the debugfs file lego_nullmodem/wire logs, with ktime_get_ns() when
+ *    it was on the wire, every byte an even port sends (the discipline's
+ *    end of each line in the tests: its ACK, keep-alive NACKs, SELECT...)
+ *    and the end of every burst of an odd port (the sensor's end) whose
+ *    last byte is 0x04 (a sensor's ACK ends its handshake this way), so
+ *    that tests can time the discipline's ACK and keep-alive period on
+ *    every handshake from kernel time alone (see nm_wire_log()); and,
+ *    for the even ports, when each byte was written (before the pacing).
  *
  * And a sensor stream generator for the sample-delivery benchmark
  * (tests/bench/guest/ev3_bench.py), so that the sender's rate is exact and
@@ -50,10 +58,12 @@
  *
  * Not meant for anything but tests.
  */
+#include <linux/debugfs.h>
 #include <linux/hrtimer.h>
 #include <linux/kfifo.h>
 #include <linux/log2.h>
 #include <linux/module.h>
+#include <linux/seq_file.h>
 #include <linux/slab.h>
 #include <linux/spinlock.h>
 #include <linux/tty.h>
@@ -175,6 +185,141 @@ struct nm_port {
 static struct nm_port *nm_ports;
 static struct tty_driver *nm_driver;
 
+/*
+ * The wire log (debugfs lego_nullmodem/wire): the last NM_WIRE_LOG records,
+ * one a line, oldest first: "seq ns port baud kind byte", kind 'b' for a
+ * byte of an even port on the wire, 'w' for one written to it (taken by
+ * nm_write()), and 'a' for the end of an odd port's burst that ended in
+ * 0x04 (byte is then 04); seq counts every record since the module
+ * was loaded (or the log was cleared: write anything to the file), so that
+ * a reader can take only what is new and see what was overwritten.
+ */
+#define NM_WIRE_LOG	16384
+
+struct nm_wire_rec {
+	u64 ns;
+	u32 baud;
+	u8 port;
+	u8 byte;
+	u8 kind;
+};
+
+static struct nm_wire_rec nm_wire[NM_WIRE_LOG];
+static u64 nm_wire_head;		/* records logged: the next seq */
+static DEFINE_SPINLOCK(nm_wire_lock);	/* protects the two above */
+static struct dentry *nm_debugfs;
+
+/*
+ * @n bytes of port @p went on the wire, the last one at @now, @end if its
+ * fifo is empty now: each byte's time is when its last bit was sent, at
+ * @baud (timer context).
+ */
+static void nm_wire_log(struct nm_port *p, const u8 *buf, unsigned int n,
+			unsigned int baud, u64 now, bool end)
+{
+	unsigned int port = p - nm_ports, i;
+	u64 byte_ns = div_u64(10ULL * NSEC_PER_SEC, baud ?: 9600);
+	struct nm_wire_rec *r;
+	unsigned long flags;
+
+	if (!(port & 1) || (end && buf[n - 1] == 0x04)) {
+		spin_lock_irqsave(&nm_wire_lock, flags);
+		for (i = (port & 1) ? n - 1 : 0; i < n; i++) {
+			r = &nm_wire[nm_wire_head++ % NM_WIRE_LOG];
+			r->ns = now - (n - 1 - i) * byte_ns;
+			r->baud = baud;
+			r->port = port;
+			r->byte = buf[i];
+			r->kind = (port & 1) ? 'a' : 'b';
+		}
+		spin_unlock_irqrestore(&nm_wire_lock, flags);
+	}
+}
+
+/* @n bytes were written to the even port @port at @baud (any context). */
+static void nm_wire_log_write(unsigned int port, const u8 *buf, unsigned int n,
+			      unsigned int baud)
+{
+	u64 now = ktime_get_ns();
+	struct nm_wire_rec *r;
+	unsigned long flags;
+	unsigned int i;
+
+	spin_lock_irqsave(&nm_wire_lock, flags);
+	for (i = 0; i < n; i++) {
+		r = &nm_wire[nm_wire_head++ % NM_WIRE_LOG];
+		r->ns = now;
+		r->baud = baud;
+		r->port = port;
+		r->byte = buf[i];
+		r->kind = 'w';
+	}
+	spin_unlock_irqrestore(&nm_wire_lock, flags);
+}
+
+static void *nm_wire_start(struct seq_file *m, loff_t *pos)
+{
+	u64 oldest;
+
+	spin_lock_irq(&nm_wire_lock);
+	oldest = nm_wire_head > NM_WIRE_LOG ? nm_wire_head - NM_WIRE_LOG : 0;
+	if (*pos < oldest)
+		*pos = oldest;
+	return *pos < nm_wire_head ? pos : NULL;
+}
+
+static void *nm_wire_next(struct seq_file *m, void *v, loff_t *pos)
+{
+	++*pos;
+	return *pos < nm_wire_head ? pos : NULL;
+}
+
+static void nm_wire_stop(struct seq_file *m, void *v)
+{
+	spin_unlock_irq(&nm_wire_lock);
+}
+
+static int nm_wire_show(struct seq_file *m, void *v)
+{
+	u64 seq = *(loff_t *)v;
+	const struct nm_wire_rec *r = &nm_wire[seq % NM_WIRE_LOG];
+
+	seq_printf(m, "%llu %llu %u %u %c %02x\n", seq, r->ns, r->port, r->baud,
+		   r->kind, r->byte);
+	return 0;
+}
+
+static const struct seq_operations nm_wire_seq_ops = {
+	.start	= nm_wire_start,
+	.next	= nm_wire_next,
+	.stop	= nm_wire_stop,
+	.show	= nm_wire_show,
+};
+
+static int nm_wire_open(struct inode *inode, struct file *file)
+{
+	return seq_open(file, &nm_wire_seq_ops);
+}
+
+/* Any write clears the log. */
+static ssize_t nm_wire_write(struct file *file, const char __user *buf,
+			     size_t count, loff_t *ppos)
+{
+	spin_lock_irq(&nm_wire_lock);
+	nm_wire_head = 0;
+	spin_unlock_irq(&nm_wire_lock);
+	return count;
+}
+
+static const struct file_operations nm_wire_fops = {
+	.owner		= THIS_MODULE,
+	.open		= nm_wire_open,
+	.read		= seq_read,
+	.write		= nm_wire_write,
+	.llseek		= seq_lseek,
+	.release	= seq_release,
+};
+
 static void nm_deliver(struct nm_port *from, const u8 *buf, unsigned int n)
 {
 	struct nm_port *to = from->peer;
@@ -235,6 +380,7 @@ static enum hrtimer_restart nm_tick(struct hrtimer *timer)
 	spin_unlock(&p->lock);
 
 	if (n) {
+		nm_wire_log(p, buf, n, READ_ONCE(p->baud), ktime_get_ns(), !more);
 		nm_deliver(p, buf, n);
 		if (!more && buf[n - 1] == 0x04 && READ_ONCE(p->baud) == 2400)
 			WRITE_ONCE(ack_ns[p - nm_ports], ktime_get_ns());
@@ -400,6 +546,8 @@ static LEGO_TTY_WRITE_RET nm_write(struct tty_struct *tty, const u8 *buf,
 			      READ_ONCE(fifo_room) - min(kfifo_len(&p->fifo),
 							 READ_ONCE(fifo_room)));
 	n = kfifo_in(&p->fifo, buf, count);
+	if (n && !(tty->index & 1))
+		nm_wire_log_write(tty->index, buf, n, READ_ONCE(p->baud));
 	if (n && !p->running) {
 		p->running = true;
 		p->last = ktime_get();
@@ -516,6 +664,9 @@ static int __init nm_init(void)
 	ret = tty_register_driver(nm_driver);
 	if (ret)
 		goto put_driver;
+	/* Tests without debugfs only lose the wire log. */
+	nm_debugfs = debugfs_create_dir("lego_nullmodem", NULL);
+	debugfs_create_file("wire", 0600, nm_debugfs, NULL, &nm_wire_fops);
 	return 0;
 
 put_driver:
@@ -532,6 +683,7 @@ static void __exit nm_exit(void)
 {
 	unsigned int i;
 
+	debugfs_remove_recursive(nm_debugfs);
 	hrtimer_cancel(&nm_gen.timer);
 	tty_unregister_driver(nm_driver);
 	for (i = 0; i < 2 * pairs; i++) {
