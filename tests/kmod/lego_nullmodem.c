@@ -258,6 +258,7 @@ static void nm_wire_log_write(unsigned int port, const u8 *buf, unsigned int n,
 }
 
 static void *nm_wire_start(struct seq_file *m, loff_t *pos)
+	__acquires(&nm_wire_lock)
 {
 	u64 oldest;
 
@@ -275,6 +276,7 @@ static void *nm_wire_next(struct seq_file *m, void *v, loff_t *pos)
 }
 
 static void nm_wire_stop(struct seq_file *m, void *v)
+	__releases(&nm_wire_lock)
 {
 	spin_unlock_irq(&nm_wire_lock);
 }
