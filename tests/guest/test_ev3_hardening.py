@@ -555,6 +555,20 @@ def _wait(cond, timeout, step=0.002):
     return cond()
 
 
+def _stall_empty(port):
+    """Hold ttyNM<port>'s transmitter when it holds nothing: a keep-alive
+    taken just before would be held in the port, not in the discipline's
+    queue."""
+    for _ in range(50):
+        ev3.clear_wire(port)
+        ev3.stall(port, True)
+        if ev3.nm_state(port)['held'] == 0:
+            return
+        ev3.stall(port, False)
+        time.sleep(0.02)
+    raise AssertionError('ttyNM%d never empty' % port)
+
+
 def test_probe_message_does_not_outlive_its_speed(ev3_module):
     """Issue 28: what the discipline had queued for the tty survived a
     speed change. Attached to a line whose transmitter is held, the fast
@@ -592,8 +606,7 @@ def test_ack_does_not_go_out_at_the_sensor_speed(line):
     queued at 57600, never the ACK. The sensor, left without its ACK,
     starts over and connects once the line sends again."""
     emu = line.plug('gyro')
-    ev3.clear_wire(0)
-    ev3.stall(0, True)
+    _stall_empty(0)
     try:
         assert _wait(lambda: termios.tcgetattr(line.fd)[5] == termios.B57600, 10), \
             (emu.events, ev3.counters(line.address))
@@ -609,17 +622,11 @@ def test_ack_does_not_go_out_at_the_sensor_speed(line):
     assert find_sensor(line.address, timeout=15), emu.events
 
 
-def test_queue_for_a_lost_sensor_is_dropped(ev3_module):
-    """Issue 28: a SELECT or a WRITE still queued when a sensor was lost
-    reached the next one. On a line whose speed is locked at 2400 (no
-    probe, no speed change: the speed change cannot drop them), a 2400-baud
-    sensor gets a WRITE and a SELECT while the transmitter is held, and is
-    unplugged; once it is lost and the transmitter may send, none of that
-    (nor the keep-alives queued meanwhile) must go out. The next sensor
-    then connects and receives no WRITE."""
-    sdef = SensorDef(92, 'ev3-uart-92', 2, [
-        Mode('ONE', (0, 100), (0, 100), 'pct', 1, S8, 3, 0),
-        Mode('TWO', (0, 100), (0, 100), 'pct', 1, S8, 3, 0)], speed=2400, quirks=False)
+def _locked_2400_sensor(sdef):
+    """ttyNM0 locked at 2400 baud (TIOCSLCKTRMIOS before the attach: the
+    probe cannot set 115200, and no probe is made from then on), the
+    discipline attached and the 2400-baud sensor `sdef` registered:
+    (Line, emulator, SensorDir)."""
     ev3.load_nullmodem()
     ln = ev3.Line(0)
     ln.fd = os.open(ln.host, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
@@ -631,16 +638,33 @@ def test_queue_for_a_lost_sensor_is_dropped(ev3_module):
         fcntl.ioctl(ln.fd, TIOCSLCKTRMIOS,
                     struct.pack('IIIIB19s', 0, 0, CBAUD, 0, 0, bytes(19)))
         fcntl.ioctl(ln.fd, termios.TIOCSETD, struct.pack('i', ev3.N_LEGOEV3))
-        # The probe could not set 115200: no probe from now on.
         assert _wait(lambda: ev3.counters(ln.address).get('speed_changes', 0) >= 2 and
                      ev3.counters(ln.address).get('state') == 0, 2), ev3.counters(ln.address)
         emu = ln.plug(sdef)
         sd = ev3.open_sensor(ln.address, timeout=20)
         assert sd, emu.events
         assert ev3.wait_registered(ln.address) is not False
-        assert _wait(lambda: ev3.nm_state(0)['held'] == 0, 1)
-        ev3.clear_wire(0)
-        ev3.stall(0, True)
+        return ln, emu, sd
+    except BaseException:
+        fcntl.ioctl(ln.fd, TIOCSLCKTRMIOS, struct.pack('IIIIB19s', 0, 0, 0, 0, 0, bytes(19)))
+        ln.close()
+        raise
+
+
+def test_queue_for_a_lost_sensor_is_dropped(ev3_module):
+    """Issue 28: a SELECT or a WRITE still queued when a sensor was lost
+    reached the next one. On a line whose speed is locked at 2400 (no
+    probe, no speed change: the speed change cannot drop them), a 2400-baud
+    sensor gets a WRITE and a SELECT while the transmitter is held, and is
+    unplugged; once it is lost and the transmitter may send, none of that
+    (nor the keep-alives queued meanwhile) must go out. The next sensor
+    then connects and receives no WRITE."""
+    sdef = SensorDef(92, 'ev3-uart-92', 2, [
+        Mode('ONE', (0, 100), (0, 100), 'pct', 1, S8, 3, 0),
+        Mode('TWO', (0, 100), (0, 100), 'pct', 1, S8, 3, 0)], speed=2400, quirks=False)
+    ln, emu, sd = _locked_2400_sensor(sdef)
+    try:
+        _stall_empty(0)
         ends = []
 
         def select():
@@ -674,6 +698,48 @@ def test_queue_for_a_lost_sensor_is_dropped(ev3_module):
         assert find_sensor(ln.address, timeout=20), emu.events
         time.sleep(0.3)
         assert emu.writes == [], emu.writes
+    finally:
+        fcntl.ioctl(ln.fd, TIOCSLCKTRMIOS, struct.pack('IIIIB19s', 0, 0, 0, 0, 0, bytes(19)))
+        ln.close()
+
+
+def test_bytes_the_tty_holds_for_a_lost_sensor_are_dropped(ev3_module):
+    """Issue 28, the tty driver's side: dropping the discipline's own queue
+    is not enough when the tty driver still holds bytes it has not sent (a
+    UART's buffer behind a held transmitter, a USB adapter's). A 32-byte
+    WRITE to a 2400-baud sensor (140 ms on the wire) is held in the port,
+    and the sensor is unplugged; once it is lost and the transmitter may
+    send, none of the WRITE must go out (to the next sensor)."""
+    sdef = SensorDef(92, 'ev3-uart-92', 2, [
+        Mode('ONE', (0, 100), (0, 100), 'pct', 1, S8, 3, 0),
+        Mode('TWO', (0, 100), (0, 100), 'pct', 1, S8, 3, 0)], speed=2400, quirks=False)
+    ln, emu, sd = _locked_2400_sensor(sdef)
+    try:
+        try:
+            for _ in range(10):
+                ev3.clear_wire(0)
+                fd = os.open('direct', os.O_WRONLY, dir_fd=sd.fd)
+                try:
+                    os.write(fd, bytes([0x11] + [0x55] * 31))
+                finally:
+                    os.close(fd)
+                ev3.stall(0, True)
+                held = ev3.nm_state(0)['held']
+                if held:
+                    break
+                ev3.stall(0, False)
+                time.sleep(0.2)
+            assert held, 'the WRITE was never held in the port'
+            emu.unplug()
+            assert sd.wait_gone(5), emu.events
+            assert _wait(lambda: ev3.counters(ln.address).get('lost') == 1 and
+                         ev3.counters(ln.address).get('state') == 0, 2)
+            sent = _release_and_watch()
+        finally:
+            ev3.stall(0, False)
+            sd.close()
+        print('held in the port: %d bytes; sent after the loss: [%s]' % (held, _hex(sent)))
+        assert not sent, 'held for the lost sensor, sent after: %s' % _hex(sent)
     finally:
         fcntl.ioctl(ln.fd, TIOCSLCKTRMIOS, struct.pack('IIIIB19s', 0, 0, 0, 0, 0, bytes(19)))
         ln.close()
