@@ -218,14 +218,19 @@ static void ev3_uart_tx_log(struct ev3_uart_port *port, int what, int err)
  * what the tty driver holds and has not sent: a UART's buffer behind a
  * held transmitter, a USB adapter's, would else send it at the new speed
  * or to the next sensor. The ACK is waited for before its speed change
- * (ack_work), the probe's SPEED before the probe ends.
+ * (ack_work), the probe's SPEED before the probe ends. Not on a pty: it
+ * holds nothing, what is written is in the other end's input at once, and
+ * its flush_buffer drops that (an ACK the sensor has not read yet).
  */
 static void ev3_uart_tx_discard(struct ev3_uart_port *port)
 {
+	struct tty_struct *tty = port->tty;
+
 	mutex_lock(&port->tx_mutex);
 	port->tx_len = 0;
 	port->tx_pos = 0;
-	tty_driver_flush_buffer(port->tty);
+	if (tty->driver->type != TTY_DRIVER_TYPE_PTY)
+		tty_driver_flush_buffer(tty);
 	mutex_unlock(&port->tx_mutex);
 }
 
