@@ -323,3 +323,54 @@ class SerialLine(Line):
     def speed(self):
         """The host end's speed in baud (tcgetattr with the discipline attached)."""
         return ev3_sensor.SPEED_OF[termios.tcgetattr(self.fd)[5]]
+
+
+# The null modem's transmit-side knob and read-outs (tests/kmod/lego_nullmodem.c).
+NM_PARAMS = '/sys/module/lego_nullmodem/parameters'
+NM_DEBUG = '/sys/kernel/debug/lego_nullmodem'
+
+
+def stall(port, on):
+    """Hold (on=True) or release ttyNM<port>'s transmitter (tx_stall): while
+    held it takes nothing from its writer and sends nothing; the release
+    sends what it holds and wakes the writer (tty_wakeup())."""
+    path = os.path.join(NM_PARAMS, 'tx_stall')
+    with open(path) as f:
+        mask = int(f.read())
+    mask = mask | (1 << port) if on else mask & ~(1 << port)
+    with open(path, 'w') as f:
+        f.write(str(mask))
+
+
+def nm_state(port):
+    """ttyNM<port>'s state: {'stall', 'held', 'write_wakeup'} (ints; write_wakeup
+    is the tty's TTY_DO_WRITE_WAKEUP, -1 while the tty is not open)."""
+    with open('%s/ttyNM%d/state' % (NM_DEBUG, port)) as f:
+        return {k: int(v) for k, v in (line.split() for line in f)}
+
+
+def clear_wire(port):
+    with open('%s/ttyNM%d/wire' % (NM_DEBUG, port), 'w') as f:
+        f.write('0')
+
+
+def wire(port, since_ns=0, kind='o'):
+    """The bytes ttyNM<port> put on the wire (kind 'o') or took from its
+    writer ('w') since the log was emptied and at or after since_ns
+    (time.monotonic_ns(), the kernel's ktime_get_ns()): [(ns, baud, byte)]."""
+    out = []
+    with open('%s/ttyNM%d/wire' % (NM_DEBUG, port)) as f:
+        for line in f:
+            ns, k, baud, byte = line.split()
+            if k == kind and int(ns) >= since_ns:
+                out.append((int(ns), int(baud), int(byte, 16)))
+    return out
+
+
+def counters(address):
+    """The discipline's debugfs counters on tty `address` ({} before the attach)."""
+    try:
+        with open('/sys/kernel/debug/lego_ev3_uart/%s/counters' % address) as f:
+            return {k: int(v) for k, v in (line.split() for line in f)}
+    except OSError:
+        return {}

@@ -9,6 +9,7 @@ import os
 import select
 import struct
 import subprocess
+import termios
 import threading
 import time
 
@@ -525,3 +526,248 @@ def test_mode_write_right_after_reconnect(line):
         finally:
             sd.close()
         write_attr(path, 'mode', 'GYRO-RATE')
+
+
+# The transmit side's queue (issue 28). The null modem's tx_stall holds a
+# port's transmitter as a UART whose FIFO is full and whose CTS is held off:
+# the discipline's messages then wait in its own queue (tx_buf) and go out
+# when the port wakes it. Its wire log tells what went out, when, at what
+# speed.
+
+def _release_and_watch(port=0, settle=0.3):
+    """Release ttyNM<port>'s transmitter; what it sent from then on, for
+    `settle` seconds: [(ns, baud, byte)]."""
+    t = time.monotonic_ns()
+    ev3.stall(port, False)
+    time.sleep(settle)
+    return ev3.wire(port, since_ns=t)
+
+
+def _hex(sent):
+    return ' '.join('%02x@%d' % (b, baud) for _, baud, b in sent)
+
+
+def _wait(cond, timeout, step=0.002):
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if cond():
+            return True
+        time.sleep(step)
+    return cond()
+
+
+def _stall_empty(port):
+    """Hold ttyNM<port>'s transmitter when it holds nothing: a keep-alive
+    taken just before would be held in the port, not in the discipline's
+    queue."""
+    for _ in range(50):
+        ev3.clear_wire(port)
+        ev3.stall(port, True)
+        if ev3.nm_state(port)['held'] == 0:
+            return
+        ev3.stall(port, False)
+        time.sleep(0.02)
+    raise AssertionError('ttyNM%d never empty' % port)
+
+
+def test_probe_message_does_not_outlive_its_speed(ev3_module):
+    """Issue 28: what the discipline had queued for the tty survived a
+    speed change. Attached to a line whose transmitter is held, the fast
+    sync probe's SPEED 115200 waits in the queue while the probe switches
+    to 115200, waits its 30 ms and goes back to 2400; once the transmitter
+    may send, nothing of it must go out (it went out at 2400, to a sensor
+    hunting at 2400)."""
+    ev3.load_nullmodem()
+    ln = ev3.Line(0)
+    ev3.clear_wire(0)
+    ev3.stall(0, True)
+    try:
+        ln.fd = os.open(ln.host, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+        fcntl.ioctl(ln.fd, termios.TIOCSETD, struct.pack('i', ev3.N_LEGOEV3))
+        # The probe queued its SPEED (the counter counts it), and it is
+        # over: back at 2400 baud.
+        assert _wait(lambda: ev3.counters(ln.address).get('tx_speed') == 1 and
+                     ev3.counters(ln.address).get('state') == 0 and
+                     termios.tcgetattr(ln.fd)[5] == termios.B2400, 2), \
+            ev3.counters(ln.address)
+        assert ev3.nm_state(0)['held'] == 0
+        sent = _release_and_watch()
+    finally:
+        ev3.stall(0, False)
+        ln.close()
+    print('sent after the probe, once the transmitter could: [%s]' % _hex(sent))
+    assert not sent, 'the probe\'s SPEED went out after the probe: %s' % _hex(sent)
+
+
+def test_ack_does_not_go_out_at_the_sensor_speed(line):
+    """Issue 28: an ACK still queued when ack_work switches to the sensor's
+    speed went out at that speed, where the sensor (listening at 2400)
+    reads garbage. The transmitter is held from before the handshake's
+    end; released once the line is at 57600, it may send the keep-alives
+    queued at 57600, never the ACK. The sensor, left without its ACK,
+    starts over and connects once the line sends again."""
+    emu = line.plug('gyro')
+    _stall_empty(0)
+    try:
+        assert _wait(lambda: termios.tcgetattr(line.fd)[5] == termios.B57600, 10), \
+            (emu.events, ev3.counters(line.address))
+        sent = _release_and_watch(settle=0.15)
+    finally:
+        ev3.stall(0, False)
+    print('sent once the transmitter could: [%s]' % _hex(sent))
+    acks = [(baud, b) for _, baud, b in sent if b == 0x04 and baud != 2400]
+    assert not acks, 'an ACK went out at the sensor\'s speed: %s' % _hex(sent)
+    # The keep-alives queued at 57600 do go out, at 57600.
+    fast = [b for _, baud, b in sent if baud == 57600]
+    assert fast and set(fast) == {0x02}, _hex(sent)
+    assert find_sensor(line.address, timeout=15), emu.events
+
+
+def _locked_2400_sensor(sdef):
+    """ttyNM0 locked at 2400 baud (TIOCSLCKTRMIOS before the attach: the
+    probe cannot set 115200, and no probe is made from then on), the
+    discipline attached and the 2400-baud sensor `sdef` registered:
+    (Line, emulator, SensorDir)."""
+    ev3.load_nullmodem()
+    ln = ev3.Line(0)
+    ln.fd = os.open(ln.host, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+    try:
+        attrs = termios.tcgetattr(ln.fd)
+        attrs[4] = attrs[5] = termios.B2400
+        attrs[2] = (attrs[2] & ~CBAUD) | termios.B2400
+        termios.tcsetattr(ln.fd, termios.TCSANOW, attrs)
+        fcntl.ioctl(ln.fd, TIOCSLCKTRMIOS,
+                    struct.pack('IIIIB19s', 0, 0, CBAUD, 0, 0, bytes(19)))
+        fcntl.ioctl(ln.fd, termios.TIOCSETD, struct.pack('i', ev3.N_LEGOEV3))
+        assert _wait(lambda: ev3.counters(ln.address).get('speed_changes', 0) >= 2 and
+                     ev3.counters(ln.address).get('state') == 0, 2), ev3.counters(ln.address)
+        emu = ln.plug(sdef)
+        sd = ev3.open_sensor(ln.address, timeout=20)
+        assert sd, emu.events
+        assert ev3.wait_registered(ln.address) is not False
+        return ln, emu, sd
+    except BaseException:
+        fcntl.ioctl(ln.fd, TIOCSLCKTRMIOS, struct.pack('IIIIB19s', 0, 0, 0, 0, 0, bytes(19)))
+        ln.close()
+        raise
+
+
+def test_queue_for_a_lost_sensor_is_dropped(ev3_module):
+    """Issue 28: a SELECT or a WRITE still queued when a sensor was lost
+    reached the next one. On a line whose speed is locked at 2400 (no
+    probe, no speed change: the speed change cannot drop them), a 2400-baud
+    sensor gets a WRITE and a SELECT while the transmitter is held, and is
+    unplugged; once it is lost and the transmitter may send, none of that
+    (nor the keep-alives queued meanwhile) must go out. The next sensor
+    then connects and receives no WRITE."""
+    sdef = SensorDef(92, 'ev3-uart-92', 2, [
+        Mode('ONE', (0, 100), (0, 100), 'pct', 1, S8, 3, 0),
+        Mode('TWO', (0, 100), (0, 100), 'pct', 1, S8, 3, 0)], speed=2400, quirks=False)
+    ln, emu, sd = _locked_2400_sensor(sdef)
+    try:
+        _stall_empty(0)
+        ends = []
+
+        def select():
+            try:
+                sd.write('mode', 'TWO')
+                ends.append(0)
+            except OSError as e:
+                ends.append(e.errno)
+
+        try:
+            sd.write('direct', '\x11')
+            t = threading.Thread(target=select)
+            t.start()
+            assert _wait(lambda: ev3.counters(ln.address).get('tx_select', 0) >= 1, 2)
+            emu.unplug()
+            assert sd.wait_gone(5), emu.events
+            assert _wait(lambda: ev3.counters(ln.address).get('lost') == 1 and
+                         ev3.counters(ln.address).get('state') == 0, 2)
+            t.join(5)
+            c = ev3.counters(ln.address)
+            sent = _release_and_watch()
+        finally:
+            ev3.stall(0, False)
+            sd.close()
+        print('queued while held: %d WRITE, %d SELECT, %d NACK; sent after the loss: [%s]'
+              % (c['tx_write'], c['tx_select'], c['tx_nack'], _hex(sent)))
+        assert ends and ends[0] in (errno.ENODEV, errno.ETIMEDOUT), ends
+        assert not sent, 'queued for the lost sensor, sent after: %s' % _hex(sent)
+        emu.writes.clear()
+        emu.plug()
+        assert find_sensor(ln.address, timeout=20), emu.events
+        time.sleep(0.3)
+        assert emu.writes == [], emu.writes
+    finally:
+        fcntl.ioctl(ln.fd, TIOCSLCKTRMIOS, struct.pack('IIIIB19s', 0, 0, 0, 0, 0, bytes(19)))
+        ln.close()
+
+
+def test_bytes_the_tty_holds_for_a_lost_sensor_are_dropped(ev3_module):
+    """Issue 28, the tty driver's side: dropping the discipline's own queue
+    is not enough when the tty driver still holds bytes it has not sent (a
+    UART's buffer behind a held transmitter, a USB adapter's). A 32-byte
+    WRITE to a 2400-baud sensor (140 ms on the wire) is held in the port,
+    and the sensor is unplugged; once it is lost and the transmitter may
+    send, none of the WRITE must go out (to the next sensor)."""
+    sdef = SensorDef(92, 'ev3-uart-92', 2, [
+        Mode('ONE', (0, 100), (0, 100), 'pct', 1, S8, 3, 0),
+        Mode('TWO', (0, 100), (0, 100), 'pct', 1, S8, 3, 0)], speed=2400, quirks=False)
+    ln, emu, sd = _locked_2400_sensor(sdef)
+    try:
+        try:
+            for _ in range(10):
+                ev3.clear_wire(0)
+                fd = os.open('direct', os.O_WRONLY, dir_fd=sd.fd)
+                try:
+                    os.write(fd, bytes([0x11] + [0x55] * 31))
+                finally:
+                    os.close(fd)
+                ev3.stall(0, True)
+                held = ev3.nm_state(0)['held']
+                if held:
+                    break
+                ev3.stall(0, False)
+                time.sleep(0.2)
+            assert held, 'the WRITE was never held in the port'
+            emu.unplug()
+            assert sd.wait_gone(5), emu.events
+            assert _wait(lambda: ev3.counters(ln.address).get('lost') == 1 and
+                         ev3.counters(ln.address).get('state') == 0, 2)
+            sent = _release_and_watch()
+        finally:
+            ev3.stall(0, False)
+            sd.close()
+        print('held in the port: %d bytes; sent after the loss: [%s]' % (held, _hex(sent)))
+        assert not sent, 'held for the lost sensor, sent after: %s' % _hex(sent)
+    finally:
+        fcntl.ioctl(ln.fd, TIOCSLCKTRMIOS, struct.pack('IIIIB19s', 0, 0, 0, 0, 0, bytes(19)))
+        ln.close()
+
+
+def test_write_wakeup_is_clear_after_detach(ev3_module):
+    """Issue 28: close must leave TTY_DO_WRITE_WAKEUP clear for the next
+    discipline. The flag is set while the discipline waits for room (its
+    probe's SPEED on a held transmitter); after the switch back to N_TTY,
+    with the transmitter still held (so that no wakeup clears it through
+    N_TTY), it must read clear. Only the end state: the race the order of
+    close()'s steps closes (a tx_work setting the flag again between the
+    clear and its cancel) cannot be made to happen, see testing.rst."""
+    ev3.load_nullmodem()
+    ln = ev3.Line(0)
+    ev3.stall(0, True)
+    try:
+        ln.fd = os.open(ln.host, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+        fcntl.ioctl(ln.fd, termios.TIOCSETD, struct.pack('i', ev3.N_LEGOEV3))
+        assert _wait(lambda: ev3.counters(ln.address).get('tx_speed') == 1 and
+                     ev3.counters(ln.address).get('state') == 0, 2), ev3.counters(ln.address)
+        during = ev3.nm_state(0)['write_wakeup']
+        fcntl.ioctl(ln.fd, termios.TIOCSETD, struct.pack('i', 0))     # N_TTY
+        after = ev3.nm_state(0)['write_wakeup']
+    finally:
+        ev3.stall(0, False)
+        ln.close()
+    print('TTY_DO_WRITE_WAKEUP: %d while waiting for room, %d after the detach' % (during, after))
+    assert during == 1
+    assert after == 0

@@ -19,6 +19,18 @@
  *    buffer is full;
  *  - fail_writes (writable, a bitmask of ports) makes every write to those
  *    ports fail with -EIO, as a broken tty's would;
+ *  - tx_stall (writable, a bitmask of ports) holds those ports' transmitters,
+ *    as a UART whose FIFO is full and whose CTS the other end deasserts:
+ *    write_room() is 0, write() takes nothing, and what the port holds
+ *    stays there. Clearing a port's bit lets its bytes go on and wakes its
+ *    writer (tty_wakeup()), as the UART's interrupt does once it may send;
+ *  - debugfs lego_nullmodem/ttyNM<n>/wire lists what the port took from
+ *    its writer ("w") and what it put on the wire ("o"), a byte a line
+ *    with ktime_get_ns() and the port's speed at that moment (the last
+ *    NM_LOG_SIZE bytes; writing to the file empties it), and .../state
+ *    says whether the port is stalled, how many bytes it holds, and the
+ *    TTY_DO_WRITE_WAKEUP flag of its tty (-1 when it is not open), which
+ *    a line discipline must not leave set for the next one;
  *  - ack_ns records, per port, when its last burst of bytes at 2400 baud
  *    that ended in 0x04 (an EV3 ACK) was on the wire, so that a test can
  *    time the discipline's ACK against the sensor's on the line itself,
@@ -77,6 +89,7 @@
 #define NM_MAX_PAIRS	16
 #define GEN_MAX_BURST	64
 #define GEN_MAX_HZ	100000
+#define NM_LOG_SIZE	512
 
 static unsigned int pairs = 4;
 module_param(pairs, uint, 0444);
@@ -157,10 +170,24 @@ static unsigned int gen_hz;
 static struct nm_gen nm_gen;
 
 /**
+ * struct nm_byte - a byte a port took from its writer or sent (the wire log)
+ * @ns: ktime_get_ns() at that moment
+ * @baud: the port's speed then
+ * @byte: the byte
+ * @kind: 'w' taken by write(), 'o' put on the wire
+ */
+struct nm_byte {
+	u64 ns;
+	u32 baud;
+	u8 byte;
+	char kind;
+};
+
+/**
  * struct nm_port - one end of a cable
  * @port: the tty port
  * @peer: the other end
- * @lock: protects @fifo, @credit and @running
+ * @lock: protects @fifo, @credit, @running, @log and @logged
  * @fifo: bytes written and not yet on the wire
  * @timer: paces the bytes out
  * @running: @timer is started and will run again
@@ -168,6 +195,8 @@ static struct nm_gen nm_gen;
  * @credit: bit times available to send, in 1/1e9 bits
  * @last: time of the last tick
  * @garble: state of the garbage generator (timer context only)
+ * @log: the last %NM_LOG_SIZE bytes taken and sent
+ * @logged: bytes logged since the log was last emptied
  */
 struct nm_port {
 	struct tty_port port;
@@ -180,10 +209,37 @@ struct nm_port {
 	u64 credit;
 	ktime_t last;
 	u32 garble;
+	struct nm_byte *log;
+	unsigned int logged;
 };
 
 static struct nm_port *nm_ports;
 static struct tty_driver *nm_driver;
+static struct dentry *nm_debugfs;
+static unsigned int tx_stall;
+
+static bool nm_stalled(const struct nm_port *p)
+{
+	return READ_ONCE(tx_stall) & BIT(p - nm_ports);
+}
+
+/* Log @n bytes the port took ('w') or sent ('o'). @p->lock held. */
+static void nm_log(struct nm_port *p, char kind, const u8 *buf, unsigned int n)
+{
+	u32 baud = READ_ONCE(p->baud);
+	u64 ns = ktime_get_ns();
+	struct nm_byte *b;
+	unsigned int i;
+
+	lockdep_assert_held(&p->lock);
+	for (i = 0; i < n; i++) {
+		b = &p->log[p->logged++ % NM_LOG_SIZE];
+		b->ns = ns;
+		b->baud = baud;
+		b->byte = buf[i];
+		b->kind = kind;
+	}
+}
 
 /*
  * The wire log (debugfs lego_nullmodem/wire): the last NM_WIRE_LOG records,
@@ -207,7 +263,6 @@ struct nm_wire_rec {
 static struct nm_wire_rec nm_wire[NM_WIRE_LOG];
 static u64 nm_wire_head;		/* records logged: the next seq */
 static DEFINE_SPINLOCK(nm_wire_lock);	/* protects the two above */
-static struct dentry *nm_debugfs;
 
 /*
  * @n bytes of port @p went on the wire, the last one at @now, @end if its
@@ -368,12 +423,20 @@ static enum hrtimer_restart nm_tick(struct hrtimer *timer)
 	struct tty_struct *tty;
 
 	spin_lock(&p->lock);
+	if (nm_stalled(p)) {
+		/* Held: tx_stall's release starts the timer again. */
+		p->credit = 0;
+		p->running = false;
+		spin_unlock(&p->lock);
+		return HRTIMER_NORESTART;
+	}
 	p->credit += (u64)ktime_to_ns(ktime_sub(now, p->last)) * READ_ONCE(p->baud);
 	p->last = now;
 	/* 10 bits a byte; credit is in 1e-9 bit units. */
 	bytes = min_t(u64, div_u64(p->credit, NSEC_PER_SEC) / 10, sizeof(buf));
 	n = kfifo_out(&p->fifo, buf, bytes);
 	p->credit -= (u64)n * 10 * NSEC_PER_SEC;
+	nm_log(p, 'o', buf, n);
 	more = !kfifo_is_empty(&p->fifo);
 	if (!more) {
 		p->credit = 0;
@@ -508,6 +571,119 @@ static const struct kernel_param_ops nm_gen_ops = {
 module_param_cb(gen_hz, &nm_gen_ops, &gen_hz, 0644);
 MODULE_PARM_DESC(gen_hz, "generator: DATA messages a second per line, 0: stopped (default)");
 
+/* Release the ports whose bits are cleared: their bytes go on, their writers wake. */
+static int nm_stall_set(const char *val, const struct kernel_param *kp)
+{
+	unsigned int stall, released, i;
+	struct tty_struct *tty;
+	unsigned long flags;
+	struct nm_port *p;
+	int ret;
+
+	ret = kstrtouint(val, 0, &stall);
+	if (ret)
+		return ret;
+	/* Writes to a parameter are serialised (kernel_param_lock). */
+	released = tx_stall & ~stall;
+	WRITE_ONCE(tx_stall, stall);
+	if (!nm_ports)		/* at load time */
+		return 0;
+	for (i = 0; i < 2 * pairs; i++) {
+		if (!(released & BIT(i)))
+			continue;
+		p = &nm_ports[i];
+		spin_lock_irqsave(&p->lock, flags);
+		if (!kfifo_is_empty(&p->fifo) && !p->running) {
+			p->running = true;
+			p->last = ktime_get();
+			p->credit = 0;
+			hrtimer_start(&p->timer, ns_to_ktime(NM_TICK_NS), HRTIMER_MODE_REL_SOFT);
+		}
+		spin_unlock_irqrestore(&p->lock, flags);
+		tty = tty_port_tty_get(&p->port);
+		if (tty) {
+			tty_wakeup(tty);
+			tty_kref_put(tty);
+		}
+	}
+	return 0;
+}
+
+static const struct kernel_param_ops nm_stall_ops = {
+	.set = nm_stall_set,
+	.get = param_get_uint,
+};
+module_param_cb(tx_stall, &nm_stall_ops, &tx_stall, 0644);
+MODULE_PARM_DESC(tx_stall,
+		 "bitmask of ports whose transmitters are held (write() takes nothing); clearing a bit releases");
+
+static int nm_port_wire_show(struct seq_file *m, void *unused)
+{
+	struct nm_port *p = m->private;
+	unsigned int i, n, first;
+	struct nm_byte *copy;
+	unsigned long flags;
+
+	copy = kmalloc_array(NM_LOG_SIZE, sizeof(*copy), GFP_KERNEL);
+	if (!copy)
+		return -ENOMEM;
+	spin_lock_irqsave(&p->lock, flags);
+	n = min_t(unsigned int, p->logged, NM_LOG_SIZE);
+	first = p->logged - n;
+	for (i = 0; i < n; i++)
+		copy[i] = p->log[(first + i) % NM_LOG_SIZE];
+	spin_unlock_irqrestore(&p->lock, flags);
+	for (i = 0; i < n; i++)
+		seq_printf(m, "%llu %c %u %02x\n", copy[i].ns, copy[i].kind,
+			   copy[i].baud, copy[i].byte);
+	kfree(copy);
+	return 0;
+}
+
+static int nm_port_wire_open(struct inode *inode, struct file *file)
+{
+	return single_open(file, nm_port_wire_show, inode->i_private);
+}
+
+/* Any write empties the log. */
+static ssize_t nm_port_wire_write(struct file *file, const char __user *buf,
+				  size_t count, loff_t *ppos)
+{
+	struct nm_port *p = file_inode(file)->i_private;
+	unsigned long flags;
+
+	spin_lock_irqsave(&p->lock, flags);
+	p->logged = 0;
+	spin_unlock_irqrestore(&p->lock, flags);
+	return count;
+}
+
+static const struct file_operations nm_port_wire_fops = {
+	.owner		= THIS_MODULE,
+	.open		= nm_port_wire_open,
+	.read		= seq_read,
+	.llseek		= seq_lseek,
+	.write		= nm_port_wire_write,
+	.release	= single_release,
+};
+
+static int nm_state_show(struct seq_file *m, void *unused)
+{
+	struct nm_port *p = m->private;
+	struct tty_struct *tty = tty_port_tty_get(&p->port);
+	int wakeup = -1;
+
+	if (tty) {
+		wakeup = test_bit(TTY_DO_WRITE_WAKEUP, &tty->flags);
+		tty_kref_put(tty);
+	}
+	seq_printf(m, "stall %d\n", nm_stalled(p));
+	seq_printf(m, "held %u\n", kfifo_len(&p->fifo));
+	seq_printf(m, "write_wakeup %d\n", wakeup);
+	return 0;
+}
+DEFINE_SHOW_ATTRIBUTE(nm_state);
+
 static int nm_install(struct tty_driver *driver, struct tty_struct *tty)
 {
 	return tty_port_install(&nm_ports[tty->index].port, driver, tty);
@@ -533,6 +709,8 @@ static LEGO_TTY_WRITE_RET nm_write(struct tty_struct *tty, const u8 *buf,
 
 	if (READ_ONCE(fail_writes) & BIT(tty->index))
 		return -EIO;
+	if (nm_stalled(p))
+		return 0;
 	/* The host's side of a generated line: taken at once (see the top). */
 	if (!(tty->index & 1) && smp_load_acquire(&nm_gen.running) &&
 	    (READ_ONCE(nm_gen.lines) & BIT(pair))) {
@@ -550,6 +728,7 @@ static LEGO_TTY_WRITE_RET nm_write(struct tty_struct *tty, const u8 *buf,
 	n = kfifo_in(&p->fifo, buf, count);
 	if (n && !(tty->index & 1))
 		nm_wire_log_write(tty->index, buf, n, READ_ONCE(p->baud));
+	nm_log(p, 'w', buf, n);
 	if (n && !p->running) {
 		p->running = true;
 		p->last = ktime_get();
@@ -565,6 +744,8 @@ static unsigned int nm_write_room(struct tty_struct *tty)
 	struct nm_port *p = &nm_ports[tty->index];
 	unsigned int room = READ_ONCE(fifo_room);
 
+	if (nm_stalled(p))
+		return 0;
 	if (room)
 		return room - min(kfifo_len(&p->fifo), room);
 	return kfifo_avail(&p->fifo);
@@ -623,7 +804,10 @@ static const struct tty_port_operations nm_port_ops = { };
 
 static int __init nm_init(void)
 {
+	struct nm_port *p;
+	struct dentry *dir;
 	unsigned int i, n;
+	char name[16];
 	int ret;
 
 	if (!pairs || pairs > NM_MAX_PAIRS)
@@ -632,6 +816,13 @@ static int __init nm_init(void)
 	nm_ports = kcalloc(n, sizeof(*nm_ports), GFP_KERNEL);
 	if (!nm_ports)
 		return -ENOMEM;
+	for (i = 0; i < n; i++) {
+		nm_ports[i].log = kcalloc(NM_LOG_SIZE, sizeof(*nm_ports[i].log), GFP_KERNEL);
+		if (!nm_ports[i].log) {
+			ret = -ENOMEM;
+			goto free_ports;
+		}
+	}
 
 	nm_driver = tty_alloc_driver(n, TTY_DRIVER_REAL_RAW | TTY_DRIVER_RESET_TERMIOS);
 	if (IS_ERR(nm_driver)) {
@@ -648,9 +839,9 @@ static int __init nm_init(void)
 	nm_driver->init_termios.c_ospeed = 9600;
 	tty_set_operations(nm_driver, &nm_ops);
 
+	nm_debugfs = debugfs_create_dir("lego_nullmodem", NULL);
 	for (i = 0; i < n; i++) {
-		struct nm_port *p = &nm_ports[i];
-
+		p = &nm_ports[i];
 		tty_port_init(&p->port);
 		p->port.ops = &nm_port_ops;
 		p->peer = &nm_ports[i ^ 1];
@@ -660,23 +851,30 @@ static int __init nm_init(void)
 		hrtimer_setup(&p->timer, nm_tick, CLOCK_MONOTONIC, HRTIMER_MODE_REL_SOFT);
 		p->garble = i + 1;
 		tty_port_link_device(&p->port, nm_driver, i);
+		snprintf(name, sizeof(name), "ttyNM%u", i);
+		dir = debugfs_create_dir(name, nm_debugfs);
+		debugfs_create_file("wire", 0600, dir, p, &nm_port_wire_fops);
+		debugfs_create_file("state", 0400, dir, p, &nm_state_fops);
 	}
 
 	hrtimer_setup(&nm_gen.timer, nm_gen_tick, CLOCK_MONOTONIC, HRTIMER_MODE_ABS_SOFT);
 	ret = tty_register_driver(nm_driver);
 	if (ret)
 		goto put_driver;
-	/* Tests without debugfs only lose the wire log. */
-	nm_debugfs = debugfs_create_dir("lego_nullmodem", NULL);
+	/* Tests without debugfs only lose the wire logs. */
 	debugfs_create_file("wire", 0600, nm_debugfs, NULL, &nm_wire_fops);
 	return 0;
 
 put_driver:
+	debugfs_remove_recursive(nm_debugfs);
 	for (i = 0; i < n; i++)
 		tty_port_destroy(&nm_ports[i].port);
 	tty_driver_kref_put(nm_driver);
 free_ports:
+	for (i = 0; i < n; i++)
+		kfree(nm_ports[i].log);
 	kfree(nm_ports);
+	nm_ports = NULL;
 	return ret;
 }
 module_init(nm_init);
@@ -691,6 +889,7 @@ static void __exit nm_exit(void)
 	for (i = 0; i < 2 * pairs; i++) {
 		hrtimer_cancel(&nm_ports[i].timer);
 		tty_port_destroy(&nm_ports[i].port);
+		kfree(nm_ports[i].log);
 	}
 	tty_driver_kref_put(nm_driver);
 	kfree(nm_ports);

@@ -212,15 +212,25 @@ static void ev3_uart_tx_log(struct ev3_uart_port *port, int what, int err)
 }
 
 /*
- * Drop what is queued and not yet handed to the tty: on a speed change
- * (it was meant for the old speed) and when a sensor is lost (a SELECT or
- * a WRITE for it must not reach the next one).
+ * Drop what is queued and not yet on the wire: on a speed change (it was
+ * meant for the old speed) and when a sensor is lost (a SELECT or a WRITE
+ * for it must not reach the next one). Both what is still in @tx_buf and
+ * what the tty driver holds and has not sent: a UART's buffer behind a
+ * held transmitter, a USB adapter's, would else send it at the new speed
+ * or to the next sensor. The ACK is waited for before its speed change
+ * (ack_work), the probe's SPEED before the probe ends. Not on a pty: it
+ * holds nothing, what is written is in the other end's input at once, and
+ * its flush_buffer drops that (an ACK the sensor has not read yet).
  */
 static void ev3_uart_tx_discard(struct ev3_uart_port *port)
 {
+	struct tty_struct *tty = port->tty;
+
 	mutex_lock(&port->tx_mutex);
 	port->tx_len = 0;
 	port->tx_pos = 0;
+	if (tty->driver->type != TTY_DRIVER_TYPE_PTY)
+		tty_driver_flush_buffer(tty);
 	mutex_unlock(&port->tx_mutex);
 }
 
