@@ -1,5 +1,9 @@
 """Shared fixtures for the guest tests (run inside the test VM)."""
+import contextlib
+import grp
 import os
+import shutil
+import signal
 import subprocess
 import time
 
@@ -53,6 +57,51 @@ def unload(*names):
     for name in names:
         if loaded(name):
             run(['rmmod', name])
+
+
+@contextlib.contextmanager
+def udevd_with_rules(work, rules):
+    """systemd-udevd with the rule files RULES of tools/udev in
+    /run/udev/rules.d and a group lego (added to a private copy of
+    /etc/group, bind-mounted, when the system has none); yields its GID.
+    udevadm control refuses to act in a chroot, as the tests run: the
+    daemon is stopped with signals."""
+    top = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
+    os.makedirs(work, exist_ok=True)
+    group = os.path.join(work, 'group')
+    mounted = False
+    with open('/etc/group') as f:
+        lines = f.read()
+    try:
+        gid = grp.getgrnam('lego').gr_gid
+    except KeyError:
+        used = {int(line.split(':')[2]) for line in lines.splitlines() if line.count(':') >= 3}
+        gid = next(g for g in range(990, 100, -1) if g not in used)
+        with open(group, 'w') as f:
+            f.write(lines + 'lego:x:%d:\n' % gid)
+        run(['mount', '--bind', group, '/etc/group'])
+        mounted = True
+    rules_dir = '/run/udev/rules.d'
+    os.makedirs(rules_dir, exist_ok=True)
+    for r in rules:
+        shutil.copy(os.path.join(top, 'tools/udev', r), rules_dir)
+    try:
+        run(['/lib/systemd/systemd-udevd', '--daemon'])
+        yield gid
+    finally:
+        out = subprocess.run(['pidof', 'systemd-udevd'], capture_output=True, text=True).stdout
+        pids = [int(p) for p in out.split()]
+        for pid in pids:
+            os.kill(pid, signal.SIGTERM)
+        if not wait_for(lambda: not any(pid_alive(p) for p in pids), 20):
+            for pid in pids:
+                if pid_alive(pid):
+                    os.kill(pid, signal.SIGKILL)
+        for r in rules:
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(os.path.join(rules_dir, r))
+        if mounted:
+            subprocess.run(['umount', '/etc/group'])
 
 
 @pytest.fixture(autouse=True)

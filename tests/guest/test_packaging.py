@@ -24,17 +24,14 @@ $LEGO_MODULES at the end, so later tests see the usual setup.
 """
 import fcntl
 import glob
-import grp
 import os
 import re
-import shutil
-import signal
 import subprocess
 import sys
 
 import pytest
 
-from conftest import loaded, module_path, pid_alive, run, unload, wait_for
+from conftest import loaded, module_path, run, udevd_with_rules, unload, wait_for
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), '..', 'emulator'))
 
@@ -185,38 +182,10 @@ def test_ldisc_29_loads_lego_ev3_uart(kernel_modprobe):
 
 @pytest.fixture
 def udevd(installed):
-    """systemd-udevd with tools/udev/70-lego-nxt.rules, the group lego in a
-    private copy of /etc/group, its state in /run (a tmpfs in the guest)."""
-    group = os.path.join(WORK, 'group')
-    with open('/etc/group') as f:
-        lines = f.read()
-    gid = None
-    try:
-        gid = grp.getgrnam('lego').gr_gid
-    except KeyError:
-        used = {int(line.split(':')[2]) for line in lines.splitlines() if line.count(':') >= 3}
-        gid = next(g for g in range(990, 100, -1) if g not in used)
-        with open(group, 'w') as f:
-            f.write(lines + 'lego:x:%d:\n' % gid)
-        run(['mount', '--bind', group, '/etc/group'])
-    rules = '/run/udev/rules.d'
-    os.makedirs(rules, exist_ok=True)
-    shutil.copy(os.path.join(TOP, 'tools/udev/70-lego-nxt.rules'), rules)
-    run(['/lib/systemd/systemd-udevd', '--daemon'])
-    try:
+    """systemd-udevd with tools/udev/70-lego-nxt.rules and a group lego;
+    its state in /run (a tmpfs in the guest). Yields the group's GID."""
+    with udevd_with_rules(WORK, ['70-lego-nxt.rules']) as gid:
         yield gid
-    finally:
-        # udevadm control refuses to act in a chroot, as the tests run.
-        out = subprocess.run(['pidof', 'systemd-udevd'], capture_output=True, text=True).stdout
-        pids = [int(p) for p in out.split()]
-        for pid in pids:
-            os.kill(pid, signal.SIGTERM)
-        if not wait_for(lambda: not any(pid_alive(p) for p in pids), 20):
-            for pid in pids:
-                os.kill(pid, signal.SIGKILL)
-        os.unlink(os.path.join(rules, '70-lego-nxt.rules'))
-        if os.path.exists(group):
-            subprocess.run(['umount', '/etc/group'])
 
 
 def test_brick_plug_loads_lego_nxt_usb_and_udev_rule(udevd):

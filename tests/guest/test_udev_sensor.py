@@ -13,18 +13,15 @@ private copy of /etc/group. An emulated gyro is plugged; then
    /dev/iio:deviceN; without the group it can do neither.
 """
 import glob
-import grp
 import os
 import re
-import shutil
-import signal
 import subprocess
 import time
 
 import pytest
 
 import ev3
-from conftest import pid_alive, run, wait_for
+from conftest import run, udevd_with_rules, wait_for
 
 TOP = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
 RULES = ['70-lego-ev3-iio.rules', '90-lego-ev3-sensors.rules']
@@ -37,38 +34,8 @@ NOBODY = 65534
 def udevd(ev3_module):
     assert not subprocess.run(['pidof', 'systemd-udevd'], capture_output=True).stdout, \
         'a systemd-udevd is running already'
-    os.makedirs(WORK, exist_ok=True)
-    group = os.path.join(WORK, 'group')
-    with open('/etc/group') as f:
-        lines = f.read()
-    mounted = False
-    try:
-        gid = grp.getgrnam('lego').gr_gid
-    except KeyError:
-        used = {int(line.split(':')[2]) for line in lines.splitlines() if line.count(':') >= 3}
-        gid = next(g for g in range(990, 100, -1) if g not in used)
-        with open(group, 'w') as f:
-            f.write(lines + 'lego:x:%d:\n' % gid)
-        run(['mount', '--bind', group, '/etc/group'])
-        mounted = True
-    os.makedirs(RULES_DIR, exist_ok=True)
-    for r in RULES:
-        shutil.copy(os.path.join(TOP, 'tools/udev', r), RULES_DIR)
-    run(['/lib/systemd/systemd-udevd', '--daemon'])
-    try:
+    with udevd_with_rules(WORK, RULES) as gid:
         yield gid
-    finally:
-        out = subprocess.run(['pidof', 'systemd-udevd'], capture_output=True, text=True).stdout
-        pids = [int(p) for p in out.split()]
-        for pid in pids:
-            os.kill(pid, signal.SIGTERM)
-        if not wait_for(lambda: not any(pid_alive(p) for p in pids), 20):
-            for pid in pids:
-                os.kill(pid, signal.SIGKILL)
-        for r in RULES:
-            os.unlink(os.path.join(RULES_DIR, r))
-        if mounted:
-            subprocess.run(['umount', '/etc/group'])
 
 
 def for_group(path, gid):
