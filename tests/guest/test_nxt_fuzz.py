@@ -53,7 +53,7 @@ def test_fuzz_sequences(record_testsuite_property):
     # (nxt_fuzz.TICK_SHARE of them).
     epochs = sum(n for k, n in s['info'].items() if k.startswith('profile_'))
     ticked = sum(1 for k in range(epochs)
-                 if nxt_fuzz.epoch_plan(nxt_fuzz.derive(SEED, 'epoch', k), 1)['tick'])
+                 if nxt_fuzz.epoch_plan(nxt_fuzz.derive(seed, 'epoch', k), 1)['tick'])
     assert s['info'].get('tick_epochs', 0) == ticked, s['info']
     assert fz.calls > 5 * SEQUENCES
 
