@@ -319,6 +319,7 @@ class SerialLine(Line):
         self.address = host
         self.fd = None
         self.emu = None
+        self.detached_ns = []
 
     def speed(self):
         """The host end's speed in baud (tcgetattr with the discipline attached)."""
