@@ -3,6 +3,7 @@ the handshakes of issue 17 that crashed the kernel, mode names that sysfs
 cannot list as they are, a UART that cannot reach the sensor's speed, and
 the module's own inputs (port labels)."""
 import errno
+import functools
 import fcntl
 import glob
 import os
@@ -543,17 +544,13 @@ def _release_and_watch(port=0, settle=0.3):
     return ev3.wire(port, since_ns=t)
 
 
+# conftest.wait_for, polling every 2 ms: the transmit tests watch counters
+# that move within a few milliseconds.
+_wait = functools.partial(wait_for, interval=0.002)
+
+
 def _hex(sent):
     return ' '.join('%02x@%d' % (b, baud) for _, baud, b in sent)
-
-
-def _wait(cond, timeout, step=0.002):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if cond():
-            return True
-        time.sleep(step)
-    return cond()
 
 
 def _stall_empty(port):

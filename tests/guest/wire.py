@@ -36,6 +36,10 @@ periods were measured up to 1084 ms and its ACKs up to 535 ms late.
 """
 import os
 import statistics
+import sys
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), '..', 'emulator'))
+from ev3_gen import msg_len  # noqa: E402
 
 PATH = '/sys/kernel/debug/lego_nullmodem/wire'
 SYS_NACK, SYS_ACK = 0x02, 0x04
@@ -79,14 +83,6 @@ def head():
 def clear():
     with open(PATH, 'w') as f:
         f.write('0')
-
-
-def msg_len(hdr):
-    kind = hdr & 0xc0
-    if kind == 0:
-        return 1
-    plen = 1 << ((hdr >> 3) & 7)
-    return plen + 3 if kind == 0x80 else plen + 2
 
 
 # The bytes of one message follow each other on the wire: after a pause
