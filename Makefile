@@ -9,6 +9,8 @@
 #   make checkpatch    checkpatch.pl --strict on every source file
 #   make sparse        the modules with sparse (C=2)
 #   make demo          four emulated EV3 sensors and an NXT brick in the test VM
+#   make coverage      which functions of the drivers the last `make check`
+#                      reached, function by function (tests/coverage.py)
 #   make bench         benchmarks; writes tests/bench/results.md (BENCH_ARGS=--quick)
 #   make fuzz          libFuzzer on the EV3 and NXT protocol cores (long run;
 #                      FUZZ_ARGS= passes options to tests/fuzz/run.sh)
@@ -71,6 +73,11 @@ check-arm64:
 
 demo:
 	@tests/demo/run.sh
+
+.PHONY: coverage
+coverage:
+	@python3 tests/coverage.py --all --check tests/coverage-allow.txt \
+		$(or $(LEGO_BUILD_DIR),.build)/results/gcov
 
 bench:
 	@tests/bench/run.sh $(BENCH_ARGS)

@@ -25,7 +25,12 @@ log=$out/build.log
 cross=()
 [ -z "${ARCH:-}" ] || cross+=(ARCH="$ARCH")
 [ -z "${CROSS_COMPILE:-}" ] || cross+=(CROSS_COMPILE="$CROSS_COMPILE")
-if ! make -C "$out" KDIR="$kdir" "${cross[@]}" $sparse modules >"$log" 2>&1; then
+# A kernel built with gcov (the test kernel: tests/kernel/test.config) gets
+# instrumented drivers, whose coverage the guest suite collects
+# (tests/coverage.py); other trees get the modules as users build them.
+cov=()
+! grep -qs '^CONFIG_GCOV_KERNEL=y' "$kdir/.config" || cov=(LEGO_COVERAGE=1)
+if ! make -C "$out" KDIR="$kdir" "${cross[@]}" "${cov[@]}" $sparse modules >"$log" 2>&1; then
 	cat "$log" >&2
 	echo "build-modules: build against $kdir failed" >&2
 	exit 1
@@ -47,4 +52,4 @@ if ! make -s -C "$top/tools" O="$out/tools" CC="$cc" WERROR=1 >"$out/tools.log" 
 	exit 1
 fi
 n=$(find "$out" -name '*.ko' | wc -l)
-echo "build-modules: $n modules built against $kdir${ARCH:+ for $ARCH}${sparse:+ (sparse clean)}" >&2
+echo "build-modules: $n modules built against $kdir${ARCH:+ for $ARCH}${sparse:+ (sparse clean)}${cov:+ (with gcov)}" >&2

@@ -20,7 +20,8 @@
 #     phases of 3 and 4 that the VM does not need (all but the modules for
 #     the test kernel, the fuzzers, dkms and the packages) run beside it at
 #     nice 19, their output printed when the VM is done,
-#  6. scans the guest console for splats,
+#  6. scans the guest console for splats, and checks which of the drivers'
+#     functions the tests reached (tests/coverage.py, tests/coverage-allow.txt),
 #  7. prints every skipped test with its reason (a skip that
 #     tests/expected-skips does not list fails the run), the ten slowest
 #     tests, whether tests/bench/results.md was measured on other driver
@@ -115,6 +116,17 @@ PHASE_NOCOUNT=1 LEGO_VM_NO_BUILD=1 phase "VM: KUnit and guest tests" \
 vm_rc=$?
 beside_wait
 phase "console splat scan" tests/scan-console.py "$console"
+# Which of the drivers' functions the suite reached (the test kernel has
+# gcov: tests/coverage.py): one that no test reaches fails the run unless
+# tests/coverage-allow.txt names it with the reason. The whole report is in
+# .build/coverage.txt (`make coverage` prints it).
+coverage_check() {
+	python3 tests/coverage.py --check tests/coverage-allow.txt "$results/gcov" > "$build/coverage.txt"
+	local rc=$?
+	grep -E '^(total|coverage):' "$build/coverage.txt"
+	return $rc
+}
+phase "coverage of drivers/lego" coverage_check
 
 PHASE_FOOTER=$(tests/bench/stale.sh)
 vm_totals "$results" "$tree" "$vm_rc"

@@ -2,7 +2,9 @@
 # Runs inside the test VM (through tests/vm-run) for `make check`:
 #   1. loads every KUnit module and saves each suite's KTAP results,
 #   2. runs the guest integration tests with pytest,
-#   3. asks kmemleak for a scan.
+#   3. saves the gcov data of the modules (gcov_persist keeps what modules
+#      unloaded since had counted) for tests/coverage.py,
+#   4. asks kmemleak for a scan.
 # Usage: tests/guest/run-suite.sh OUTDIR [PYTEST ARGS...]
 out=$1
 shift
@@ -42,6 +44,25 @@ done
 
 echo "=== guest tests"
 python3 -m pytest -p no:cacheprovider --color=no -v --junitxml="$out/guest.xml" "$@" || rc=1
+
+echo "=== coverage"
+# The kernel's gcov (CONFIG_GCOV_KERNEL) has a .gcda file for each object
+# of the modules, under the object's build path; copied as they are, at
+# their path below LEGO_BUILD, into OUTDIR/gcov (and that path into
+# OUTDIR/gcov/BUILD).
+gcov=/sys/kernel/debug/gcov$LEGO_BUILD
+rm -rf "$out/gcov"
+if [ -d "$gcov" ]; then
+	mkdir -p "$out/gcov"
+	n=0
+	for f in $(cd "$gcov" && find . -name '*.gcda'); do
+		mkdir -p "$out/gcov/${f%/*}"
+		cat "$gcov/$f" > "$out/gcov/$f" || rc=1
+		n=$((n + 1))
+	done
+	echo "$LEGO_BUILD" > "$out/gcov/BUILD"
+	echo "run-suite: gcov data of $n objects saved in $out/gcov"
+fi
 
 echo "=== kmemleak"
 if [ -w /sys/kernel/debug/kmemleak ]; then

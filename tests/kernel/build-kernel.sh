@@ -51,7 +51,7 @@ arm64)
 	fragments+=("$here/arm64.config")
 	makevars=(ARCH=arm64 CROSS_COMPILE=aarch64-linux-gnu-)
 	image=Image
-	absent="CONFIG_X86_MPPARSE CONFIG_EARLY_PRINTK CONFIG_KERNEL_GZIP"
+	absent="CONFIG_X86_MPPARSE CONFIG_EARLY_PRINTK CONFIG_KERNEL_GZIP CONFIG_IA32_EMULATION"
 	;;
 *) echo "build-kernel: unknown --arch $arch (x86 or arm64)" >&2; exit 2 ;;
 esac
