@@ -42,7 +42,16 @@
  *    last byte is 0x04 (a sensor's ACK ends its handshake this way), so
  *    that tests can time the discipline's ACK and keep-alive period on
  *    every handshake from kernel time alone (see nm_wire_log()); and,
- *    for the even ports, when each byte was written (before the pacing).
+ *    for the even ports, when each byte was written (before the pacing);
+ *  - the same log has a record 's' for each time a CPU of the guest could
+ *    not run for NM_STALL_MIN_NS or more: one pinned hard hrtimer a CPU
+ *    fires every NM_BEAT_NS, and when one fires that late, the record
+ *    (port 255, the CPU in the byte) says when it fired and, in the baud
+ *    field, how many microseconds late. Under QEMU's TCG the guest's clock
+ *    is the host's: a host that does not run the guest's CPUs makes every
+ *    timer of the guest late, the discipline's keep-alive too, and these
+ *    records let wire.py tell such a stall from the discipline's own
+ *    lateness.
  *
  * And a sensor stream generator for the sample-delivery benchmark
  * (tests/bench/guest/ev3_bench.py), so that the sender's rate is exact and
@@ -70,13 +79,16 @@
  *
  * Not meant for anything but tests.
  */
+#include <linux/cpu.h>
 #include <linux/debugfs.h>
 #include <linux/hrtimer.h>
 #include <linux/kfifo.h>
 #include <linux/log2.h>
 #include <linux/module.h>
+#include <linux/percpu.h>
 #include <linux/seq_file.h>
 #include <linux/slab.h>
+#include <linux/smp.h>
 #include <linux/spinlock.h>
 #include <linux/tty.h>
 #include <linux/tty_driver.h>
@@ -260,6 +272,8 @@ struct nm_wire_rec {
 	u8 kind;
 };
 
+#define NM_WIRE_STALL	255	/* the port of a stall record */
+
 static struct nm_wire_rec nm_wire[NM_WIRE_LOG];
 static u64 nm_wire_head;		/* records logged: the next seq */
 static DEFINE_SPINLOCK(nm_wire_lock);	/* protects the two above */
@@ -310,6 +324,53 @@ static void nm_wire_log_write(unsigned int port, const u8 *buf, unsigned int n,
 		r->kind = 'w';
 	}
 	spin_unlock_irqrestore(&nm_wire_lock, flags);
+}
+
+/*
+ * The stall heartbeat: a pinned hrtimer on each CPU, in hard interrupt
+ * context, so that nothing but the CPU not running (the host not running
+ * the guest's vCPU, or interrupts off that long) makes it late.
+ */
+#define NM_BEAT_NS	(5 * NSEC_PER_MSEC)
+#define NM_STALL_MIN_NS	(10 * NSEC_PER_MSEC)
+
+static DEFINE_PER_CPU(struct hrtimer, nm_beat);
+
+static enum hrtimer_restart nm_beat_fn(struct hrtimer *timer)
+{
+	u64 now = ktime_get_ns();
+	s64 late = now - ktime_to_ns(hrtimer_get_expires(timer));
+	struct nm_wire_rec *r;
+	unsigned long flags;
+
+	if (late >= NM_STALL_MIN_NS) {
+		spin_lock_irqsave(&nm_wire_lock, flags);
+		r = &nm_wire[nm_wire_head++ % NM_WIRE_LOG];
+		r->ns = now;
+		r->baud = min_t(u64, div_u64(late, NSEC_PER_USEC), U32_MAX);
+		r->port = NM_WIRE_STALL;
+		r->byte = smp_processor_id();
+		r->kind = 's';
+		spin_unlock_irqrestore(&nm_wire_lock, flags);
+	}
+	hrtimer_forward_now(timer, ns_to_ktime(NM_BEAT_NS));
+	return HRTIMER_RESTART;
+}
+
+static void nm_beat_start(void *unused)
+{
+	struct hrtimer *t = this_cpu_ptr(&nm_beat);
+
+	hrtimer_setup(t, nm_beat_fn, CLOCK_MONOTONIC, HRTIMER_MODE_REL_PINNED_HARD);
+	hrtimer_start(t, ns_to_ktime(NM_BEAT_NS), HRTIMER_MODE_REL_PINNED_HARD);
+}
+
+static void nm_beat_stop(void)
+{
+	unsigned int cpu;
+
+	for_each_online_cpu(cpu)
+		hrtimer_cancel(per_cpu_ptr(&nm_beat, cpu));
 }
 
 static void *nm_wire_start(struct seq_file *m, loff_t *pos)
@@ -863,6 +924,10 @@ static int __init nm_init(void)
 		goto put_driver;
 	/* Tests without debugfs only lose the wire logs. */
 	debugfs_create_file("wire", 0600, nm_debugfs, NULL, &nm_wire_fops);
+	/* The test VM has no CPU hotplug: the CPUs online now are all. */
+	cpus_read_lock();
+	on_each_cpu(nm_beat_start, NULL, 1);
+	cpus_read_unlock();
 	return 0;
 
 put_driver:
@@ -884,6 +949,7 @@ static void __exit nm_exit(void)
 	unsigned int i;
 
 	debugfs_remove_recursive(nm_debugfs);
+	nm_beat_stop();
 	hrtimer_cancel(&nm_gen.timer);
 	tty_unregister_driver(nm_driver);
 	for (i = 0; i < 2 * pairs; i++) {
