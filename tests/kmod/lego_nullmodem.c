@@ -276,7 +276,8 @@ struct nm_wire_rec {
 
 static struct nm_wire_rec nm_wire[NM_WIRE_LOG];
 static u64 nm_wire_head;		/* records logged: the next seq */
-static DEFINE_SPINLOCK(nm_wire_lock);	/* protects the two above */
+/* Protects the two above; raw: the stall heartbeat takes it in hard irq. */
+static DEFINE_RAW_SPINLOCK(nm_wire_lock);
 
 /*
  * @n bytes of port @p went on the wire, the last one at @now, @end if its
@@ -292,7 +293,7 @@ static void nm_wire_log(struct nm_port *p, const u8 *buf, unsigned int n,
 	unsigned long flags;
 
 	if (!(port & 1) || (end && buf[n - 1] == 0x04)) {
-		spin_lock_irqsave(&nm_wire_lock, flags);
+		raw_spin_lock_irqsave(&nm_wire_lock, flags);
 		for (i = (port & 1) ? n - 1 : 0; i < n; i++) {
 			r = &nm_wire[nm_wire_head++ % NM_WIRE_LOG];
 			r->ns = now - (n - 1 - i) * byte_ns;
@@ -301,7 +302,7 @@ static void nm_wire_log(struct nm_port *p, const u8 *buf, unsigned int n,
 			r->byte = buf[i];
 			r->kind = (port & 1) ? 'a' : 'b';
 		}
-		spin_unlock_irqrestore(&nm_wire_lock, flags);
+		raw_spin_unlock_irqrestore(&nm_wire_lock, flags);
 	}
 }
 
@@ -314,7 +315,7 @@ static void nm_wire_log_write(unsigned int port, const u8 *buf, unsigned int n,
 	unsigned long flags;
 	unsigned int i;
 
-	spin_lock_irqsave(&nm_wire_lock, flags);
+	raw_spin_lock_irqsave(&nm_wire_lock, flags);
 	for (i = 0; i < n; i++) {
 		r = &nm_wire[nm_wire_head++ % NM_WIRE_LOG];
 		r->ns = now;
@@ -323,7 +324,7 @@ static void nm_wire_log_write(unsigned int port, const u8 *buf, unsigned int n,
 		r->byte = buf[i];
 		r->kind = 'w';
 	}
-	spin_unlock_irqrestore(&nm_wire_lock, flags);
+	raw_spin_unlock_irqrestore(&nm_wire_lock, flags);
 }
 
 /*
@@ -344,14 +345,14 @@ static enum hrtimer_restart nm_beat_fn(struct hrtimer *timer)
 	unsigned long flags;
 
 	if (late >= NM_STALL_MIN_NS) {
-		spin_lock_irqsave(&nm_wire_lock, flags);
+		raw_spin_lock_irqsave(&nm_wire_lock, flags);
 		r = &nm_wire[nm_wire_head++ % NM_WIRE_LOG];
 		r->ns = now;
 		r->baud = min_t(u64, div_u64(late, NSEC_PER_USEC), U32_MAX);
 		r->port = NM_WIRE_STALL;
 		r->byte = smp_processor_id();
 		r->kind = 's';
-		spin_unlock_irqrestore(&nm_wire_lock, flags);
+		raw_spin_unlock_irqrestore(&nm_wire_lock, flags);
 	}
 	hrtimer_forward_now(timer, ns_to_ktime(NM_BEAT_NS));
 	return HRTIMER_RESTART;
@@ -378,7 +379,7 @@ static void *nm_wire_start(struct seq_file *m, loff_t *pos)
 {
 	u64 oldest;
 
-	spin_lock_irq(&nm_wire_lock);
+	raw_spin_lock_irq(&nm_wire_lock);
 	oldest = nm_wire_head > NM_WIRE_LOG ? nm_wire_head - NM_WIRE_LOG : 0;
 	if (*pos < oldest)
 		*pos = oldest;
@@ -394,7 +395,7 @@ static void *nm_wire_next(struct seq_file *m, void *v, loff_t *pos)
 static void nm_wire_stop(struct seq_file *m, void *v)
 	__releases(&nm_wire_lock)
 {
-	spin_unlock_irq(&nm_wire_lock);
+	raw_spin_unlock_irq(&nm_wire_lock);
 }
 
 static int nm_wire_show(struct seq_file *m, void *v)
@@ -423,9 +424,9 @@ static int nm_wire_open(struct inode *inode, struct file *file)
 static ssize_t nm_wire_write(struct file *file, const char __user *buf,
 			     size_t count, loff_t *ppos)
 {
-	spin_lock_irq(&nm_wire_lock);
+	raw_spin_lock_irq(&nm_wire_lock);
 	nm_wire_head = 0;
-	spin_unlock_irq(&nm_wire_lock);
+	raw_spin_unlock_irq(&nm_wire_lock);
 	return count;
 }
 
