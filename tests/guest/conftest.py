@@ -146,6 +146,9 @@ def line(ev3_module, request):
     if since is not None and not request.node.get_closest_marker('no_wire_timing'):
         recs, lost = wire.read(since)
         errors, conns = wire.check(recs, 0, end, lost, ln.detached_ns)
+        for c in conns:
+            if c.excused:
+                print('wire: %r' % c)
         assert not errors, 'timing on the wire:\n' + '\n'.join(errors)
 
 

@@ -314,6 +314,48 @@ def test_the_wire_checks_can_fail():
     assert any('overflowed' in e for e in wire.check(recs, 0, end, lost=True)[0])
 
 
+def test_only_a_stall_of_the_guest_excuses_a_late_keep_alive():
+    """A keep-alive 100 ms late passes only when the null modem's stall
+    records cover enough of the gap: a stall elsewhere, or one too short,
+    leaves the gap the discipline's."""
+    recs, end = good_records()
+    c = wire.check(recs, 0, end)[1][0]
+    # NACK 4 missing, the ones after it 30 ms later: a 230 ms gap.
+    gap_from, gap_to = c.nacks[3], c.nacks[5] + 30 * MS
+    dropped = [r[:1] + (r[1] + 30 * MS,) + r[2:] if r[4] == 'b' and r[1] > c.nacks[4] else r
+               for r in recs if r[1] != c.nacks[4]]
+
+    def stall(at_ns, ms):
+        return (len(recs), at_ns, wire.STALL_PORT, ms * 1000, 's', 1)
+    errs, conns = wire.check(dropped + [stall(gap_from + 150 * MS, 110)], 0, end)
+    assert errs == [] and conns[0].excused, (errs, conns)
+    assert 'period 230.0 ms' in conns[0].excused[0], conns[0].excused
+    for what, extra in {'stall too short': stall(gap_from + 150 * MS, 25),
+                        'stall elsewhere': stall(gap_to + 450 * MS, 110),
+                        'no stall': None}.items():
+        errs = wire.check(dropped + ([extra] if extra else []), 0, end)[0]
+        assert any('periods out of' in e for e in errs), (what, errs)
+    # An early keep-alive is not excused by a stall; a late ACK only by one
+    # that covers the lateness.
+    early = [r[:1] + (r[1] - 15 * MS,) + r[2:] if r[1] == c.nacks[6] and r[4] == 'b' else r
+             for r in recs]
+    errs = wire.check(early + [stall(c.nacks[6] - 50 * MS, 110)], 0, end)[0]
+    assert any('periods out of' in e for e in errs), errs
+    late_ack = [r[:1] + (r[1] + 65 * MS,) + r[2:] if r[1] == c.ack_ns and r[4] == 'b' else r
+                for r in recs]
+    errs = wire.check(late_ack, 0, end)[0]
+    assert any("after the sensor's" in e for e in errs), errs
+    errs = wire.check(late_ack + [stall(c.ack_ns + 60 * MS, 40)], 0, end)[0]
+    assert not any("after the sensor's" in e for e in errs), errs
+
+
+def test_stalled_ms_counts_overlaps_once():
+    spans = [(0, 10 * MS), (5 * MS, 20 * MS), (30 * MS, 40 * MS)]
+    assert wire.stalled_ms(spans, 0, 100 * MS) == 30
+    assert wire.stalled_ms(spans, 8 * MS, 35 * MS) == 17
+    assert wire.stalled_ms([], 0, MS) == 0
+
+
 def test_a_wire_misreport_fails_a_fuzz_case(ev3_module, monkeypatch):
     # The fuzzer's own use of the check: a null-modem case whose records
     # lose every third keep-alive.

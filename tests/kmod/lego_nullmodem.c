@@ -42,7 +42,16 @@
  *    last byte is 0x04 (a sensor's ACK ends its handshake this way), so
  *    that tests can time the discipline's ACK and keep-alive period on
  *    every handshake from kernel time alone (see nm_wire_log()); and,
- *    for the even ports, when each byte was written (before the pacing).
+ *    for the even ports, when each byte was written (before the pacing);
+ *  - the same log has a record 's' for each time a CPU of the guest could
+ *    not run for NM_STALL_MIN_NS or more: one pinned hard hrtimer a CPU
+ *    fires every NM_BEAT_NS, and when one fires that late, the record
+ *    (port 255, the CPU in the byte) says when it fired and, in the baud
+ *    field, how many microseconds late. Under QEMU's TCG the guest's clock
+ *    is the host's: a host that does not run the guest's CPUs makes every
+ *    timer of the guest late, the discipline's keep-alive too, and these
+ *    records let wire.py tell such a stall from the discipline's own
+ *    lateness.
  *
  * And a sensor stream generator for the sample-delivery benchmark
  * (tests/bench/guest/ev3_bench.py), so that the sender's rate is exact and
@@ -70,13 +79,16 @@
  *
  * Not meant for anything but tests.
  */
+#include <linux/cpu.h>
 #include <linux/debugfs.h>
 #include <linux/hrtimer.h>
 #include <linux/kfifo.h>
 #include <linux/log2.h>
 #include <linux/module.h>
+#include <linux/percpu.h>
 #include <linux/seq_file.h>
 #include <linux/slab.h>
+#include <linux/smp.h>
 #include <linux/spinlock.h>
 #include <linux/tty.h>
 #include <linux/tty_driver.h>
@@ -260,9 +272,12 @@ struct nm_wire_rec {
 	u8 kind;
 };
 
+#define NM_WIRE_STALL	255	/* the port of a stall record */
+
 static struct nm_wire_rec nm_wire[NM_WIRE_LOG];
 static u64 nm_wire_head;		/* records logged: the next seq */
-static DEFINE_SPINLOCK(nm_wire_lock);	/* protects the two above */
+/* Protects the two above; raw: the stall heartbeat takes it in hard irq. */
+static DEFINE_RAW_SPINLOCK(nm_wire_lock);
 
 /*
  * @n bytes of port @p went on the wire, the last one at @now, @end if its
@@ -278,7 +293,7 @@ static void nm_wire_log(struct nm_port *p, const u8 *buf, unsigned int n,
 	unsigned long flags;
 
 	if (!(port & 1) || (end && buf[n - 1] == 0x04)) {
-		spin_lock_irqsave(&nm_wire_lock, flags);
+		raw_spin_lock_irqsave(&nm_wire_lock, flags);
 		for (i = (port & 1) ? n - 1 : 0; i < n; i++) {
 			r = &nm_wire[nm_wire_head++ % NM_WIRE_LOG];
 			r->ns = now - (n - 1 - i) * byte_ns;
@@ -287,7 +302,7 @@ static void nm_wire_log(struct nm_port *p, const u8 *buf, unsigned int n,
 			r->byte = buf[i];
 			r->kind = (port & 1) ? 'a' : 'b';
 		}
-		spin_unlock_irqrestore(&nm_wire_lock, flags);
+		raw_spin_unlock_irqrestore(&nm_wire_lock, flags);
 	}
 }
 
@@ -300,7 +315,7 @@ static void nm_wire_log_write(unsigned int port, const u8 *buf, unsigned int n,
 	unsigned long flags;
 	unsigned int i;
 
-	spin_lock_irqsave(&nm_wire_lock, flags);
+	raw_spin_lock_irqsave(&nm_wire_lock, flags);
 	for (i = 0; i < n; i++) {
 		r = &nm_wire[nm_wire_head++ % NM_WIRE_LOG];
 		r->ns = now;
@@ -309,7 +324,54 @@ static void nm_wire_log_write(unsigned int port, const u8 *buf, unsigned int n,
 		r->byte = buf[i];
 		r->kind = 'w';
 	}
-	spin_unlock_irqrestore(&nm_wire_lock, flags);
+	raw_spin_unlock_irqrestore(&nm_wire_lock, flags);
+}
+
+/*
+ * The stall heartbeat: a pinned hrtimer on each CPU, in hard interrupt
+ * context, so that nothing but the CPU not running (the host not running
+ * the guest's vCPU, or interrupts off that long) makes it late.
+ */
+#define NM_BEAT_NS	(5 * NSEC_PER_MSEC)
+#define NM_STALL_MIN_NS	(10 * NSEC_PER_MSEC)
+
+static DEFINE_PER_CPU(struct hrtimer, nm_beat);
+
+static enum hrtimer_restart nm_beat_fn(struct hrtimer *timer)
+{
+	u64 now = ktime_get_ns();
+	s64 late = now - ktime_to_ns(hrtimer_get_expires(timer));
+	struct nm_wire_rec *r;
+	unsigned long flags;
+
+	if (late >= NM_STALL_MIN_NS) {
+		raw_spin_lock_irqsave(&nm_wire_lock, flags);
+		r = &nm_wire[nm_wire_head++ % NM_WIRE_LOG];
+		r->ns = now;
+		r->baud = min_t(u64, div_u64(late, NSEC_PER_USEC), U32_MAX);
+		r->port = NM_WIRE_STALL;
+		r->byte = smp_processor_id();
+		r->kind = 's';
+		raw_spin_unlock_irqrestore(&nm_wire_lock, flags);
+	}
+	hrtimer_forward_now(timer, ns_to_ktime(NM_BEAT_NS));
+	return HRTIMER_RESTART;
+}
+
+static void nm_beat_start(void *unused)
+{
+	struct hrtimer *t = this_cpu_ptr(&nm_beat);
+
+	hrtimer_setup(t, nm_beat_fn, CLOCK_MONOTONIC, HRTIMER_MODE_REL_PINNED_HARD);
+	hrtimer_start(t, ns_to_ktime(NM_BEAT_NS), HRTIMER_MODE_REL_PINNED_HARD);
+}
+
+static void nm_beat_stop(void)
+{
+	unsigned int cpu;
+
+	for_each_online_cpu(cpu)
+		hrtimer_cancel(per_cpu_ptr(&nm_beat, cpu));
 }
 
 static void *nm_wire_start(struct seq_file *m, loff_t *pos)
@@ -317,7 +379,7 @@ static void *nm_wire_start(struct seq_file *m, loff_t *pos)
 {
 	u64 oldest;
 
-	spin_lock_irq(&nm_wire_lock);
+	raw_spin_lock_irq(&nm_wire_lock);
 	oldest = nm_wire_head > NM_WIRE_LOG ? nm_wire_head - NM_WIRE_LOG : 0;
 	if (*pos < oldest)
 		*pos = oldest;
@@ -333,7 +395,7 @@ static void *nm_wire_next(struct seq_file *m, void *v, loff_t *pos)
 static void nm_wire_stop(struct seq_file *m, void *v)
 	__releases(&nm_wire_lock)
 {
-	spin_unlock_irq(&nm_wire_lock);
+	raw_spin_unlock_irq(&nm_wire_lock);
 }
 
 static int nm_wire_show(struct seq_file *m, void *v)
@@ -362,9 +424,9 @@ static int nm_wire_open(struct inode *inode, struct file *file)
 static ssize_t nm_wire_write(struct file *file, const char __user *buf,
 			     size_t count, loff_t *ppos)
 {
-	spin_lock_irq(&nm_wire_lock);
+	raw_spin_lock_irq(&nm_wire_lock);
 	nm_wire_head = 0;
-	spin_unlock_irq(&nm_wire_lock);
+	raw_spin_unlock_irq(&nm_wire_lock);
 	return count;
 }
 
@@ -863,6 +925,10 @@ static int __init nm_init(void)
 		goto put_driver;
 	/* Tests without debugfs only lose the wire logs. */
 	debugfs_create_file("wire", 0600, nm_debugfs, NULL, &nm_wire_fops);
+	/* The test VM has no CPU hotplug: the CPUs online now are all. */
+	cpus_read_lock();
+	on_each_cpu(nm_beat_start, NULL, 1);
+	cpus_read_unlock();
 	return 0;
 
 put_driver:
@@ -884,6 +950,7 @@ static void __exit nm_exit(void)
 	unsigned int i;
 
 	debugfs_remove_recursive(nm_debugfs);
+	nm_beat_stop();
 	hrtimer_cancel(&nm_gen.timer);
 	tty_unregister_driver(nm_driver);
 	for (i = 0; i < 2 * pairs; i++) {

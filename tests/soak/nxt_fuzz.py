@@ -852,8 +852,10 @@ class Sequence:
         self.note('sysfs', err)
         # The attributes show what replies to the users' telegrams said and
         # never ask the brick: ENODATA while no such reply has come, ENOENT
-        # once the brick is gone, and no transaction's errno.
-        sysfs_ok = {E.ENODATA, E.ENOENT}
+        # once the brick is gone (ENODEV from kernfs when it went between
+        # the open and the read), and no transaction's errno. A strict
+        # epoch has no unplug: ENODEV fails it below.
+        sysfs_ok = {E.ENODATA, E.ENOENT, E.ENODEV}
         if self.strict and err == E.EPROTO:
             self.eproto.append('sequence %#x op %d (%s): EPROTO from an honest brick' % (
                 self.seed, i, describe(op)))
