@@ -4,7 +4,8 @@
 # warning.
 #   tests/build-modules.sh [--sparse] KDIR OUTDIR
 # ARCH and CROSS_COMPILE in the environment cross-compile the modules, the
-# uapi check and the tools (tests/cross-build.sh).
+# uapi check and the tools (tests/cross-build.sh); the 32-bit NXT client is
+# built only for an x86_64 host's own guest (no ARCH).
 set -euo pipefail
 sparse=
 if [ "${1:-}" = --sparse ]; then
@@ -43,6 +44,20 @@ fi
 # The guest tests' check of the uapi header, compiled here: a compiler in
 # the emulated guest is slow.
 "$cc" -Wall -Wextra -Werror -I "$top/include/uapi" -o "$out/uapi-check" "$top/tests/guest/nxt_uapi_check.c"
+# The 32-bit client of the NXT ioctls (tests/guest/test_nxt_compat.py), for
+# the x86 guest only: static, for i386 (gcc-12-multilib, libc6-dev-i386).
+# gcc -m32 does not search the multiarch directory, whose asm/ headers (the
+# same for i386 and x86_64) the i386 libc headers include: -idirafter adds
+# it after the i386 ones (Debian's gcc-multilib would add an asm symlink, but
+# it removes the ARM cross compilers).
+rm -f "$out/nxt-compat-client"
+if [ -z "${ARCH:-}" ] && [ "$(uname -m)" = x86_64 ]; then
+	if ! gcc -m32 -static -O2 -Wall -Wextra -Werror -idirafter "/usr/include/$(gcc -print-multiarch)" \
+		-I "$top/include/uapi" -o "$out/nxt-compat-client" "$top/tests/guest/nxt_compat_client.c"; then
+		echo "build-modules: the 32-bit NXT client did not build (gcc-12-multilib and libc6-dev-i386: tests/install-deps.sh)" >&2
+		exit 1
+	fi
+fi
 # The userspace tools, for the guest tests: $LEGO_BUILD/tools/, warnings
 # as errors (WERROR=1).
 mkdir -p "$out/tools"

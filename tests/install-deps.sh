@@ -27,6 +27,10 @@ debs+=(gcc-aarch64-linux-gnu gcc-arm-linux-gnueabihf libc6-dev-arm64-cross libc6
 # make check-arm64 (tests/arm64/check.sh): the arm64 VM, the cross compiler,
 # and debootstrap for its root file system.
 debs+=(qemu-system-arm debootstrap qemu-user-static file)
+# tests/guest/nxt_compat_client.c, the 32-bit client of the NXT ioctls, built
+# static with gcc -m32 by tests/build-modules.sh (not gcc-multilib, which
+# would remove the arm64 and armhf cross compilers above)
+debs+=(gcc-12-multilib libc6-dev-i386)
 # libusb headers and pkg-config for the NXT benchmark's C client (tests/bench/nxt)
 debs+=(libusb-1.0-0-dev pkg-config)
 # examples/iio-capture.c (built and run by tests/guest/test_examples.py)
