@@ -32,8 +32,6 @@
 #include <unistd.h>
 #include <linux/lego_nxt.h>
 
-#define __printf(a, b)	__attribute__((format(printf, a, b)))
-
 enum {
 	I_TRANSACT, I_SET_TIMEOUT, I_GET_TIMEOUT, I_START_PROGRAM,
 	I_STOP_PROGRAM, I_PLAY_SOUND_FILE, I_PLAY_TONE, I_SET_OUTPUT_STATE,
@@ -86,7 +84,7 @@ static int call(int fd, int which, void *arg)
 	return err;
 }
 
-static void __printf(2, 3) fail(int which, const char *fmt, ...)
+static void fail(int which, const char *fmt, ...)
 {
 	va_list ap;
 

@@ -65,8 +65,12 @@ def test_unknown_mode_is_einval(line):
     with pytest.raises(OSError) as e:
         write_attr(path, 'command', 'anything')
     assert e.value.errno == errno.EINVAL
+    # UART sensors are not polled: poll_ms can be neither read nor set.
     with pytest.raises(OSError) as e:
         read_attr(path, 'poll_ms')
+    assert e.value.errno == errno.EOPNOTSUPP
+    with pytest.raises(OSError) as e:
+        write_attr(path, 'poll_ms', '100')
     assert e.value.errno == errno.EOPNOTSUPP
 
 

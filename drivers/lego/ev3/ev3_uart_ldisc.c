@@ -50,6 +50,7 @@
 #include <linux/tty.h>
 #include <linux/tty_ldisc.h>
 #include <linux/uaccess.h>
+#include <linux/workqueue.h>
 #include <linux/lego_ev3_uart.h>
 
 #include "lego_compat.h"
@@ -78,6 +79,15 @@
 
 /* lego_ev3_uart in debugfs, with a directory per port (ev3_uart_open()). */
 static struct dentry *ev3_uart_debugfs_root;
+
+/*
+ * The keep-alives' workqueue: high priority and unbound, so that a NACK
+ * does not wait for a worker of the shared unbound pool, whose workers may
+ * all be blocked registering sensors (each port's own work items run
+ * there too): one keep-alive was measured 194 ms late in the test VM with
+ * its CPUs running, while other ports registered sensors.
+ */
+static struct workqueue_struct *ev3_uart_keepalive_wq;
 
 static char *port_labels[8];
 static int num_port_labels;
@@ -856,7 +866,7 @@ static void ev3_uart_ack_work(struct work_struct *work)
 	 * that another CPU sends the NACKs while this one registers (without
 	 * kernel preemption a per-CPU worker would wait for this one).
 	 */
-	queue_delayed_work(system_dfl_wq, &port->keepalive_work, 0);
+	queue_delayed_work(ev3_uart_keepalive_wq, &port->keepalive_work, 0);
 
 	sd = ev3_uart_sensor_create(port, desc);
 	if (IS_ERR(sd)) {
@@ -944,7 +954,7 @@ static void ev3_uart_keepalive_work(struct work_struct *work)
 	}
 	ev3_uart_tx(port, &nack, ev3_uart_build_nack(&nack));
 	if (!READ_ONCE(port->closing))
-		queue_delayed_work(system_dfl_wq, &port->keepalive_work,
+		queue_delayed_work(ev3_uart_keepalive_wq, &port->keepalive_work,
 				   msecs_to_jiffies(EV3_UART_KEEPALIVE_MS));
 }
 
@@ -1576,9 +1586,13 @@ static int __init ev3_uart_init(void)
 	ret = ev3_uart_check_port_labels();
 	if (ret)
 		return ret;
+	ev3_uart_keepalive_wq = alloc_workqueue("lego_ev3_keepalive",
+						WQ_UNBOUND | WQ_HIGHPRI, 0);
+	if (!ev3_uart_keepalive_wq)
+		return -ENOMEM;
 	ret = ev3_uart_class_init();
 	if (ret)
-		return ret;
+		goto destroy_wq;
 
 	ev3_uart_debugfs_root = debugfs_create_dir(KBUILD_MODNAME, NULL);
 	ret = tty_register_ldisc(&ev3_uart_ldisc);
@@ -1587,7 +1601,12 @@ static int __init ev3_uart_init(void)
 		       EV3_UART_LDISC_NUM, ret);
 		debugfs_remove_recursive(ev3_uart_debugfs_root);
 		ev3_uart_class_exit();
+		goto destroy_wq;
 	}
+	return 0;
+
+destroy_wq:
+	destroy_workqueue(ev3_uart_keepalive_wq);
 	return ret;
 }
 module_init(ev3_uart_init);
@@ -1597,6 +1616,7 @@ static void __exit ev3_uart_exit(void)
 	tty_unregister_ldisc(&ev3_uart_ldisc);
 	debugfs_remove_recursive(ev3_uart_debugfs_root);
 	ev3_uart_class_exit();
+	destroy_workqueue(ev3_uart_keepalive_wq);
 }
 module_exit(ev3_uart_exit);
 
