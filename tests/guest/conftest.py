@@ -52,6 +52,12 @@ def wait_for(cond, timeout=3.0, interval=0.05):
     return cond()
 
 
+def owned(node, gid, mode=0o660):
+    """Whether node has group gid and permissions mode (udev sets them in two calls)."""
+    st = os.stat(node)
+    return st.st_gid == gid and st.st_mode & 0o777 == mode
+
+
 def unload(*names):
     """rmmod each of the modules that is loaded."""
     for name in names:

@@ -36,7 +36,7 @@ import time
 
 import pytest
 
-from conftest import loaded, module_path, pid_alive, run, unload, wait_for
+from conftest import loaded, module_path, owned, pid_alive, run, unload, wait_for
 
 TOP = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
 sys.path.insert(0, os.path.join(TOP, 'tests', 'emulator'))
@@ -269,9 +269,10 @@ def test_brick_gets_group_lego_and_uaccess(state, udevd):
                 'the loaded lego_nxt_usb is not the one DKMS built'
         node = nxtdev.node_of(SERIAL, 15)
         assert node, 'no /dev/nxtN for the brick'
-        assert wait_for(lambda: os.stat(node).st_gid == state['gid'], 15), \
-            'group of %s: %d, not lego (%d)' % (node, os.stat(node).st_gid, state['gid'])
-        assert os.stat(node).st_mode & 0o777 == 0o660, oct(os.stat(node).st_mode)
+        # udevd changes the group and the mode in two calls: wait for both.
+        assert wait_for(lambda: owned(node, state['gid']), 15), \
+            '%s: group %d, mode %o; not lego (%d), 660' % (
+                node, os.stat(node).st_gid, os.stat(node).st_mode & 0o777, state['gid'])
         link = '/dev/nxt/by-serial/' + SERIAL
         assert wait_for(lambda: os.path.realpath(link) == node, 15), link
         props = chroot(['udevadm', 'info', '--query=property', '--name=' + node])

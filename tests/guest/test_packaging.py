@@ -31,7 +31,7 @@ import sys
 
 import pytest
 
-from conftest import loaded, module_path, run, udevd_with_rules, unload, wait_for
+from conftest import loaded, module_path, owned, run, udevd_with_rules, unload, wait_for
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), '..', 'emulator'))
 
@@ -203,9 +203,10 @@ def test_brick_plug_loads_lego_nxt_usb_and_udev_rule(udevd):
         assert node, 'no /dev/nxtN for the brick'
         assert wait_for(lambda: os.path.exists(link), 15), link + ' missing'
         assert os.path.realpath(link) == node
-        assert wait_for(lambda: os.stat(node).st_gid == udevd, 15), \
-            'group of %s: %d, not lego (%d)' % (node, os.stat(node).st_gid, udevd)
-        assert os.stat(node).st_mode & 0o777 == 0o660
+        # udevd changes the group and the mode in two calls: wait for both.
+        assert wait_for(lambda: owned(node, udevd), 15), \
+            '%s: group %d, mode %o; not lego (%d), 660' % (
+                node, os.stat(node).st_gid, os.stat(node).st_mode & 0o777, udevd)
     finally:
         emu.unplug()
     assert wait_for(lambda: not nxtdev.interface_of(SERIAL), 15), 'the brick outlived its unplug'
