@@ -14,8 +14,8 @@
 #     the in-tree series' rules (tests/upstream/test_intree.py) and the
 #     series' quick checks (tests/upstream/check.sh without its builds), and
 #     dkms (on the host) for the guest's packaging test, `make deb` (with
-#     lintian) and the dkms package's installation (on the host) for the
-#     guest's tests/guest/test_deb.py,
+#     lintian) and the packages installed in a Debian root (on the host)
+#     for tests/packaging/test_deb.py and the guest's tests/guest/test_deb.py,
 #  5. boots the test VM: every KUnit suite, then the guest tests; the
 #     phases of 3 and 4 that the VM does not need (all but the modules for
 #     the test kernel, the fuzzers, dkms and the packages) run beside it at
@@ -83,7 +83,8 @@ host_phases() {
 	# install-deps.sh (Debian packages) in a clean Debian 12 root, with
 	# coccicheck's semantic patches that have scripts; cached per inputs.
 	phase "install-deps in a clean Debian 12 root" tests/packaging/clean-root.sh
-	LEGO_KERNEL_TREE="$tree" pytest_phase "make install, dkms-source (host)" \
+	LEGO_KERNEL_TREE="$tree" LEGO_DEB_ROOT="$build/deb-root-$kver.tar" \
+		pytest_phase "make install, dkms-source, deb (host)" \
 		"$results/host-packaging.xml" tests/packaging
 	LEGO_KERNEL_TREE="$tree" pytest_phase "emulators, harness (host)" \
 		"$results/host-emulator.xml" tests/emulator tests/lib
@@ -99,11 +100,22 @@ host_phases() {
 phase "fuzz (short, 2 x 30 s)" tests/fuzz/run.sh --short
 # For tests/guest/test_packaging.py: a dkms build in the emulated guest is slow.
 phase "dkms build for $kver (host)" tests/packaging/dkms-prepare.sh "$tree" "$build/dkms-$kver"
-# For tests/guest/test_deb.py: the packages, and lego-mindstorms-dkms
-# installed in a private root (its DKMS build, too slow in the guest).
+# For tests/packaging/test_deb.py and tests/guest/test_deb.py: the
+# packages, installed in a private root (DKMS, dpkg: too slow in the guest).
 phase "make deb, lintian" make -s deb DEB_OUT="$build/deb" DEB_LINTIAN=1
-phase "deb: dkms package for $kver (host)" tests/packaging/deb-prepare.sh "$tree" \
+phase "deb: packages in a Debian root for $kver (host)" tests/packaging/deb-prepare.sh "$tree" \
 	"$build/deb" "$build/deb-root-$kver.tar"
+
+# The guest's python3 writes no bytecode (PYTHONDONTWRITEBYTECODE: its root
+# is the host's, read-only), so every import compiled the tests' modules
+# again under emulation. Compiled here (pytest's rewritten test modules by a
+# collection), by the same interpreter, the guest reads them.
+guest_bytecode() {
+	env -u PYTHONDONTWRITEBYTECODE python3 -m compileall -q tests tools/python &&
+		env -u PYTHONDONTWRITEBYTECODE python3 -m pytest --collect-only -q \
+			-p no:cacheprovider tests/guest >/dev/null
+}
+phase "python bytecode for the guest" guest_bytecode
 
 beside_start "$build/beside.log" host_phases
 

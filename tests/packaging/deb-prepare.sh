@@ -1,9 +1,12 @@
 #!/usr/bin/env bash
-# For tests/guest/test_deb.py: a private Debian root (tests/packaging/debroot.py)
-# in which the built lego-mindstorms-dkms package is installed with dpkg, so
-# that DKMS compiles the modules for the test kernel here on the host (a
-# DKMS build in the emulated guest takes over ten minutes, here seconds).
-# The guest unpacks it, installs the other packages and purges them all.
+# For tests/packaging/test_deb.py and tests/guest/test_deb.py: a private
+# Debian root (tests/packaging/debroot.py) in which the built
+# lego-mindstorms-dkms package is installed with dpkg, so that DKMS compiles
+# the modules for the test kernel here on the host (a DKMS build in the
+# emulated guest takes over ten minutes, here seconds), saved as OUT_TAR
+# (the host test unpacks it, installs the other packages and purges them
+# all); then with the other packages installed too, left unpacked in
+# OUT_TAR without .tar, where the guest test chroots.
 #
 #   tests/packaging/deb-prepare.sh KDIR DEB_DIR OUT_TAR
 #
