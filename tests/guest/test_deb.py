@@ -50,15 +50,6 @@ def chroot(cmd, **kw):
         pytest.fail(str(e))
 
 
-def group_gid(name):
-    with open(os.path.join(ROOT, 'etc/group')) as f:
-        for line in f:
-            fields = line.rstrip('\n').split(':')
-            if fields[0] == name:
-                return int(fields[2])
-    return None
-
-
 @pytest.fixture(scope='module')
 def state():
     """The root deb-prepare.sh left, with /run and /tmp of its own and the
@@ -71,7 +62,7 @@ def state():
                     % (ROOT, build_dir(), SERIES, build_dir(), ROOT))
     with open(os.path.join(ROOT, 'kernel-release')) as f:
         assert f.read().strip() == KVER, 'the root is for another kernel'
-    st = {'gid': group_gid('lego')}
+    st = {'gid': debroot.group_gid(ROOT, 'lego')}
     assert st['gid'] is not None, 'postinst made no group lego'
     mounted, points = [], []
     try:

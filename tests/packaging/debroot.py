@@ -209,6 +209,16 @@ def restore(tar, root):
     run(['tar', '-C', root, '-xf', tar])
 
 
+def group_gid(root, name):
+    """The GID of group name in the root's /etc/group, or None."""
+    with open(os.path.join(root, 'etc/group')) as f:
+        for line in f:
+            fields = line.rstrip('\n').split(':')
+            if fields[0] == name:
+                return int(fields[2])
+    return None
+
+
 def kernel_release(kdir):
     with open(os.path.join(kdir, 'include/generated/utsrelease.h')) as f:
         return re.search(r'UTS_RELEASE "([^"]+)"', f.read()).group(1)

@@ -66,15 +66,6 @@ def listing(root):
     return out
 
 
-def group_gid(root, name):
-    with open(os.path.join(root, 'etc/group')) as f:
-        for line in f:
-            fields = line.rstrip('\n').split(':')
-            if fields[0] == name:
-                return int(fields[2])
-    return None
-
-
 def sys_gid_max(root):
     try:
         with open(os.path.join(root, 'etc/login.defs')) as f:
@@ -164,7 +155,7 @@ def test_install_the_other_packages(root):
         assert out == 'install ok installed', (pkg, out)
     # dpkg -L now, for the purge test.
     root.files = {p: root.chroot(['dpkg', '-L', p]).split('\n') for p in ALL_PACKAGES}
-    gid = group_gid(root.path, 'lego')
+    gid = debroot.group_gid(root.path, 'lego')
     assert gid is not None, 'postinst made no group lego'
     assert gid <= sys_gid_max(root.path), 'lego has GID %d: not a system group' % gid
     for path in ('/usr/bin/nxtctl', '/usr/sbin/lego-ev3-attach',
