@@ -896,7 +896,7 @@ def test_nxt_probe(fault_setup, nxt_brick, fail_nth, kmsg, record_property):
                 return False
             if err:
                 assert err == errno.ENOMEM, 'N=%d: bind: %s' % (n, errno.errorcode.get(err, err))
-                assert not bound(intf) and not glob.glob('/dev/nxt*'), n
+                assert not bound(intf) and not glob.glob('/dev/nxt[0-9]*'), n
                 assert sweep.logged('probe with driver lego_nxt_usb failed with error -12'), n
                 note('probe failed with ENOMEM')
             else:
@@ -909,7 +909,7 @@ def test_nxt_probe(fault_setup, nxt_brick, fail_nth, kmsg, record_property):
             assert node, 'N=%d: no node after the failure' % n
             assert transaction(node) == (0, 0, VERSIONS_REPLY), n
             os.pwrite(unbind, intf.encode(), 0)
-            assert wait_for(lambda: not glob.glob('/dev/nxt*'), 5.0)
+            assert wait_for(lambda: not glob.glob('/dev/nxt[0-9]*'), 5.0)
             return True
         sweep.run(attempt)
     finally:
