@@ -349,6 +349,30 @@ def test_only_a_stall_of_the_guest_excuses_a_late_keep_alive():
     assert not any("after the sensor's" in e for e in errs), errs
 
 
+def test_a_late_median_is_excused_only_by_stalls_in_its_periods():
+    """Keep-alives every 120 ms: the median is out of bounds unless stall
+    records take at least 8 ms off enough periods; stalls outside the
+    connection's periods do not."""
+    recs, end = good_records(nacks=8, period=120)
+    errs, conns = wire.check(recs, 0, end)
+    assert any('median keep-alive period 120.0' in e for e in errs), errs
+    c = conns[0]
+
+    def stalls(ms, at):
+        return [(len(recs) + i, ns, wire.STALL_PORT, ms * 1000, 's', 1)
+                for i, ns in enumerate(at)]
+    inside = [a + 60 * MS for a in c.nacks[:-1]]
+    errs, conns = wire.check(recs + stalls(15, inside), 0, end)
+    assert errs == [] and any('median period 120.0 ms' in e for e in conns[0].excused), \
+        (errs, conns)
+    for what, extra in {'stalls too short': stalls(5, inside),
+                        'stalls in too few periods': stalls(15, inside[:3]),
+                        'stalls after the connection': stalls(15, [end + k * 200 * MS
+                                                                   for k in range(1, 8)])}.items():
+        errs = wire.check(recs + extra, 0, end)[0]
+        assert any('median keep-alive period' in e for e in errs), (what, errs)
+
+
 def test_stalled_ms_counts_overlaps_once():
     spans = [(0, 10 * MS), (5 * MS, 20 * MS), (30 * MS, 40 * MS)]
     assert wire.stalled_ms(spans, 0, 100 * MS) == 30
