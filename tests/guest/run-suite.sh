@@ -15,6 +15,15 @@ suites() {
 	ls /sys/kernel/debug/kunit 2>/dev/null | sort
 }
 
+# kmemleak scans on its own a minute after boot and every ten minutes
+# after, for tens of seconds under emulation: a test running then saw the
+# discipline's keep-alives 15 ms late on average (median period 114.8 ms
+# at 673 s of uptime, twice in a row; the same test passed at 963 s).
+# Leaks are found by the scans the tests ask for and the two at the end.
+if [ -w /sys/kernel/debug/kmemleak ]; then
+	echo scan=off > /sys/kernel/debug/kmemleak
+fi
+
 echo "=== KUnit"
 kos=$(find "$LEGO_BUILD" -name '*_test.ko' | sort)
 if [ -z "$kos" ]; then
