@@ -40,7 +40,7 @@ def build_dir():
     return os.path.dirname(os.environ.get('LEGO_BUILD', '/nonexistent'))
 
 
-ROOT = os.path.join(build_dir(), 'deb-root-%s' % SERIES)
+ROOT = debroot.unpacked(os.path.join(build_dir(), 'deb-root-%s.tar' % SERIES))
 
 
 def chroot(cmd, **kw):

@@ -227,8 +227,9 @@ def kernel_release(kdir):
 def install(root, deb_dir, names):
     """dpkg -i the packages names (from deb_dir) in the mounted root; dpkg's output."""
     paths = []
+    found = debs(deb_dir)
     for name in names:
-        deb = debs(deb_dir)[name]
+        deb = found[name]
         shutil.copy(deb, os.path.join(root, 'tmp'))
         paths.append('/tmp/' + os.path.basename(deb))
     try:
