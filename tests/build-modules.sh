@@ -66,5 +66,15 @@ if ! make -s -C "$top/tools" O="$out/tools" CC="$cc" WERROR=1 >"$out/tools.log" 
 	echo "build-modules: the userspace tools did not build cleanly" >&2
 	exit 1
 fi
+# The C examples, as a user builds them (examples/Makefile), for the guest's
+# tests/guest/test_examples.py: $LEGO_BUILD/examples/, warnings as errors.
+# For the host's own guest only (iio-capture links the host's libiio).
+rm -rf "$out/examples"
+if [ -z "${ARCH:-}" ] &&
+	! make -s -C "$top/examples" O="$out/examples" CFLAGS='-O2 -Wall -Wextra -Werror' >"$out/examples.log" 2>&1; then
+	cat "$out/examples.log" >&2
+	echo "build-modules: the examples did not build cleanly" >&2
+	exit 1
+fi
 n=$(find "$out" -name '*.ko' | wc -l)
 echo "build-modules: $n modules built against $kdir${ARCH:+ for $ARCH}${sparse:+ (sparse clean)}${cov:+ (with gcov)}" >&2

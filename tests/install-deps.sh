@@ -18,8 +18,9 @@ debs=(
 debs+=(python3-venv)
 # libusb for pyusb: nxt-python's usb backend in tests/guest/test_nxt_python.py
 debs+=(libusb-1.0-0)
-# systemd-analyze (tests/guest/test_ev3_attach.py's unit check; the guest
-# runs the host's root) and systemd-sysusers (tests/packaging/test_udev_rules.py)
+# systemd-analyze (tests/packaging/test_systemd_unit.py's unit check),
+# systemd-udevd (the guest runs the host's root) and systemd-sysusers
+# (tests/packaging/test_udev_rules.py)
 debs+=(systemd)
 # tests/cross-build.sh: the arm64 and armhf cross compilers (with their libc
 # for the userspace tools)

@@ -29,7 +29,7 @@ cache=${LEGO_CACHE:-${XDG_CACHE_HOME:-$HOME/.cache}/lego-mindstorms-linux}
 mirror=${LEGO_DEBIAN_MIRROR:-http://deb.debian.org/debian}
 suite=bookworm
 # What the guest tests run: python3 and pytest, pyusb and libusb (nxt-python),
-# udevadm and systemd-analyze (test_ev3_attach), iio_info and iio_readdev
+# udevadm and systemd-udevd (test_ev3_attach, the udev tests), iio_info and iio_readdev
 # (libiio-utils, test_ev3_iio), kmod (insmod, modprobe,
 # rmmod), util-linux (ldattach), iproute2, procps, and a static busybox for
 # the initramfs. python3-pil is python-ev3dev2's Pillow (compiled code).

@@ -126,6 +126,56 @@ def ev3_module():
         subprocess.run(['insmod', module_path('lego_ev3_uart')], check=True)
 
 
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_setup(item):
+    """The kernel log from the start of each test, for its failure report."""
+    try:
+        fd = os.open('/dev/kmsg', os.O_RDONLY | os.O_NONBLOCK)
+        os.lseek(fd, 0, os.SEEK_END)
+        item.kmsg_fd = fd
+    except OSError:
+        item.kmsg_fd = None
+    yield
+
+
+def kmsg_since(fd):
+    """The kernel log's records from fd's position, as dmesg prints them."""
+    lines = []
+    while True:
+        try:
+            rec = os.read(fd, 8192)
+        except BlockingIOError:
+            break
+        except BrokenPipeError:     # records overwritten meanwhile: go on
+            continue
+        if not rec:
+            break
+        head, _, text = rec.decode(errors='replace').partition(';')
+        fields = head.split(',')
+        usec = int(fields[2]) if len(fields) > 2 and fields[2].isdigit() else 0
+        lines.append('[%5d.%06d] %s' % (usec // 1000000, usec % 1000000, text.rstrip('\n')))
+    return lines
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item, call):
+    """A failed test's report shows what the kernel logged meanwhile (the
+    reason a sensor was lost, a warning), which the part of the console a
+    CI report keeps may not."""
+    outcome = yield
+    rep = outcome.get_result()
+    fd = getattr(item, 'kmsg_fd', None)
+    if fd is None:
+        return
+    if rep.failed:
+        lines = kmsg_since(fd)
+        if lines:
+            rep.sections.append(('kernel log since the test started', '\n'.join(lines[-60:])))
+    if call.when == 'teardown':
+        os.close(fd)
+        item.kmsg_fd = None
+
+
 def pytest_configure(config):
     config.addinivalue_line('markers', 'no_wire_timing(why): the line fixture does not check '
                             'the ACK deadline and keep-alive period (the test breaks them)')

@@ -275,6 +275,23 @@ class Runner:
         self.verbose = verbose
         self.kmsg = Kmsg()
         self.info = {}
+        self.step_times = []
+
+    @property
+    def step(self):
+        """The step of the case being played (named in failures)."""
+        return self._step
+
+    @step.setter
+    def step(self, name):
+        self._step = name
+        self.step_times.append((name, time.monotonic()))
+
+    def step_profile(self):
+        """'step=seconds ...' of the last case, for --verbose."""
+        marks = self.step_times + [('', time.monotonic())]
+        return ' '.join('%s=%.1f' % (a[0].replace(' ', '_'), b[1] - a[1])
+                        for a, b in zip(marks, marks[1:]))
 
     def bump(self, key, n=1):
         self.info[key] = self.info.get(key, 0) + n
@@ -292,6 +309,7 @@ class Runner:
         self.kmsg.mark('case seed=%d transport=%s known=%s %s%s' % (
             seed, self.transport, self.known, c.kind,
             ' bugs=' + ','.join(c.bugs) if c.bugs else ''))
+        self.step_times = []
         self.step = 'setup'
         self._seen = []
         self._sd = None
@@ -312,6 +330,7 @@ class Runner:
         finally:
             signal.alarm(0)
             signal.signal(signal.SIGALRM, old)
+        self.step_times.append(('checks', time.monotonic()))
         splats = [line for line in self.kmsg.read() if SPLAT.search(line)]
         if splats:
             err = (err + '\n' if err else '') + 'kernel splat:\n  ' + '\n  '.join(splats[:20])
@@ -642,8 +661,11 @@ class Runner:
 
     def _find_iio(self, c, sd):
         """The sensor's IIO device: the one with its driver name and modes
-        (ptys have no device to be the parent)."""
+        (ptys have no device to be the parent). The sensor is published
+        after its IIO device is registered, or after the log line that says
+        why it has none: no wait for one then."""
         modes = ' '.join(tokens(c.desc))
+        said = ' %s: ' % os.path.basename(sd.path)      # dev_warn(&sd->dev, ...)
         deadline = time.monotonic() + 3
         while True:
             found = []
@@ -657,14 +679,15 @@ class Runner:
                 self.bump('iio_ambiguous')
                 self.excuses.add('iio_ambiguous')
                 return None
-            if time.monotonic() > deadline:
+            self.kmsg_lines()
+            if any(said in line and 'no IIO device' in line for line in self._seen) or \
+                    time.monotonic() > deadline:
                 break
             time.sleep(0.05)
         # The driver carries on without IIO if it cannot register it: that
         # must be said in the log.
         self.bump('no_iio_device')
-        self.kmsg_lines()
-        if not any('no IIO device' in line for line in self._seen):
+        if not any(said in line and 'no IIO device' in line for line in self._seen):
             self.fail('no IIO device and no "no IIO device" log line')
         return None
 
@@ -935,7 +958,7 @@ def worker(q, current, transport, known, pair, seeds, verbose, max_failures):
             if len(failures) >= max_failures:
                 break
         elif verbose:
-            print('ev3fuzz: seed %d ok' % seed, flush=True)
+            print('ev3fuzz: seed %d ok: %s' % (seed, r.step_profile()), flush=True)
         if done % 500 == 0:
             print('ev3fuzz: %s worker: %d cases, %d failed, %.0f s'
                   % (transport, done, len(failures), time.monotonic() - t0), flush=True)
