@@ -33,28 +33,57 @@ up_git() {
 		-c core.autocrlf=false -c advice.detachedHead=false "$@"
 }
 
-# up_base: the scratch repository with the base commit, unpacked from the
-# tarball only when no commit is tagged with the package's version.
+# up_base_cache: the base commit, kept in the kernel cache as a bare
+# repository (loose objects, tagged like the scratch repository's base), so
+# that the scratch repository of a new checkout borrows its objects (git
+# clone --shared) instead of unpacking the tarball and hashing every file
+# again: over two minutes of CPU, which make check spent beside its VM.
+up_base_cache() {
+	echo "${LEGO_CACHE:-${XDG_CACHE_HOME:-$HOME/.cache}/lego-mindstorms-linux}/upstream/$(up_base_tag).git"
+}
+
+# up_base: the scratch repository with the base commit, from the cache
+# (made from the tarball the first time) when no commit is tagged with the
+# package's version yet. The base commit's author and date are fixed, so
+# the base (and the series' base-commit line) is the same on every machine.
 up_base() {
-	local tag
+	local tag cached tmp
 	tag=$(up_base_tag)
 	mapfile -t _id < <(up_ident)
 	up_name=${_id[0]}
 	up_email=${_id[1]}
-	if [ -d "$up_repo/.git" ] && up_git rev-parse -q --verify "refs/tags/$tag" >/dev/null; then
+	cached=$(up_base_cache)
+	# A scratch repository that borrows from a cache that is gone is made
+	# again.
+	if [ -d "$up_repo/.git" ] && up_git rev-parse -q --verify "refs/tags/$tag" >/dev/null &&
+		{ [ ! -f "$up_repo/.git/objects/info/alternates" ] || [ -d "$cached/objects" ]; }; then
 		return 0
 	fi
-	echo "$prog: unpacking $up_tarball ($(up_pkgver)) into $up_repo" >&2
+	if ! git --git-dir="$cached" rev-parse -q --verify "refs/tags/$tag" >/dev/null 2>&1; then
+		echo "$prog: unpacking $up_tarball ($(up_pkgver)) into $cached" >&2
+		rm -rf "$cached"
+		mkdir -p "$(dirname "$cached")"
+		tmp=$(mktemp -d "$cached.XXXXXX") || return 1
+		mkdir "$tmp/tree"
+		tar -xf "$up_tarball" -C "$tmp/tree" --strip-components=1 &&
+			git init -q --bare -b "base-$series" "$tmp/git" &&
+			# Everything the tarball holds, ignored patterns or not.
+			git -C "$tmp/tree" --git-dir="$tmp/git" --work-tree=. add -A -f . &&
+			GIT_AUTHOR_DATE="@0 +0000" GIT_COMMITTER_DATE="@0 +0000" \
+				git -C "$tmp/tree" --git-dir="$tmp/git" --work-tree=. \
+				-c user.name="Debian linux-source-$series" \
+				-c user.email="debian-kernel@lists.debian.org" commit -q --no-verify \
+				-m "Linux $series as Debian's linux-source-$series $(up_pkgver)" &&
+			git --git-dir="$tmp/git" tag "$tag" || { rm -rf "$tmp"; return 1; }
+		# Another run may have made it meanwhile: theirs is the same.
+		mv -T "$tmp/git" "$cached" 2>/dev/null || true
+		rm -rf "$tmp"
+	fi
 	# The check's worktree belongs to the old repository: it goes too.
 	rm -rf "$up_repo" "$up_out/check-$series"
-	mkdir -p "$up_repo"
-	tar -xf "$up_tarball" -C "$up_repo" --strip-components=1
-	up_git init -q -b "base-$series"
-	# Everything the tarball holds, ignored patterns or not.
-	up_git add -A -f .
-	GIT_AUTHOR_DATE="@0 +0000" GIT_COMMITTER_DATE="@0 +0000" \
-		up_git commit -q --no-verify -m "Linux $series as Debian's linux-source-$series $(up_pkgver)"
-	up_git tag "$tag"
+	mkdir -p "$up_out"
+	git clone -q --shared --no-checkout "$cached" "$up_repo" &&
+		up_git reset -q --hard "$tag"
 }
 
 # up_have: the LEGO_HAVE_* flags (without the prefix) of the series' tree,

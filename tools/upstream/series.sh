@@ -10,7 +10,9 @@
 #
 # The kernel source is committed once as the base of a scratch repository,
 # .build/upstream/linux-SERIES (tagged with the package's version: it is
-# unpacked again only when the package changes). The series is built on the
+# unpacked again only when the package changes, into a bare repository in
+# the kernel cache that each checkout's scratch repository borrows from,
+# up_base in tools/upstream/lib.sh). The series is built on the
 # branch lego-SERIES from this checkout's files, copied at generation time:
 # there is no second copy of any source. What differs in-tree is either a
 # file of this repository that the out-of-tree build does not read
