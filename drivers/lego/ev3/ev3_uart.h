@@ -31,13 +31,14 @@
  * probe, see ev3_uart_hunt()); ev3_uart_port.speed and .no_probe are
  * theirs (the receive path only reads no_probe, with READ_ONCE()). The
  * receive path completes ev3_uart_port.probe_done, under the port lock,
- * when the probe is answered. keepalive_work runs on
- * system_dfl_wq, so that NACKs go out (from another CPU if need be)
- * while a sensor registers (the sensor resets after a second without one);
- * it only ticks the parser, sends and queues reset_work. tx_work runs on
- * system_dfl_wq too. The one timer,
- * ev3_uart_port.ack_timer, runs in hard interrupt context and takes no
- * lock: it only queues ack_work.
+ * when the probe is answered. keepalive_work runs on an unbound
+ * high-priority workqueue of the module's, so that NACKs go out (from
+ * another CPU if need be) while a sensor registers (the sensor resets
+ * after a second without one); it only ticks the parser, sends, queues
+ * reset_work and starts keepalive_timer for its next run. tx_work runs on
+ * system_dfl_wq. The two timers, ev3_uart_port.ack_timer and
+ * .keepalive_timer, run in hard interrupt context and take no lock: each
+ * only queues its work.
  *
  * Lifetime
  * --------
@@ -172,6 +173,9 @@ struct ev3_uart_sensor_dev {
  *	exact at any HZ; it only queues the work, so it takes no lock)
  * @ack_work: answers the sensor's ACK, switches speed and registers the
  *	sensor
+ * @keepalive_timer: queues @keepalive_work 100 ms after its last run (an
+ *	hrtimer, as @ack_timer: a timer of the timer wheel, run in a softirq,
+ *	was seen over 100 ms late in the test VM while its CPUs ran)
  * @keepalive_work: sends NACK every 100 ms and detects a lost sensor
  * @reset_work: drops a lost sensor and goes back to 2400 baud (after the
  *	fast sync probe)
@@ -229,7 +233,8 @@ struct ev3_uart_port {
 	struct workqueue_struct *wq;
 	struct hrtimer ack_timer;
 	struct work_struct ack_work;
-	struct delayed_work keepalive_work;
+	struct hrtimer keepalive_timer;
+	struct work_struct keepalive_work;
 	struct work_struct reset_work;
 	struct delayed_work probe_work;
 	struct delayed_work fast_work;

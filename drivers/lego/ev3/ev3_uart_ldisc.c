@@ -623,6 +623,29 @@ static enum hrtimer_restart ev3_uart_ack_timer(struct hrtimer *timer)
 	return HRTIMER_NORESTART;
 }
 
+/* Hard interrupt context, as the ACK's timer: only queue the keep-alive. */
+static enum hrtimer_restart ev3_uart_keepalive_timer(struct hrtimer *timer)
+{
+	struct ev3_uart_port *port = container_of(timer, struct ev3_uart_port,
+						  keepalive_timer);
+
+	queue_work(ev3_uart_keepalive_wq, &port->keepalive_work);
+	return HRTIMER_NORESTART;
+}
+
+/*
+ * Stop the keep-alive: its timer queues its work, and its work starts the
+ * timer again, so each is cancelled until neither is pending or running.
+ * Not from the keep-alive work itself.
+ */
+static void ev3_uart_keepalive_stop(struct ev3_uart_port *port)
+{
+	do {
+		hrtimer_cancel(&port->keepalive_timer);
+	} while (cancel_work_sync(&port->keepalive_work) ||
+		 hrtimer_active(&port->keepalive_timer));
+}
+
 /*
  * Restore the mode the user chose before the sensor was lost. A user who is
  * choosing a mode right now (holding select_mutex) wins: no restore then.
@@ -866,7 +889,7 @@ static void ev3_uart_ack_work(struct work_struct *work)
 	 * that another CPU sends the NACKs while this one registers (without
 	 * kernel preemption a per-CPU worker would wait for this one).
 	 */
-	queue_delayed_work(ev3_uart_keepalive_wq, &port->keepalive_work, 0);
+	queue_work(ev3_uart_keepalive_wq, &port->keepalive_work);
 
 	sd = ev3_uart_sensor_create(port, desc);
 	if (IS_ERR(sd)) {
@@ -897,7 +920,7 @@ static void ev3_uart_ack_work(struct work_struct *work)
 
 fail:
 	/* Started before a failed registration: done before the probe. */
-	cancel_delayed_work_sync(&port->keepalive_work);
+	ev3_uart_keepalive_stop(port);
 	spin_lock(&port->lock);
 	ev3_uart_parser_restart(port, why);
 	spin_unlock(&port->lock);
@@ -907,8 +930,7 @@ fail:
 
 static void ev3_uart_keepalive_work(struct work_struct *work)
 {
-	struct ev3_uart_port *port = container_of(to_delayed_work(work),
-						  struct ev3_uart_port,
+	struct ev3_uart_port *port = container_of(work, struct ev3_uart_port,
 						  keepalive_work);
 	struct ev3_uart_event ev;
 	u8 nack, select[3], restore, from;
@@ -954,8 +976,8 @@ static void ev3_uart_keepalive_work(struct work_struct *work)
 	}
 	ev3_uart_tx(port, &nack, ev3_uart_build_nack(&nack));
 	if (!READ_ONCE(port->closing))
-		queue_delayed_work(ev3_uart_keepalive_wq, &port->keepalive_work,
-				   msecs_to_jiffies(EV3_UART_KEEPALIVE_MS));
+		hrtimer_start(&port->keepalive_timer,
+			      ms_to_ktime(EV3_UART_KEEPALIVE_MS), HRTIMER_MODE_REL);
 }
 
 /*
@@ -987,7 +1009,7 @@ static void ev3_uart_reset_work(struct work_struct *work)
 	 * speed for the probe below: its NACK would go out at 115200, into
 	 * the probe. It does not wait for this work.
 	 */
-	cancel_delayed_work_sync(&port->keepalive_work);
+	ev3_uart_keepalive_stop(port);
 
 	spin_lock(&port->lock);
 	sd = port->sensor;
@@ -1482,7 +1504,9 @@ static int ev3_uart_open(struct tty_struct *tty)
 	hrtimer_setup(&port->ack_timer, ev3_uart_ack_timer, CLOCK_MONOTONIC,
 		      HRTIMER_MODE_REL);
 	INIT_WORK(&port->ack_work, ev3_uart_ack_work);
-	INIT_DELAYED_WORK(&port->keepalive_work, ev3_uart_keepalive_work);
+	hrtimer_setup(&port->keepalive_timer, ev3_uart_keepalive_timer,
+		      CLOCK_MONOTONIC, HRTIMER_MODE_REL);
+	INIT_WORK(&port->keepalive_work, ev3_uart_keepalive_work);
 	INIT_WORK(&port->reset_work, ev3_uart_reset_work);
 	INIT_DELAYED_WORK(&port->probe_work, ev3_uart_probe_work);
 	INIT_DELAYED_WORK(&port->fast_work, ev3_uart_fast_work);
@@ -1531,7 +1555,7 @@ static void ev3_uart_close(struct tty_struct *tty)
 	 */
 	hrtimer_cancel(&port->ack_timer);
 	cancel_work_sync(&port->ack_work);
-	cancel_delayed_work_sync(&port->keepalive_work);
+	ev3_uart_keepalive_stop(port);
 	/* Queued on the work queue; with @closing set, not again. */
 	cancel_delayed_work_sync(&port->probe_work);
 	cancel_delayed_work_sync(&port->fast_work);
