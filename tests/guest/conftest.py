@@ -153,7 +153,8 @@ def kmsg_since(fd):
         head, _, text = rec.decode(errors='replace').partition(';')
         fields = head.split(',')
         usec = int(fields[2]) if len(fields) > 2 and fields[2].isdigit() else 0
-        lines.append('[%5d.%06d] %s' % (usec // 1000000, usec % 1000000, text.rstrip('\n')))
+        # The message's first line; the rest is its dictionary (" KEY=value").
+        lines.append('[%5d.%06d] %s' % (usec // 1000000, usec % 1000000, text.split('\n')[0]))
     return lines
 
 

