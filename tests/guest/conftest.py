@@ -129,33 +129,12 @@ def ev3_module():
 @pytest.hookimpl(hookwrapper=True)
 def pytest_runtest_setup(item):
     """The kernel log from the start of each test, for its failure report."""
+    import kmsg
     try:
-        fd = os.open('/dev/kmsg', os.O_RDONLY | os.O_NONBLOCK)
-        os.lseek(fd, 0, os.SEEK_END)
-        item.kmsg_fd = fd
+        item.kmsg = kmsg.Kmsg()
     except OSError:
-        item.kmsg_fd = None
+        item.kmsg = None
     yield
-
-
-def kmsg_since(fd):
-    """The kernel log's records from fd's position, as dmesg prints them."""
-    lines = []
-    while True:
-        try:
-            rec = os.read(fd, 8192)
-        except BlockingIOError:
-            break
-        except BrokenPipeError:     # records overwritten meanwhile: go on
-            continue
-        if not rec:
-            break
-        head, _, text = rec.decode(errors='replace').partition(';')
-        fields = head.split(',')
-        usec = int(fields[2]) if len(fields) > 2 and fields[2].isdigit() else 0
-        # The message's first line; the rest is its dictionary (" KEY=value").
-        lines.append('[%5d.%06d] %s' % (usec // 1000000, usec % 1000000, text.split('\n')[0]))
-    return lines
 
 
 @pytest.hookimpl(hookwrapper=True)
@@ -165,16 +144,16 @@ def pytest_runtest_makereport(item, call):
     CI report keeps may not."""
     outcome = yield
     rep = outcome.get_result()
-    fd = getattr(item, 'kmsg_fd', None)
-    if fd is None:
+    log = getattr(item, 'kmsg', None)
+    if log is None:
         return
     if rep.failed:
-        lines = kmsg_since(fd)
+        lines = ['[%12.6f] %s' % rec for rec in log.read()]
         if lines:
             rep.sections.append(('kernel log since the test started', '\n'.join(lines[-60:])))
     if call.when == 'teardown':
-        os.close(fd)
-        item.kmsg_fd = None
+        log.close()
+        item.kmsg = None
 
 
 def pytest_configure(config):

@@ -44,6 +44,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 sys.path.insert(0, os.path.join(HERE, '..', 'emulator'))
 import ev3  # noqa: E402
+import kmsg  # noqa: E402
 from kstacks import kernel_stacks  # noqa: E402
 import ev3_gen as gen  # noqa: E402
 import ev3_sensor as es  # noqa: E402
@@ -194,40 +195,6 @@ def replay_command(seed, transport, known):
             '--transport %s --known %s)' % (seed, transport, known, seed, transport, known))
 
 
-# ---- the kernel log -------------------------------------------------------------
-
-class Kmsg:
-    """/dev/kmsg from now on: marks and reads of what came since."""
-
-    def __init__(self):
-        self.fd = os.open('/dev/kmsg', os.O_RDWR | os.O_NONBLOCK)
-        os.lseek(self.fd, 0, os.SEEK_END)
-
-    def mark(self, text):
-        try:
-            os.write(self.fd, ('ev3fuzz: %s\n' % text).encode())
-        except OSError:
-            pass
-
-    def read(self):
-        lines = []
-        while True:
-            try:
-                rec = os.read(self.fd, 8192)
-            except BlockingIOError:
-                break
-            except BrokenPipeError:     # overwritten records: go on
-                continue
-            if not rec:
-                break
-            text = rec.decode(errors='replace')
-            lines.append(text.split(';', 1)[-1].strip())
-        return lines
-
-    def close(self):
-        os.close(self.fd)
-
-
 # ---- attribute reads with the ABI's errnos ------------------------------------------
 
 def try_read(sd, name, binary=False):
@@ -273,7 +240,7 @@ class Runner:
     def __init__(self, transport, known, pair=0, verbose=False):
         self.transport, self.known, self.pair = transport, known, pair
         self.verbose = verbose
-        self.kmsg = Kmsg()
+        self.kmsg = kmsg.Kmsg(writable=True)
         self.info = {}
         self.step_times = []
 
@@ -306,7 +273,7 @@ class Runner:
         """Run the case of `seed`; None if it passed, else the failure text."""
         c = gen.case(seed, self.transport, self.known)
         self.kmsg.read()
-        self.kmsg.mark('case seed=%d transport=%s known=%s %s%s' % (
+        self.kmsg.mark('ev3fuzz: case seed=%d transport=%s known=%s %s%s' % (
             seed, self.transport, self.known, c.kind,
             ' bugs=' + ','.join(c.bugs) if c.bugs else ''))
         self.step_times = []
@@ -331,7 +298,7 @@ class Runner:
             signal.alarm(0)
             signal.signal(signal.SIGALRM, old)
         self.step_times.append(('checks', time.monotonic()))
-        splats = [line for line in self.kmsg.read() if SPLAT.search(line)]
+        splats = [line for line in self.kmsg.texts() if SPLAT.search(line)]
         if splats:
             err = (err + '\n' if err else '') + 'kernel splat:\n  ' + '\n  '.join(splats[:20])
         if not err and self.wire_since is not None:
@@ -580,7 +547,7 @@ class Runner:
         return None
 
     def kmsg_lines(self):
-        lines = self.kmsg.read()
+        lines = self.kmsg.texts()
         self._seen += lines
         splats = [line for line in lines if SPLAT.search(line)]
         if splats:

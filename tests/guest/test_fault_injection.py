@@ -59,6 +59,7 @@ import nxtdev as nxt
 import tracing
 from conftest import loaded, module_path, wait_for
 from ev3 import ev3_sensor
+from kmsg import Kmsg
 
 MAX_N = 400
 DEBUGFS = '/sys/kernel/debug'
@@ -399,30 +400,6 @@ def delete_module(name):
     ret = _libc.syscall(ctypes.c_long(nr), ctypes.c_char_p(name.encode()),
                         ctypes.c_uint(os.O_NONBLOCK))
     return ctypes.get_errno() if ret else 0
-
-
-class Kmsg:
-    """The kernel log from now on, read record by record from /dev/kmsg."""
-
-    def __init__(self):
-        self.fd = os.open('/dev/kmsg', os.O_RDONLY | os.O_NONBLOCK)
-        os.lseek(self.fd, 0, os.SEEK_END)
-
-    def read(self):
-        """The messages logged since the last read: [(seconds, text)]."""
-        out = []
-        while True:
-            try:
-                rec = os.read(self.fd, 8192).decode(errors='replace')
-            except BlockingIOError:
-                return out
-            except BrokenPipeError:      # overwritten meanwhile: go on
-                continue
-            head, _, text = rec.partition(';')
-            out.append((int(head.split(',')[2]) / 1e6, text.split('\n')[0]))
-
-    def close(self):
-        os.close(self.fd)
 
 
 def splats(lines):

@@ -68,6 +68,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 TOP = os.path.abspath(os.path.join(HERE, '..', '..'))
 sys.path.insert(0, os.path.join(HERE, '..', 'guest'))
 sys.path.insert(0, os.path.join(HERE, '..', 'emulator'))
+import kmsg  # noqa: E402
 import nxtdev as nxt  # noqa: E402
 import nxt_hostile as nh  # noqa: E402
 from kstacks import kernel_stacks  # noqa: E402
@@ -924,30 +925,15 @@ def load_splat_patterns():
     return mod.SPLATS
 
 
-class Kmsg:
-    """New kernel log records since the last call, as text lines."""
+class Kmsg(kmsg.Kmsg):
+    """The kernel log since the last call: its splats."""
 
     def __init__(self):
-        self.fd = os.open('/dev/kmsg', os.O_RDONLY | os.O_NONBLOCK)
-        os.lseek(self.fd, 0, os.SEEK_END)
+        super().__init__()
         self.patterns = load_splat_patterns()
 
-    def lines(self):
-        out = []
-        while True:
-            try:
-                rec = os.read(self.fd, 8192).decode('utf-8', 'replace')
-            except BlockingIOError:
-                return out
-            except OSError as e:
-                if e.errno == E.EPIPE:          # overwritten records: go on
-                    continue
-                raise
-            head, _, text = rec.partition(';')
-            out.append(text.split('\n', 1)[0])
-
     def splats(self):
-        return [ln for ln in self.lines() if any(p.search(ln) for p in self.patterns)]
+        return [ln for ln in self.texts() if any(p.search(ln) for p in self.patterns)]
 
 
 
