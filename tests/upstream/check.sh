@@ -64,9 +64,7 @@ if [ $# -gt 0 ] && [[ "$1" =~ ^([0-9]+\.[0-9]+|newest)$ ]]; then
 fi
 prog=upstream-check
 # shellcheck source=tools/upstream/lib.sh
-. "$top/tools/upstream/lib.sh"
-# shellcheck source=tests/kernel/lib.sh
-. "$top/tests/kernel/lib.sh"
+. "$top/tools/upstream/lib.sh"      # and tests/kernel/lib.sh
 
 steps=("$@")
 [ ${#steps[@]} -gt 0 ] || steps=(series am checkpatch kernel-doc refs abi headers coccicheck htmldocs lego-docs

@@ -5,6 +5,9 @@
 # source is Debian's linux-source-SERIES, as tests/kernel/fetch-source.sh
 # finds it (installed, or fetched into the kernel cache).
 
+# shellcheck source=tests/kernel/lib.sh
+. "$top/tests/kernel/lib.sh"
+
 up_out=${LEGO_UPSTREAM_OUT:-$top/.build/upstream}
 read -r series up_version up_tarball < <("$top/tests/kernel/fetch-source.sh" "$series") ||
 	{ echo "$prog: no source for linux-source-$series" >&2; exit 1; }
@@ -39,7 +42,7 @@ up_git() {
 # clone --shared) instead of unpacking the tarball and hashing every file
 # again: over two minutes of CPU, which make check spent beside its VM.
 up_base_cache() {
-	echo "${LEGO_CACHE:-${XDG_CACHE_HOME:-$HOME/.cache}/lego-mindstorms-linux}/upstream/$(up_base_tag).git"
+	echo "$(kcache_dir)/upstream/$(up_base_tag).git"
 }
 
 # up_base: the scratch repository with the base commit, from the cache
