@@ -41,10 +41,24 @@ results=$build/results
 console=$build/console.log
 # shellcheck source=tests/lib/phases.sh
 . "$top/tests/lib/phases.sh"
+# shellcheck source=tests/kernel/lib.sh
+. "$top/tests/kernel/lib.sh"          # kcache_dir
 # KUnit's and the guest's results (the VM writes them), the host's pytest
 # phases' JUnit XML (host-*.xml): tests/summarize.py counts them all.
 rm -rf "$results"
 mkdir -p "$results"
+
+# A full disk fails a run late and obscurely (a JUnit file cut short, a
+# patch that does not apply): below what a run writes into $build (2.1 GB,
+# most of it the upstream series' kernel worktree), say so before anything.
+need_mb=3072
+free_mb=$(df -Pm "$build" | awk 'NR == 2 { print $4 }')
+echo "make check: ${free_mb} MB free for $build (a run writes about 2.1 GB there;" \
+	"a cold kernel cache, $(kcache_dir), takes about 9 GB more)"
+if [ "${free_mb:-0}" -lt "$need_mb" ]; then
+	echo "make check: FAILED, less than $need_mb MB free for $build" >&2
+	exit 1
+fi
 
 # The steps of tests/upstream/check.sh that take no kernel build.
 upstream_quick=(series am checkpatch kernel-doc refs abi headers coccicheck htmldocs lego-docs)

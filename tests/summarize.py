@@ -157,7 +157,13 @@ def main(argv=None):
             failed += 1
             continue
         before = len(skips)
-        p, f = count_junit(label, path, skips, times, props)
+        try:
+            p, f = count_junit(label, path, skips, times, props)
+        except (OSError, ET.ParseError) as e:
+            # Cut short: its pytest was killed, or the disk was full.
+            print(f'{label}: FAILED, {os.path.basename(path)} unreadable: {e}', file=sys.stderr)
+            failed += 1
+            continue
         print(f'{label}: {p} passed, {f} failed, {len(skips) - before} skipped')
         passed += p
         failed += f

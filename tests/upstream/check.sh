@@ -15,9 +15,10 @@
 # build-x86_64-y build-arm64-m build-arm64-y bisect kunit kunit-arm64.
 #
 # 1. series: `make upstream-series` writes the series from this checkout;
-# 2. am: a clean copy of the base (a worktree of the scratch repository,
-#    .build/upstream/check-SERIES, reset to the base commit and cleaned)
-#    takes the patches with git am; the result must be the series' tree;
+# 2. am: the scratch repository's own worktree, reset to the base commit
+#    and cleaned, takes the patches with git am; the result must be the
+#    series' tree (the branch lego-SERIES). One worktree of the kernel
+#    (1.8 GB for 7.3), not two: the steps below check that detached HEAD;
 # 3. checkpatch: scripts/checkpatch.pl --strict on every patch: no error,
 #    warning or check (nor any other output);
 # 4. kernel-doc: scripts/kernel-doc -none -Wall on every C file and header
@@ -69,7 +70,7 @@ prog=upstream-check
 steps=("$@")
 [ ${#steps[@]} -gt 0 ] || steps=(series am checkpatch kernel-doc refs abi headers coccicheck htmldocs lego-docs
 	build-x86_64-m build-x86_64-y build-arm64-m build-arm64-y bisect kunit kunit-arm64)
-work=$up_out/check-$series
+work=$up_repo
 logs=$up_out/check-$series.log
 mkdir -p "$logs"
 jobs=${LEGO_UPSTREAM_JOBS:-2}
@@ -114,10 +115,10 @@ step_am() {
 	local tag p
 	up_base || return 1
 	tag=$(up_base_tag)
-	if [ ! -e "$work/.git" ]; then
-		rm -rf "$work"
+	# The second worktree that earlier versions of this script kept.
+	if [ -d "$up_out/check-$series" ]; then
+		rm -rf "$up_out/check-$series"
 		up_git worktree prune
-		up_git worktree add -q --detach "$work" "$tag" || return 1
 	fi
 	git -C "$work" am --abort >/dev/null 2>&1
 	mapfile -t p < <(patches)

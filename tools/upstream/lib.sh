@@ -82,8 +82,7 @@ up_base() {
 		mv -T "$tmp/git" "$cached" 2>/dev/null || true
 		rm -rf "$tmp"
 	fi
-	# The check's worktree belongs to the old repository: it goes too.
-	rm -rf "$up_repo" "$up_out/check-$series"
+	rm -rf "$up_repo"
 	mkdir -p "$up_out"
 	git clone -q --shared --no-checkout "$cached" "$up_repo" &&
 		up_git reset -q --hard "$tag"
