@@ -84,6 +84,7 @@ def one_case(seed, transport='pty'):
     try:
         err = r.run(seed)
     finally:
+        r.close()
         r.kmsg.close()
     return err, r.info
 
