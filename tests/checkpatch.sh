@@ -25,7 +25,7 @@ fi
 
 compat=drivers/lego/lego_compat.h
 mapfile -t files < <(git ls-files -co --exclude-standard -- 'drivers/*.[ch]' 'include/*.h' 'tools/*.[ch]' 'tests/kmod/*.[ch]' |
-	grep -vxF "$compat" | sort)
+	grep -vxF "$compat" | grep -v '^tools/liblegonxt/' | sort)
 [ ${#files[@]} -gt 0 ] || { echo "checkpatch: no files"; exit 1; }
 "$cp" --strict --no-tree --quiet --show-types -f "${files[@]}" || {
 	echo "checkpatch: not clean" >&2
@@ -40,11 +40,12 @@ mapfile -t files < <(git ls-files -co --exclude-standard -- 'drivers/*.[ch]' 'in
 	echo "checkpatch: $compat not clean" >&2
 	exit 1
 }
-# The test programs (fuzz targets, benchmarks, the uapi check) are
-# userspace: C99 types, a volatile sig_atomic_t and libFuzzer's
-# LLVMFuzzerTestOneInput are right there. tests/fuzz/shim/ is left out: it
-# re-implements kernel macros for userspace, in the shape they have.
-mapfile -t progs < <(git ls-files -co --exclude-standard -- 'tests/*.[ch]' |
+# The test programs (fuzz targets, benchmarks, the uapi check) and
+# liblegonxt, whose header applications include, are userspace: C99 types,
+# a volatile sig_atomic_t and libFuzzer's LLVMFuzzerTestOneInput are right
+# there. tests/fuzz/shim/ is left out: it re-implements kernel macros for
+# userspace, in the shape they have.
+mapfile -t progs < <(git ls-files -co --exclude-standard -- 'tests/*.[ch]' 'tools/liblegonxt/*.[ch]' |
 	grep -v -e '^tests/kmod/' -e '^tests/fuzz/shim/' | sort)
 "$cp" --strict --no-tree --quiet --show-types --ignore PREFER_KERNEL_TYPES,VOLATILE,CAMELCASE \
 	-f "${progs[@]}" || {

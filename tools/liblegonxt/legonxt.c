@@ -15,6 +15,7 @@
 #define INBOXES		20	/* MessageWrite and MessageRead's queues */
 #define NAME_FIELD	(LNXT_NAME_MAX + 1)
 #define REPLY_HDR	3	/* 0x02, opcode, status */
+#define ARRAY_SIZE(a)	(sizeof(a) / sizeof((a)[0]))
 
 /* ---- writing a telegram ---- */
 
@@ -617,7 +618,7 @@ const char *lnxt_status_name(uint8_t status)
 {
 	size_t i;
 
-	for (i = 0; i < sizeof(statuses) / sizeof(statuses[0]); i++)
+	for (i = 0; i < ARRAY_SIZE(statuses); i++)
 		if (statuses[i].code == status)
 			return statuses[i].name;
 	return NULL;

@@ -22,7 +22,7 @@ static void check(int ok, const char *what, int line)
 	checks++;
 	if (!ok) {
 		failures++;
-		fprintf(stderr, "test_legonxt.c:%d: FAILED: %s\n", line, what);
+		fprintf(stderr, "%s:%d: FAILED: %s\n", __FILE__, line, what);
 	}
 }
 
@@ -264,6 +264,10 @@ static int reply(const struct lnxt_msg *m, uint8_t *buf, size_t *len, const char
 	return lnxt_reply_check(m, buf, *len);
 }
 
+/* nxt-python's GetOutputState reply: port B, its fields counting up. */
+#define GET_OUTPUT_STATE_REPLY \
+	"02 06 00 01 9c 01 00 fb 20 01 02 03 04 11 12 13 14 21 22 23 24 31 32 33 34"
+
 static void test_replies(void)
 {
 	struct lnxt_msg m;
@@ -282,20 +286,20 @@ static void test_replies(void)
 	char name[LNXT_NAME_MAX + 1];
 
 	lnxt_get_output_state(&m, 1);
-	CHECK(reply(&m, r, &n, "02 06 00 01 9c 01 00 fb 20 01 02 03 04 11 12 13 14 "
-		    "21 22 23 24 31 32 33 34") == 0);
+	CHECK(reply(&m, r, &n, GET_OUTPUT_STATE_REPLY) == 0);
 	CHECK(lnxt_parse_output_state(r, n, &o) == 0);
 	CHECK(o.port == 1 && o.power == -100 && o.turn == -5 && o.run_state == 0x20);
 	CHECK(o.tacho_limit == 0x04030201 && o.tacho_count == 0x14131211 &&
 	      o.block_tacho_count == 0x24232221 && o.rotation_count == 0x34333231);
 	/* A bad port: C0 and 22 zero bytes, or only the status. */
-	CHECK(reply(&m, r, &n, "02 06 c0 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00 "
-		    "00 00 00 00 00 00") == 0xc0);
+	CHECK(reply(&m, r, &n, cat("02 06 c0", field("", 22), NULL)) == 0xc0);
 	CHECK(lnxt_parse_output_state(r, n, &o) == -EBADMSG);
 	CHECK(reply(&m, r, &n, "02 06 be") == 0xbe);
 	CHECK(reply(&m, r, &n, "02 06 00") == -EBADMSG);
-	CHECK(reply(&m, r, &n, "02 07 00 01 9c 01 00 fb 20 01 02 03 04 11 12 13 14 "
-		    "21 22 23 24 31 32 33 34") == -EBADMSG);
+	/* The whole reply, of another opcode. */
+	CHECK(reply(&m, r, &n, GET_OUTPUT_STATE_REPLY) == 0);
+	r[1] = LNXT_GET_INPUT_VALUES;
+	CHECK(lnxt_reply_check(&m, r, n) == -EBADMSG);
 	CHECK(reply(&m, r, &n, "01 06 00") == -EBADMSG);
 
 	lnxt_get_input_values(&m, 2);
@@ -399,7 +403,7 @@ static void test_replies(void)
 	CHECK(reply(&m, r, &n, "02 97 00 59 65 73 00") == 0);
 	CHECK(reply(&m, r, &n, "02 99 00 59 65 73 00") == -EBADMSG);
 
-	CHECK(lnxt_status_name(0x01) == NULL);
+	CHECK(!lnxt_status_name(0x01));
 	CHECK(!strcmp(lnxt_status_name(0xec), "no active program"));
 }
 
