@@ -38,7 +38,7 @@ WARNINGS := -Wall -Wextra -Wshadow -Wmissing-prototypes \
 ifeq ($(WERROR),1)
 WARNINGS += -Werror
 endif
-TOOL_CFLAGS := $(WARNINGS) -I$(TOP)/include/uapi -I$(TOP)/tools/lib -DLEGO_VERSION='"$(VERSION)"'
+TOOL_CFLAGS := $(WARNINGS) -I$(TOP)/include/uapi -I$(TOP)/tools/lib -I$(TOP)/tools/liblegonxt -DLEGO_VERSION='"$(VERSION)"'
 
 OUT := $(abspath $(O))
 TARGET := $(OUT)/$(PROG)

@@ -129,9 +129,10 @@ int lnxt_set_output_state(struct lnxt_msg *m, const struct lnxt_output *o)
 	m->len = 12;
 	if ((o->port >= OUTPUT_PORTS && o->port != LNXT_PORT_ALL) ||
 	    o->power < -100 || o->power > 100 || o->turn < -100 || o->turn > 100 ||
-	    (o->mode & ~0x07) || o->regulation > 2 ||
-	    (o->run_state != 0x00 && o->run_state != 0x10 && o->run_state != 0x20 &&
-	     o->run_state != 0x40))
+	    (o->mode & ~(LNXT_MODE_MOTORON | LNXT_MODE_BRAKE | LNXT_MODE_REGULATED)) ||
+	    o->regulation > LNXT_REGULATION_SYNC ||
+	    (o->run_state != LNXT_RUN_IDLE && o->run_state != LNXT_RUN_RAMPUP &&
+	     o->run_state != LNXT_RUN_RUNNING && o->run_state != LNXT_RUN_RAMPDOWN))
 		return -EINVAL;
 	return 0;
 }
@@ -564,8 +565,8 @@ static const struct {
 	const char *name;
 } statuses[] = {
 	{ 0x00, "success" },
-	{ 0x20, "pending communication transaction in progress" },
-	{ 0x40, "specified mailbox queue is empty" },
+	{ 0x20, "transaction pending" },
+	{ 0x40, "mailbox empty" },
 	{ 0x81, "no more handles" },
 	{ 0x82, "no space" },
 	{ 0x83, "no more files" },
@@ -576,38 +577,39 @@ static const struct {
 	{ 0x88, "handle already closed" },
 	{ 0x89, "no linear space" },
 	{ 0x8a, "undefined error" },
-	{ 0x8b, "file is busy" },
+	{ 0x8b, "file busy" },
 	{ 0x8c, "no write buffers" },
 	{ 0x8d, "append not possible" },
-	{ 0x8e, "file is full" },
+	{ 0x8e, "file full" },
 	{ 0x8f, "file exists" },
 	{ 0x90, "module not found" },
-	{ 0x91, "out of boundary" },
+	{ 0x91, "out of bounds" },
 	{ 0x92, "illegal file name" },
 	{ 0x93, "illegal handle" },
 	{ 0x94, "Bluetooth busy" },
-	{ 0x95, "Bluetooth connect failed" },
+	{ 0x95, "Bluetooth connection failed" },
 	{ 0x96, "Bluetooth timeout" },
 	{ 0x97, "file transfer timeout" },
-	{ 0x98, "file transfer: destination exists" },
-	{ 0x99, "file transfer: source missing" },
-	{ 0x9a, "file transfer: stream error" },
-	{ 0x9b, "file transfer: close error" },
+	{ 0x98, "destination file exists" },
+	{ 0x99, "source file missing" },
+	{ 0x9a, "file transfer stream error" },
+	{ 0x9b, "file transfer close error" },
 	{ 0xbd, "request failed" },
 	{ 0xbe, "unknown command opcode" },
 	{ 0xbf, "insane packet" },
-	{ 0xc0, "data contains out-of-range values" },
+	/* LEGO's firmware also answers so for a missing program or sound file. */
+	{ 0xc0, "value out of range (or no such file)" },
 	{ 0xdd, "communication bus error" },
-	{ 0xde, "no free memory in communication buffer" },
-	{ 0xdf, "specified channel/connection is not valid" },
-	{ 0xe0, "specified channel/connection not configured or busy" },
-	{ 0xec, "no active program" },
-	{ 0xed, "illegal size specified" },
-	{ 0xee, "illegal mailbox queue ID specified" },
-	{ 0xef, "attempted to access invalid field of a structure" },
-	{ 0xf0, "bad input or output specified" },
+	{ 0xde, "communication buffer full" },
+	{ 0xdf, "invalid channel or connection" },
+	{ 0xe0, "channel not configured or busy" },
+	{ 0xec, "no program running" },
+	{ 0xed, "illegal size" },
+	{ 0xee, "illegal mailbox" },
+	{ 0xef, "invalid field" },
+	{ 0xf0, "bad input or output port" },
 	{ 0xfa, "bad pointer" },
-	{ 0xfb, "insufficient memory available" },
+	{ 0xfb, "insufficient memory" },
 	{ 0xfc, "version mismatch" },
 	{ 0xfd, "bad file" },
 	{ 0xfe, "bad instruction" },

@@ -115,6 +115,58 @@ enum lnxt_op {
 	LNXT_BT_FACTORY_RESET		= 0xa4,
 };
 
+/* struct lnxt_output's mode bits, regulation and run states. */
+#define LNXT_MODE_MOTORON	0x01
+#define LNXT_MODE_BRAKE		0x02
+#define LNXT_MODE_REGULATED	0x04
+#define LNXT_REGULATION_IDLE	0
+#define LNXT_REGULATION_SPEED	1
+#define LNXT_REGULATION_SYNC	2
+#define LNXT_RUN_IDLE		0x00
+#define LNXT_RUN_RAMPUP		0x10
+#define LNXT_RUN_RUNNING	0x20
+#define LNXT_RUN_RAMPDOWN	0x40
+
+/** enum lnxt_sensor_type - SetInputMode's sensor types */
+enum lnxt_sensor_type {
+	LNXT_SENSOR_NONE		= 0x00,
+	LNXT_SENSOR_SWITCH		= 0x01,
+	LNXT_SENSOR_TEMPERATURE		= 0x02,
+	LNXT_SENSOR_REFLECTION		= 0x03,
+	LNXT_SENSOR_ANGLE		= 0x04,
+	LNXT_SENSOR_LIGHT_ACTIVE	= 0x05,
+	LNXT_SENSOR_LIGHT_INACTIVE	= 0x06,
+	LNXT_SENSOR_SOUND_DB		= 0x07,
+	LNXT_SENSOR_SOUND_DBA		= 0x08,
+	LNXT_SENSOR_CUSTOM		= 0x09,
+	LNXT_SENSOR_LOWSPEED		= 0x0a,
+	LNXT_SENSOR_LOWSPEED_9V		= 0x0b,
+	LNXT_SENSOR_TYPES		= 0x0c,
+};
+
+/*
+ * SetInputMode's sensor modes: the top three bits; the low five are the
+ * slope of the transition and period counts.
+ */
+#define LNXT_SENSOR_MODE_RAW		0x00
+#define LNXT_SENSOR_MODE_BOOLEAN	0x20
+#define LNXT_SENSOR_MODE_TRANSITIONS	0x40
+#define LNXT_SENSOR_MODE_PERIODS	0x60
+#define LNXT_SENSOR_MODE_PERCENT	0x80
+#define LNXT_SENSOR_MODE_CELSIUS	0xa0
+#define LNXT_SENSOR_MODE_FAHRENHEIT	0xc0
+#define LNXT_SENSOR_MODE_ANGLE_STEPS	0xe0
+#define LNXT_SENSOR_SLOPE_MASK		0x1f
+
+/* The brick's status bytes that callers test for. */
+#define LNXT_STATUS_PENDING		0x20	/* an I2C transaction still runs */
+#define LNXT_STATUS_MAILBOX_EMPTY	0x40
+#define LNXT_STATUS_FILE_NOT_FOUND	0x87
+#define LNXT_STATUS_FILE_EXISTS		0x8f
+#define LNXT_STATUS_OUT_OF_RANGE	0xc0
+#define LNXT_STATUS_CHANNEL_BUSY	0xe0	/* the I2C port is not ready */
+#define LNXT_STATUS_NO_PROGRAM		0xec
+
 /** enum lnxt_property - SetProperty and GetProperty */
 enum lnxt_property {
 	LNXT_PROP_BT_ON		= 0,	/* u8 */

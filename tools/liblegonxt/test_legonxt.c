@@ -343,7 +343,7 @@ static void test_replies(void)
 	CHECK(n == 64);
 	CHECK(lnxt_parse_message_read(r, n, &d) == 0 && d.len == 7 && d.data[0] == 0x21);
 	CHECK(reply(&m, r, &n, cat("02 13 40 00 00", field("", 59), NULL)) == 0x40);
-	CHECK(!strcmp(lnxt_status_name(0x40), "specified mailbox queue is empty"));
+	CHECK(!strcmp(lnxt_status_name(0x40), "mailbox empty"));
 
 	lnxt_open_read(&m, "test.rxe");
 	CHECK(reply(&m, r, &n, "02 80 00 42 01 02 03 04") == 0);
@@ -404,7 +404,7 @@ static void test_replies(void)
 	CHECK(reply(&m, r, &n, "02 99 00 59 65 73 00") == -EBADMSG);
 
 	CHECK(!lnxt_status_name(0x01));
-	CHECK(!strcmp(lnxt_status_name(0xec), "no active program"));
+	CHECK(!strcmp(lnxt_status_name(0xec), "no program running"));
 }
 
 int main(void)

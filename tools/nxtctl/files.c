@@ -2,8 +2,9 @@
 /*
  * nxtctl: the brick's flash file system through system commands sent with
  * NXT_IOC_TRANSACT (OpenRead/OpenWrite/Read/Write/Close/Delete and
- * FindFirst/FindNext). Every telegram and reply fits one 64-byte packet:
- * a Write carries at most 61 data bytes, a Read asks for at most 58 (the
+ * FindFirst/FindNext), built and decoded by liblegonxt. Every telegram and
+ * reply fits one 64-byte packet: a Write carries at most 61 data bytes
+ * (LNXT_WRITE_MAX), a Read asks for at most 58 (LNXT_READ_MAX: the
  * firmware caps its USB reply there but echoes the count asked for).
  */
 #include <errno.h>
@@ -53,50 +54,36 @@ void progress_end(void)
 	show_progress = -1;
 }
 
-/* A name as the 20-byte NUL-padded field of the system commands. */
-static void name_field(__u8 *field, const char *name)
-{
-	memset(field, 0, NXT_NAME_LEN);
-	memcpy(field, name, strnlen(name, NXT_NAME_LEN - 1));
-}
-
 /* Close a handle after an error: best effort, the first error is reported. */
 static void close_quietly(__u8 handle)
 {
 	struct nxt_transaction t = {};
+	struct lnxt_msg m;
 
-	t.telegram[0] = NXT_SYSTEM_CMD;
-	t.telegram[1] = NXT_SYS_CLOSE;
-	t.telegram[2] = handle;
-	t.length = 3;
+	lnxt_close(&m, handle);
+	memcpy(t.telegram, m.buf, m.len);
+	t.length = m.len;
 	(void)ioctl(nxt_fd, NXT_IOC_TRANSACT, &t);
 }
 
 static int close_handle(__u8 handle, const char *what)
 {
 	struct nxt_transaction t;
-	int ret;
+	struct lnxt_msg m;
 
-	ret = system_cmd(&t, NXT_SYS_CLOSE, &handle, 1, what);
-	if (ret)
-		return ret;
-	if (t.reply[2])
-		return brick_error(what, t.reply[2]);
-	return EXIT_OK;
+	lnxt_close(&m, handle);
+	return command(&m, &t, what);
 }
 
-static int delete_file(const char *name, __u8 *status)
+/* Delete @name (checked): the brick's status in @status. */
+static int delete_file(const char *name, int *status)
 {
 	struct nxt_transaction t;
-	__u8 field[NXT_NAME_LEN];
-	int ret;
+	struct lnxt_msg m;
 
-	name_field(field, name);
-	ret = system_cmd(&t, NXT_SYS_DELETE, field, sizeof(field), "Delete");
-	if (ret)
-		return ret;
-	*status = t.reply[2];
-	return EXIT_OK;
+	if (lnxt_delete(&m, name))
+		return EXIT_USAGE;
+	return exchange(&m, &t, status, "Delete");
 }
 
 static int read_local(const char *path, __u8 **data, size_t *size)
@@ -152,28 +139,31 @@ static int read_local(const char *path, __u8 **data, size_t *size)
 	return EXIT_OK;
 }
 
-static int open_write(const char *remote, size_t size, __u8 *status, __u8 *handle)
+static int open_write(const char *remote, size_t size, int *status, __u8 *handle)
 {
-	__u8 args[NXT_NAME_LEN + 4];
 	struct nxt_transaction t;
+	struct lnxt_msg m;
 	int ret;
 
-	name_field(args, remote);
-	put_le32(args + NXT_NAME_LEN, size);
-	ret = system_cmd(&t, NXT_SYS_OPEN_WRITE, args, sizeof(args), "OpenWrite");
-	if (ret)
+	if (lnxt_open_write(&m, remote, size))
+		return EXIT_USAGE;
+	ret = exchange(&m, &t, status, "OpenWrite");
+	if (ret || *status)
 		return ret;
-	*status = t.reply[2];
-	*handle = t.reply[3];
+	if (lnxt_parse_handle(t.reply, t.reply_length, handle))
+		return bad_reply("OpenWrite");
 	return EXIT_OK;
 }
 
 int cmd_upload(int argc, char **argv)
 {
 	struct opt opts[] = { { .name = "force" }, {} };
-	__u8 status, handle, *data = NULL;
+	__u8 handle, echoed, *data = NULL;
 	struct nxt_transaction t;
+	struct lnxt_msg m;
 	size_t size, off, n;
+	__u16 written;
+	int status;
 	const char *remote;
 	char *pos[2];
 	int npos, ret;
@@ -192,7 +182,7 @@ int cmd_upload(int argc, char **argv)
 	ret = open_write(remote, size, &status, &handle);
 	if (ret)
 		goto out;
-	if (status == NXT_STATUS_FILE_EXISTS && opts[0].set) {
+	if (status == LNXT_STATUS_FILE_EXISTS && opts[0].set) {
 		ret = delete_file(remote, &status);
 		if (ret)
 			goto out;
@@ -204,7 +194,7 @@ int cmd_upload(int argc, char **argv)
 		if (ret)
 			goto out;
 	}
-	if (status == NXT_STATUS_FILE_EXISTS) {
+	if (status == LNXT_STATUS_FILE_EXISTS) {
 		ret = brick_error("OpenWrite", status);
 		fprintf(stderr, "nxtctl: %s is on the brick already; use --force to replace it\n",
 			remote);
@@ -218,26 +208,21 @@ int cmd_upload(int argc, char **argv)
 	progress("upload", remote, 0, size);
 	for (off = 0; off < size; off += n) {
 		n = size - off;
-		if (n > NXT_WRITE_CHUNK)
-			n = NXT_WRITE_CHUNK;
-		memset(&t, 0, sizeof(t));
-		t.telegram[0] = NXT_SYSTEM_CMD;
-		t.telegram[1] = NXT_SYS_WRITE;
-		t.telegram[2] = handle;
-		memcpy(t.telegram + 3, data + off, n);
-		t.length = 3 + n;
-		ret = transact(&t, "Write");
+		if (n > LNXT_WRITE_MAX)
+			n = LNXT_WRITE_MAX;
+		lnxt_write(&m, handle, data + off, n);
+		ret = command(&m, &t, "Write");
 		if (ret)
 			goto fail;
-		if (t.reply[2]) {
-			ret = brick_error("Write", t.reply[2]);
+		if (lnxt_parse_write(t.reply, t.reply_length, &echoed, &written)) {
+			ret = bad_reply("Write");
 			goto fail;
 		}
 		progress("upload", remote, off + n, size);
-		if ((size_t)get_le16(t.reply + 4) != n) {
+		if (written != n) {
 			progress_end();
 			fprintf(stderr, "nxtctl: Write: the brick took %u of %zu bytes\n",
-				get_le16(t.reply + 4), n);
+				written, n);
 			ret = EXIT_DEVICE;
 			goto fail;
 		}
@@ -315,12 +300,15 @@ static int open_temp(const char *local, char **tmp)
 int cmd_download(int argc, char **argv)
 {
 	struct nxt_transaction t;
-	__u8 field[NXT_NAME_LEN], handle;
+	struct lnxt_file f;
+	struct lnxt_data d;
+	struct lnxt_msg m;
 	const char *local;
 	char *tmp = NULL;
 	__u32 size, off, n;
 	int npos, ret, fd;
 	char *pos[2];
+	__u8 handle;
 
 	ret = parse_opts("download", argc, argv, NULL, pos, &npos, 1, 2);
 	if (ret)
@@ -330,14 +318,15 @@ int cmd_download(int argc, char **argv)
 		return ret;
 	local = npos > 1 ? pos[1] : pos[0];
 
-	name_field(field, pos[0]);
-	ret = system_cmd(&t, NXT_SYS_OPEN_READ, field, sizeof(field), "OpenRead");
+	if (lnxt_open_read(&m, pos[0]))
+		return EXIT_USAGE;
+	ret = command(&m, &t, "OpenRead");
 	if (ret)
 		return ret;
-	if (t.reply[2])
-		return brick_error("OpenRead", t.reply[2]);
-	handle = t.reply[3];
-	size = get_le32(t.reply + 4);
+	if (lnxt_parse_file(t.reply, t.reply_length, &f))
+		return bad_reply("OpenRead");
+	handle = f.handle;
+	size = f.size;
 
 	/* A failed download leaves an existing LOCAL as it was. */
 	if (!strcmp(local, "-"))
@@ -353,29 +342,18 @@ int cmd_download(int argc, char **argv)
 	progress("download", pos[0], 0, size);
 	for (off = 0; off < size; off += n) {
 		n = size - off;
-		if (n > NXT_READ_CHUNK)
-			n = NXT_READ_CHUNK;
-		memset(&t, 0, sizeof(t));
-		t.telegram[0] = NXT_SYSTEM_CMD;
-		t.telegram[1] = NXT_SYS_READ;
-		t.telegram[2] = handle;
-		put_le16(t.telegram + 3, n);
-		t.length = 5;
-		ret = transact(&t, "Read");
+		if (n > LNXT_READ_MAX)
+			n = LNXT_READ_MAX;
+		lnxt_read(&m, handle, n);
+		ret = command(&m, &t, "Read");
 		if (ret)
 			goto fail;
-		if (t.reply[2]) {
-			ret = brick_error("Read", t.reply[2]);
+		/* command() checked the length: as many bytes as asked for. */
+		if (lnxt_parse_read(t.reply, t.reply_length, &d) || d.len != n) {
+			ret = bad_reply("Read");
 			goto fail;
 		}
-		if (t.reply_length < 6 + n) {
-			progress_end();
-			fprintf(stderr, "nxtctl: Read: short reply (%u bytes for %u data bytes)\n",
-				t.reply_length, n);
-			ret = EXIT_DEVICE;
-			goto fail;
-		}
-		if (write_all(fd, t.reply + 6, n)) {
+		if (write_all(fd, d.data, n)) {
 			progress_end();
 			fprintf(stderr, "nxtctl: cannot write %s: %s\n", local, strerror(errno));
 			ret = EXIT_DEVICE;
@@ -418,10 +396,11 @@ remove:
 int cmd_ls(int argc, char **argv)
 {
 	struct nxt_transaction t;
-	__u8 field[NXT_NAME_LEN], handle;
 	const char *pattern;
-	char name[NXT_NAME_LEN];
-	int npos, ret;
+	struct lnxt_file f;
+	struct lnxt_msg m;
+	int npos, ret, status;
+	__u8 handle;
 	char *pos[1];
 
 	ret = parse_opts("ls", argc, argv, NULL, pos, &npos, 0, 1);
@@ -431,26 +410,30 @@ int cmd_ls(int argc, char **argv)
 	ret = check_name("ls", pattern);
 	if (ret)
 		return ret;
-	name_field(field, pattern);
-	ret = system_cmd(&t, NXT_SYS_FIND_FIRST, field, sizeof(field), "FindFirst");
+	if (lnxt_find_first(&m, pattern))
+		return EXIT_USAGE;
+	ret = exchange(&m, &t, &status, "FindFirst");
 	if (ret)
 		return ret;
-	if (t.reply[2] == NXT_STATUS_FILE_NOT_FOUND)
+	if (status == LNXT_STATUS_FILE_NOT_FOUND)
 		return EXIT_OK;		/* nothing matches */
-	if (t.reply[2])
-		return brick_error("FindFirst", t.reply[2]);
-	handle = t.reply[3];
+	if (status)
+		return brick_error("FindFirst", status);
+	if (lnxt_parse_file(t.reply, t.reply_length, &f))
+		return bad_reply("FindFirst");
+	handle = f.handle;
 	for (;;) {
-		memcpy(name, t.reply + 4, NXT_NAME_LEN);
-		name[NXT_NAME_LEN - 1] = 0;
-		printf("%8u  %s\n", get_le32(t.reply + 24), name);
-		ret = system_cmd(&t, NXT_SYS_FIND_NEXT, &handle, 1, "FindNext");
-		if (ret)
+		printf("%8u  %s\n", f.size, f.name);
+		lnxt_find_next(&m, handle);
+		ret = exchange(&m, &t, &status, "FindNext");
+		if (ret || status == LNXT_STATUS_FILE_NOT_FOUND)
 			break;
-		if (t.reply[2] == NXT_STATUS_FILE_NOT_FOUND)
+		if (status) {
+			ret = brick_error("FindNext", status);
 			break;
-		if (t.reply[2]) {
-			ret = brick_error("FindNext", t.reply[2]);
+		}
+		if (lnxt_parse_file(t.reply, t.reply_length, &f)) {
+			ret = bad_reply("FindNext");
 			break;
 		}
 	}
@@ -462,8 +445,7 @@ int cmd_ls(int argc, char **argv)
 int cmd_rm(int argc, char **argv)
 {
 	char *pos[16], what[40];
-	int npos, ret, i;
-	__u8 status;
+	int npos, ret, i, status;
 
 	ret = parse_opts("rm", argc, argv, NULL, pos, &npos, 1, 16);
 	if (ret)

@@ -2,9 +2,9 @@
 /*
  * nxtctl: drive a LEGO MINDSTORMS NXT brick through /dev/nxtN.
  *
- * Uses only the uapi header <linux/lego_nxt.h>: the typed ioctls for the
- * direct commands, NXT_IOC_TRANSACT for the system commands and for raw
- * telegrams. See Documentation/lego/nxtctl.rst.
+ * Every command is a telegram that liblegonxt (tools/liblegonxt) builds and
+ * whose reply it checks and decodes, sent with NXT_IOC_TRANSACT of the
+ * uapi header <linux/lego_nxt.h>. See Documentation/lego/nxtctl.rst.
  */
 #include <ctype.h>
 #include <errno.h>
@@ -50,64 +50,11 @@ static int ensure_device(void)
 
 /* ---- errors ---- */
 
-static const struct {
-	unsigned char status;
-	const char *name;
-} statuses[] = {
-	{ NXT_STATUS_PENDING, "transaction pending" },
-	{ NXT_STATUS_MAILBOX_EMPTY, "mailbox empty" },
-	{ NXT_STATUS_NO_MORE_HANDLES, "no more handles" },
-	{ NXT_STATUS_NO_SPACE, "no space" },
-	{ NXT_STATUS_NO_MORE_FILES, "no more files" },
-	{ NXT_STATUS_EOF_EXPECTED, "end of file expected" },
-	{ NXT_STATUS_END_OF_FILE, "end of file" },
-	{ NXT_STATUS_NOT_LINEAR_FILE, "not a linear file" },
-	{ NXT_STATUS_FILE_NOT_FOUND, "file not found" },
-	{ NXT_STATUS_HANDLE_CLOSED, "handle already closed" },
-	{ NXT_STATUS_NO_LINEAR_SPACE, "no linear space" },
-	{ NXT_STATUS_UNDEFINED_ERROR, "undefined error" },
-	{ NXT_STATUS_FILE_BUSY, "file busy" },
-	{ NXT_STATUS_NO_WRITE_BUFFERS, "no write buffers" },
-	{ NXT_STATUS_APPEND_NOT_POSSIBLE, "append not possible" },
-	{ NXT_STATUS_FILE_FULL, "file full" },
-	{ NXT_STATUS_FILE_EXISTS, "file exists" },
-	{ NXT_STATUS_MODULE_NOT_FOUND, "module not found" },
-	{ NXT_STATUS_OUT_OF_BOUNDS, "out of bounds" },
-	{ NXT_STATUS_ILLEGAL_FILE_NAME, "illegal file name" },
-	{ NXT_STATUS_ILLEGAL_HANDLE, "illegal handle" },
-	{ NXT_STATUS_BT_BUSY, "Bluetooth busy" },
-	{ NXT_STATUS_BT_CONNECT_FAIL, "Bluetooth connection failed" },
-	{ NXT_STATUS_BT_TIMEOUT, "Bluetooth timeout" },
-	{ NXT_STATUS_FILE_TX_TIMEOUT, "file transfer timeout" },
-	{ NXT_STATUS_FILE_TX_DST_EXISTS, "destination file exists" },
-	{ NXT_STATUS_FILE_TX_SRC_MISSING, "source file missing" },
-	{ NXT_STATUS_FILE_TX_STREAM_ERROR, "file transfer stream error" },
-	{ NXT_STATUS_FILE_TX_CLOSE_ERROR, "file transfer close error" },
-	{ NXT_STATUS_REQUEST_FAILED, "request failed" },
-	{ NXT_STATUS_UNKNOWN_OPCODE, "unknown command opcode" },
-	{ NXT_STATUS_INSANE_PACKET, "insane packet" },
-	{ NXT_STATUS_OUT_OF_RANGE, "value out of range (or no such file)" },
-	{ NXT_STATUS_BUS_ERROR, "communication bus error" },
-	{ NXT_STATUS_BUFFER_FULL, "communication buffer full" },
-	{ NXT_STATUS_BAD_CHANNEL, "invalid channel or connection" },
-	{ NXT_STATUS_CHANNEL_BUSY, "channel not configured or busy" },
-	{ NXT_STATUS_NO_PROGRAM, "no program running" },
-	{ NXT_STATUS_BAD_SIZE, "illegal size" },
-	{ NXT_STATUS_BAD_MAILBOX, "illegal mailbox" },
-	{ NXT_STATUS_BAD_FIELD, "invalid field" },
-	{ NXT_STATUS_BAD_PORT, "bad input or output port" },
-	{ NXT_STATUS_NO_MEMORY, "insufficient memory" },
-	{ NXT_STATUS_BAD_ARGUMENTS, "bad arguments" },
-};
-
 const char *status_name(unsigned int status)
 {
-	size_t i;
+	const char *name = lnxt_status_name(status);
 
-	for (i = 0; i < ARRAY_SIZE(statuses); i++)
-		if (statuses[i].status == status)
-			return statuses[i].name;
-	return "unknown status";
+	return name ? name : "unknown status";
 }
 
 int brick_error(const char *what, unsigned int status)
@@ -164,39 +111,53 @@ int transact(struct nxt_transaction *t, const char *what)
 }
 
 /*
- * A system command: @op with @len bytes of arguments. Returns EXIT_DEVICE
- * after a transport error, else EXIT_OK; the caller checks t->reply[2].
+ * Send @m and check that its reply answers it (lnxt_reply_check()): the
+ * reply in @t and the brick's status byte in @status. Returns EXIT_DEVICE
+ * after a transport error or a reply that does not answer @m.
  */
-int system_cmd(struct nxt_transaction *t, __u8 op, const void *args,
-	       size_t len, const char *what)
+int exchange(const struct lnxt_msg *m, struct nxt_transaction *t, int *status,
+	     const char *what)
 {
 	memset(t, 0, sizeof(*t));
-	t->telegram[0] = NXT_SYSTEM_CMD;
-	t->telegram[1] = op;
-	if (len)
-		memcpy(t->telegram + 2, args, len);
-	t->length = 2 + len;
+	memcpy(t->telegram, m->buf, m->len);
+	t->length = m->len;
 	if (transact(t, what))
 		return EXIT_DEVICE;
-	if (t->reply_length < 3) {
-		fprintf(stderr, "nxtctl: %s: short reply (%u bytes)\n", what,
-			t->reply_length);
+	*status = lnxt_reply_check(m, t->reply, t->reply_length);
+	if (*status < 0) {
+		progress_end();
+		fprintf(stderr, "nxtctl: %s: the brick's reply does not answer it (%u bytes)\n",
+			what, t->reply_length);
 		return EXIT_DEVICE;
 	}
 	return EXIT_OK;
 }
 
-/* A typed ioctl: @status points into @arg. */
-static int do_ioctl(unsigned long req, void *arg, const __u8 *status,
-		    const char *what)
+/* exchange(), and the brick's error status reported (EXIT_BRICK). */
+int command(const struct lnxt_msg *m, struct nxt_transaction *t, const char *what)
 {
-	if (ensure_device())
-		return EXIT_DEVICE;
-	if (ioctl(nxt_fd, req, arg) == 0)
-		return EXIT_OK;
-	if (*status)
-		return brick_error(what, *status);
-	return sys_error(what, errno);
+	int ret, status;
+
+	ret = exchange(m, t, &status, what);
+	if (ret)
+		return ret;
+	return status ? brick_error(what, status) : EXIT_OK;
+}
+
+/* command() for a command whose reply has nothing but the status. */
+static int simple(const struct lnxt_msg *m, const char *what)
+{
+	struct nxt_transaction t;
+
+	return command(m, &t, what);
+}
+
+/* A reply that command() accepted and its parser refused. */
+int bad_reply(const char *what)
+{
+	progress_end();
+	fprintf(stderr, "nxtctl: %s: malformed reply\n", what);
+	return EXIT_DEVICE;
 }
 
 /* ---- argument parsing ---- */
@@ -364,7 +325,7 @@ static int num_arg(const char *cmd, const char *what, const char *s, long min,
 static int motor_port(const char *cmd, const char *s, int all, __u8 *port)
 {
 	if (all && !strcasecmp(s, "all")) {
-		*port = NXT_OUTPUT_ALL;
+		*port = LNXT_PORT_ALL;
 		return EXIT_OK;
 	}
 	if (strlen(s) == 1 && toupper((unsigned char)s[0]) >= 'A' &&
@@ -391,9 +352,9 @@ int check_name(const char *cmd, const char *name)
 {
 	size_t i, len = strlen(name);
 
-	if (len < 1 || len >= NXT_NAME_LEN)
+	if (len < 1 || len > LNXT_NAME_MAX)
 		return usage_error(cmd, "%s: a file name on the brick has 1 to %d characters: '%s'",
-				   cmd, NXT_NAME_LEN - 1, name);
+				   cmd, LNXT_NAME_MAX, name);
 	for (i = 0; i < len; i++)
 		if (name[i] < 0x20 || name[i] > 0x7e)
 			return usage_error(cmd, "%s: file names are printable ASCII: '%s'",
@@ -487,19 +448,20 @@ fail:
  */
 static void ask_brick_info(const char *dev)
 {
-	static const __u8 ops[] = { NXT_SYS_GET_DEVICE_INFO, NXT_SYS_GET_VERSIONS };
 	struct nxt_transaction t;
+	struct lnxt_msg m[2];
 	size_t i;
 	int fd;
 
 	fd = open(dev, O_RDWR | O_CLOEXEC);
 	if (fd < 0)
 		return;
-	for (i = 0; i < sizeof(ops); i++) {
+	lnxt_get_device_info(&m[0]);
+	lnxt_get_versions(&m[1]);
+	for (i = 0; i < ARRAY_SIZE(m); i++) {
 		memset(&t, 0, sizeof(t));
-		t.telegram[0] = NXT_SYSTEM_CMD;
-		t.telegram[1] = ops[i];
-		t.length = 2;
+		memcpy(t.telegram, m[i].buf, m[i].len);
+		t.length = m[i].len;
 		if (ioctl(fd, NXT_IOC_TRANSACT, &t) < 0)
 			break;
 	}
@@ -542,92 +504,100 @@ static int cmd_list(int argc, char **argv)
 	return EXIT_OK;
 }
 
-static int get_versions(unsigned int *proto, unsigned int *fw)
+static int battery_level(__u16 *mv)
 {
 	struct nxt_transaction t;
+	struct lnxt_msg m;
 	int ret;
 
-	ret = system_cmd(&t, NXT_SYS_GET_VERSIONS, NULL, 0, "GetVersions");
+	lnxt_get_battery_level(&m);
+	ret = command(&m, &t, "GetBatteryLevel");
 	if (ret)
 		return ret;
-	if (t.reply[2])
-		return brick_error("GetVersions", t.reply[2]);
-	*proto = get_le16(t.reply + 3);
-	*fw = get_le16(t.reply + 5);
+	if (lnxt_parse_battery_level(t.reply, t.reply_length, mv))
+		return bad_reply("GetBatteryLevel");
 	return EXIT_OK;
 }
 
 static int cmd_info(int argc, char **argv)
 {
-	struct nxt_battery bat = { 0 };
+	struct lnxt_device_info info;
+	struct lnxt_versions v;
 	struct nxt_transaction t;
-	unsigned int proto, fw;
-	char *pos[1], name[16];
-	const __u8 *r;
+	struct lnxt_msg m;
+	const __u8 *a;
 	int npos, ret;
+	char *pos[1];
+	__u16 mv;
 
 	ret = parse_opts("info", argc, argv, NULL, pos, &npos, 0, 0);
 	if (ret)
 		return ret;
-	ret = system_cmd(&t, NXT_SYS_GET_DEVICE_INFO, NULL, 0, "GetDeviceInfo");
+	lnxt_get_device_info(&m);
+	ret = command(&m, &t, "GetDeviceInfo");
 	if (ret)
 		return ret;
-	if (t.reply[2])
-		return brick_error("GetDeviceInfo", t.reply[2]);
-	r = t.reply + 3;
-	memcpy(name, r, 15);
-	name[15] = 0;
-	ret = get_versions(&proto, &fw);
+	if (lnxt_parse_device_info(t.reply, t.reply_length, &info))
+		return bad_reply("GetDeviceInfo");
+	lnxt_get_versions(&m);
+	ret = command(&m, &t, "GetVersions");
 	if (ret)
 		return ret;
-	ret = do_ioctl(NXT_IOC_GET_BATTERY_LEVEL, &bat, &bat.status, "GetBatteryLevel");
+	if (lnxt_parse_versions(t.reply, t.reply_length, &v))
+		return bad_reply("GetVersions");
+	ret = battery_level(&mv);
 	if (ret)
 		return ret;
-	printf("name: %s\n", name);
-	printf("bt_address: %02x:%02x:%02x:%02x:%02x:%02x\n",
-	       r[15], r[16], r[17], r[18], r[19], r[20]);
-	printf("firmware: %u.%02u\n", fw >> 8, fw & 0xff);
-	printf("protocol: %u.%u\n", proto >> 8, proto & 0xff);
-	printf("battery_mv: %u\n", bat.millivolts);
-	printf("free_flash: %u\n", get_le32(r + 26));
+	a = info.bt_address;
+	printf("name: %s\n", info.name);
+	printf("bt_address: %02x:%02x:%02x:%02x:%02x:%02x\n", a[0], a[1], a[2], a[3], a[4], a[5]);
+	printf("firmware: %u.%02u\n", v.firmware_major, v.firmware_minor);
+	printf("protocol: %u.%u\n", v.protocol_major, v.protocol_minor);
+	printf("battery_mv: %u\n", mv);
+	printf("free_flash: %u\n", info.free_flash);
 	return EXIT_OK;
 }
 
 static int cmd_battery(int argc, char **argv)
 {
-	struct nxt_battery bat = { 0 };
 	int npos, ret;
 	char *pos[1];
+	__u16 mv;
 
 	ret = parse_opts("battery", argc, argv, NULL, pos, &npos, 0, 0);
 	if (ret)
 		return ret;
-	ret = do_ioctl(NXT_IOC_GET_BATTERY_LEVEL, &bat, &bat.status, "GetBatteryLevel");
+	ret = battery_level(&mv);
 	if (ret)
 		return ret;
-	printf("%u\n", bat.millivolts);
+	printf("%u\n", mv);
 	return EXIT_OK;
 }
 
 static int cmd_keep_alive(int argc, char **argv)
 {
-	struct nxt_keep_alive ka = { 0 };
+	struct nxt_transaction t;
+	struct lnxt_msg m;
 	int npos, ret;
 	char *pos[1];
+	__u32 ms;
 
 	ret = parse_opts("keep-alive", argc, argv, NULL, pos, &npos, 0, 0);
 	if (ret)
 		return ret;
-	ret = do_ioctl(NXT_IOC_KEEP_ALIVE, &ka, &ka.status, "KeepAlive");
+	lnxt_keep_alive(&m);
+	ret = command(&m, &t, "KeepAlive");
 	if (ret)
 		return ret;
-	printf("%u\n", ka.sleep_limit);
+	if (lnxt_parse_keep_alive(t.reply, t.reply_length, &ms))
+		return bad_reply("KeepAlive");
+	printf("%u\n", ms);
 	return EXIT_OK;
 }
 
 static int cmd_tone(int argc, char **argv)
 {
-	struct nxt_tone tone = { 0 };
+	struct lnxt_msg m;
 	long freq, dur;
 	int npos, ret;
 	char *pos[2];
@@ -635,21 +605,20 @@ static int cmd_tone(int argc, char **argv)
 	ret = parse_opts("tone", argc, argv, NULL, pos, &npos, 2, 2);
 	if (ret)
 		return ret;
-	ret = num_arg("tone", "FREQ_HZ", pos[0], NXT_TONE_MIN_HZ, NXT_TONE_MAX_HZ, &freq);
+	ret = num_arg("tone", "FREQ_HZ", pos[0], TONE_MIN_HZ, TONE_MAX_HZ, &freq);
 	if (ret)
 		return ret;
 	ret = num_arg("tone", "DURATION_MS", pos[1], 0, 65535, &dur);
 	if (ret)
 		return ret;
-	tone.frequency = freq;
-	tone.duration = dur;
-	return do_ioctl(NXT_IOC_PLAY_TONE, &tone, &tone.status, "PlayTone");
+	lnxt_play_tone(&m, freq, dur);
+	return simple(&m, "PlayTone");
 }
 
 static int cmd_play(int argc, char **argv)
 {
 	struct opt opts[] = { { .name = "loop" }, {} };
-	struct nxt_sound_file s = {};
+	struct lnxt_msg m;
 	int npos, ret;
 	char *pos[1];
 
@@ -659,33 +628,61 @@ static int cmd_play(int argc, char **argv)
 	ret = check_name("play", pos[0]);
 	if (ret)
 		return ret;
-	memcpy(s.name, pos[0], strlen(pos[0]));	/* checked: < NXT_NAME_LEN */
-	s.loop = opts[0].set;
-	return do_ioctl(NXT_IOC_PLAY_SOUND_FILE, &s, &s.status, "PlaySoundFile");
+	if (lnxt_play_sound_file(&m, opts[0].set, pos[0]))	/* checked */
+		return EXIT_USAGE;
+	return simple(&m, "PlaySoundFile");
 }
 
 static int cmd_stop_sound(int argc, char **argv)
 {
-	struct nxt_status_only s = { 0 };
+	struct lnxt_msg m;
 	int npos, ret;
 	char *pos[1];
 
 	ret = parse_opts("stop-sound", argc, argv, NULL, pos, &npos, 0, 0);
 	if (ret)
 		return ret;
-	return do_ioctl(NXT_IOC_STOP_SOUND_PLAYBACK, &s, &s.status, "StopSoundPlayback");
+	lnxt_stop_sound_playback(&m);
+	return simple(&m, "StopSoundPlayback");
+}
+
+/* GetOutputState of @port into @o. */
+static int output_state(__u8 port, struct lnxt_output *o)
+{
+	struct nxt_transaction t;
+	struct lnxt_msg m;
+	int ret;
+
+	if (lnxt_get_output_state(&m, port))
+		return EXIT_USAGE;	/* checked */
+	ret = command(&m, &t, "GetOutputState");
+	if (ret)
+		return ret;
+	if (lnxt_parse_output_state(t.reply, t.reply_length, o))
+		return bad_reply("GetOutputState");
+	return EXIT_OK;
+}
+
+/* SetOutputState as @o says. */
+static int set_output_state(const struct lnxt_output *o)
+{
+	struct lnxt_msg m;
+
+	if (lnxt_set_output_state(&m, o))
+		return EXIT_USAGE;	/* checked */
+	return simple(&m, "SetOutputState");
 }
 
 /*
  * --wait: poll GetOutputState until the motor on @port (each of the three
- * for NXT_OUTPUT_ALL) is back in run state idle, as the firmware puts it
+ * for LNXT_PORT_ALL) is back in run state idle, as the firmware puts it
  * when it reaches its tacho limit; give up after @wait_ms.
  */
 static int wait_motors(__u8 port, long wait_ms)
 {
-	struct nxt_output_state o, last = { 0 };
+	struct lnxt_output o, last = { 0 };
 	double deadline = now_ms() + wait_ms;
-	unsigned int busy = port == NXT_OUTPUT_ALL ? 7 : 1u << port;
+	unsigned int busy = port == LNXT_PORT_ALL ? 7 : 1u << port;
 	__u8 p;
 	int ret;
 
@@ -693,13 +690,10 @@ static int wait_motors(__u8 port, long wait_ms)
 		for (p = 0; p < 3; p++) {
 			if (!(busy & 1u << p))
 				continue;
-			memset(&o, 0, sizeof(o));
-			o.port = p;
-			ret = do_ioctl(NXT_IOC_GET_OUTPUT_STATE, &o, &o.status,
-				       "GetOutputState");
+			ret = output_state(p, &o);
 			if (ret)
 				return ret;
-			if (o.run_state == NXT_RUN_STATE_IDLE)
+			if (o.run_state == LNXT_RUN_IDLE)
 				busy &= ~(1u << p);
 			else
 				last = o;
@@ -730,7 +724,7 @@ static int cmd_motor(int argc, char **argv)
 		{ .name = "wait-timeout", .has_arg = 1 },
 		{}
 	};
-	struct nxt_output_state o = { 0 };
+	struct lnxt_output o = { 0 };
 	long power, limit = 0, turn = 0, wait_ms = DEFAULT_WAIT_MS;
 	int npos, ret;
 	char *pos[2];
@@ -754,17 +748,17 @@ static int cmd_motor(int argc, char **argv)
 	}
 	if (!strcmp(pos[1], "stop") || !strcmp(pos[1], "coast")) {
 		/* Power off, the motor coasts to a stop. */
-		o.run_state = NXT_RUN_STATE_IDLE;
-		return do_ioctl(NXT_IOC_SET_OUTPUT_STATE, &o, &o.status, "SetOutputState");
+		o.run_state = LNXT_RUN_IDLE;
+		return set_output_state(&o);
 	}
 	if (!strcmp(pos[1], "brake")) {
 		/* Power 0 with the brake and speed regulation: hold still. */
-		o.mode = NXT_MODE_MOTORON | NXT_MODE_BRAKE | NXT_MODE_REGULATED;
-		o.regulation_mode = NXT_REGULATION_MOTOR_SPEED;
-		o.run_state = NXT_RUN_STATE_RUNNING;
-		return do_ioctl(NXT_IOC_SET_OUTPUT_STATE, &o, &o.status, "SetOutputState");
+		o.mode = LNXT_MODE_MOTORON | LNXT_MODE_BRAKE | LNXT_MODE_REGULATED;
+		o.regulation = LNXT_REGULATION_SPEED;
+		o.run_state = LNXT_RUN_RUNNING;
+		return set_output_state(&o);
 	}
-	ret = num_arg("motor", "POWER", pos[1], -NXT_POWER_MAX, NXT_POWER_MAX, &power);
+	ret = num_arg("motor", "POWER", pos[1], -POWER_MAX, POWER_MAX, &power);
 	if (ret)
 		return ret;
 	if (opts[0].set) {
@@ -773,8 +767,7 @@ static int cmd_motor(int argc, char **argv)
 			return ret;
 	}
 	if (opts[4].set) {
-		ret = num_arg("motor", "--turn-ratio", opts[4].arg, -NXT_POWER_MAX,
-			      NXT_POWER_MAX, &turn);
+		ret = num_arg("motor", "--turn-ratio", opts[4].arg, -POWER_MAX, POWER_MAX, &turn);
 		if (ret)
 			return ret;
 	}
@@ -784,18 +777,17 @@ static int cmd_motor(int argc, char **argv)
 		return usage_error("motor",
 				   "motor: --wait needs a non-zero POWER and a --tacho-limit");
 	o.power = power;
-	o.mode = NXT_MODE_MOTORON;
+	o.mode = LNXT_MODE_MOTORON;
 	if (opts[1].set)
-		o.mode |= NXT_MODE_BRAKE;
+		o.mode |= LNXT_MODE_BRAKE;
 	if (opts[2].set || opts[3].set)
-		o.mode |= NXT_MODE_REGULATED;
-	o.regulation_mode = opts[3].set ? NXT_REGULATION_MOTOR_SYNC :
-			    opts[2].set ? NXT_REGULATION_MOTOR_SPEED :
-			    NXT_REGULATION_IDLE;
-	o.turn_ratio = turn;
-	o.run_state = NXT_RUN_STATE_RUNNING;
+		o.mode |= LNXT_MODE_REGULATED;
+	o.regulation = opts[3].set ? LNXT_REGULATION_SYNC :
+		       opts[2].set ? LNXT_REGULATION_SPEED : LNXT_REGULATION_IDLE;
+	o.turn = turn;
+	o.run_state = LNXT_RUN_RUNNING;
 	o.tacho_limit = limit;
-	ret = do_ioctl(NXT_IOC_SET_OUTPUT_STATE, &o, &o.status, "SetOutputState");
+	ret = set_output_state(&o);
 	if (ret || !opts[5].set)
 		return ret;
 	return wait_motors(o.port, wait_ms);
@@ -804,13 +796,13 @@ static int cmd_motor(int argc, char **argv)
 static const char *run_state_name(unsigned int s)
 {
 	switch (s) {
-	case NXT_RUN_STATE_IDLE:
+	case LNXT_RUN_IDLE:
 		return "idle";
-	case NXT_RUN_STATE_RAMPUP:
+	case LNXT_RUN_RAMPUP:
 		return "ramp-up";
-	case NXT_RUN_STATE_RUNNING:
+	case LNXT_RUN_RUNNING:
 		return "running";
-	case NXT_RUN_STATE_RAMPDOWN:
+	case LNXT_RUN_RAMPDOWN:
 		return "ramp-down";
 	}
 	return "unknown";
@@ -820,28 +812,28 @@ static const char *const regulation_names[] = { "idle", "speed", "sync" };
 
 static int cmd_motor_state(int argc, char **argv)
 {
-	struct nxt_output_state o = { 0 };
+	struct lnxt_output o;
 	int npos, ret;
 	char *pos[1];
+	__u8 port = 0;
 
 	ret = parse_opts("motor-state", argc, argv, NULL, pos, &npos, 1, 1);
 	if (ret)
 		return ret;
-	ret = motor_port("motor-state", pos[0], 0, &o.port);
+	ret = motor_port("motor-state", pos[0], 0, &port);
 	if (ret)
 		return ret;
-	ret = do_ioctl(NXT_IOC_GET_OUTPUT_STATE, &o, &o.status, "GetOutputState");
+	ret = output_state(port, &o);
 	if (ret)
 		return ret;
 	printf("port: %c\n", 'A' + o.port);
 	printf("power: %d\n", o.power);
-	printf("mode:%s%s%s%s\n", o.mode & NXT_MODE_MOTORON ? " on" : "",
-	       o.mode & NXT_MODE_BRAKE ? " brake" : "",
-	       o.mode & NXT_MODE_REGULATED ? " regulated" : "",
+	printf("mode:%s%s%s%s\n", o.mode & LNXT_MODE_MOTORON ? " on" : "",
+	       o.mode & LNXT_MODE_BRAKE ? " brake" : "",
+	       o.mode & LNXT_MODE_REGULATED ? " regulated" : "",
 	       o.mode ? "" : " off");
-	printf("regulation: %s\n", o.regulation_mode < 3 ?
-	       regulation_names[o.regulation_mode] : "unknown");
-	printf("turn_ratio: %d\n", o.turn_ratio);
+	printf("regulation: %s\n", o.regulation < 3 ? regulation_names[o.regulation] : "unknown");
+	printf("turn_ratio: %d\n", o.turn);
 	printf("run_state: %s\n", run_state_name(o.run_state));
 	printf("tacho_limit: %u\n", o.tacho_limit);
 	printf("tacho_count: %d\n", o.tacho_count);
@@ -853,33 +845,35 @@ static int cmd_motor_state(int argc, char **argv)
 static int cmd_reset_motor(int argc, char **argv)
 {
 	struct opt opts[] = { { .name = "relative" }, {} };
-	struct nxt_motor_position m = { 0 };
+	struct lnxt_msg m;
 	int npos, ret;
 	char *pos[1];
+	__u8 port = 0;
 
 	ret = parse_opts("reset-motor", argc, argv, opts, pos, &npos, 1, 1);
 	if (ret)
 		return ret;
-	ret = motor_port("reset-motor", pos[0], 0, &m.port);
+	ret = motor_port("reset-motor", pos[0], 0, &port);
 	if (ret)
 		return ret;
-	m.relative = opts[0].set;
-	return do_ioctl(NXT_IOC_RESET_MOTOR_POSITION, &m, &m.status, "ResetMotorPosition");
+	if (lnxt_reset_motor_position(&m, port, opts[0].set))
+		return EXIT_USAGE;	/* checked */
+	return simple(&m, "ResetMotorPosition");
 }
 
-static const char *const sensor_types[NXT_SENSOR_TYPES] = {
-	[NXT_SENSOR_NONE] = "none",
-	[NXT_SENSOR_SWITCH] = "touch",
-	[NXT_SENSOR_TEMPERATURE] = "temperature",
-	[NXT_SENSOR_REFLECTION] = "reflection",
-	[NXT_SENSOR_ANGLE] = "angle",
-	[NXT_SENSOR_LIGHT_ACTIVE] = "light-active",
-	[NXT_SENSOR_LIGHT_INACTIVE] = "light-inactive",
-	[NXT_SENSOR_SOUND_DB] = "sound-db",
-	[NXT_SENSOR_SOUND_DBA] = "sound-dba",
-	[NXT_SENSOR_CUSTOM] = "custom",
-	[NXT_SENSOR_LOWSPEED] = "lowspeed",
-	[NXT_SENSOR_LOWSPEED_9V] = "lowspeed-9v",
+static const char *const sensor_types[LNXT_SENSOR_TYPES] = {
+	[LNXT_SENSOR_NONE] = "none",
+	[LNXT_SENSOR_SWITCH] = "touch",
+	[LNXT_SENSOR_TEMPERATURE] = "temperature",
+	[LNXT_SENSOR_REFLECTION] = "reflection",
+	[LNXT_SENSOR_ANGLE] = "angle",
+	[LNXT_SENSOR_LIGHT_ACTIVE] = "light-active",
+	[LNXT_SENSOR_LIGHT_INACTIVE] = "light-inactive",
+	[LNXT_SENSOR_SOUND_DB] = "sound-db",
+	[LNXT_SENSOR_SOUND_DBA] = "sound-dba",
+	[LNXT_SENSOR_CUSTOM] = "custom",
+	[LNXT_SENSOR_LOWSPEED] = "lowspeed",
+	[LNXT_SENSOR_LOWSPEED_9V] = "lowspeed-9v",
 };
 
 static const char *const sensor_modes[8] = {
@@ -890,8 +884,9 @@ static const char *const sensor_modes[8] = {
 static int cmd_sensor_type(int argc, char **argv)
 {
 	struct opt opts[] = { { .name = "slope", .has_arg = 1 }, {} };
-	struct nxt_input_mode m = { 0 };
 	int npos, ret, type = -1, mode = 0;
+	struct lnxt_msg m;
+	__u8 port = 0;
 	long slope = 0;
 	char *pos[3];
 	int i;
@@ -899,16 +894,16 @@ static int cmd_sensor_type(int argc, char **argv)
 	ret = parse_opts("sensor-type", argc, argv, opts, pos, &npos, 2, 3);
 	if (ret)
 		return ret;
-	ret = sensor_port("sensor-type", pos[0], &m.port);
+	ret = sensor_port("sensor-type", pos[0], &port);
 	if (ret)
 		return ret;
-	for (i = 0; i < NXT_SENSOR_TYPES; i++)
+	for (i = 0; i < LNXT_SENSOR_TYPES; i++)
 		if (!strcasecmp(pos[1], sensor_types[i]))
 			type = i;
 	if (!strcasecmp(pos[1], "switch"))
-		type = NXT_SENSOR_SWITCH;
+		type = LNXT_SENSOR_SWITCH;
 	if (!strcasecmp(pos[1], "ultrasonic"))
-		type = NXT_SENSOR_LOWSPEED_9V;
+		type = LNXT_SENSOR_LOWSPEED_9V;
 	if (type < 0)
 		return usage_error("sensor-type", "sensor-type: unknown sensor type '%s'",
 				   pos[1]);
@@ -928,28 +923,46 @@ static int cmd_sensor_type(int argc, char **argv)
 		if (ret)
 			return ret;
 	}
-	m.type = type;
-	m.mode = mode << 5 | slope;
-	return do_ioctl(NXT_IOC_SET_INPUT_MODE, &m, &m.status, "SetInputMode");
+	if (lnxt_set_input_mode(&m, port, type, mode << 5 | slope))
+		return EXIT_USAGE;	/* checked */
+	return simple(&m, "SetInputMode");
+}
+
+/* GetInputValues of @port into @v. */
+static int input_values(__u8 port, struct lnxt_input *v)
+{
+	struct nxt_transaction t;
+	struct lnxt_msg m;
+	int ret;
+
+	if (lnxt_get_input_values(&m, port))
+		return EXIT_USAGE;	/* checked */
+	ret = command(&m, &t, "GetInputValues");
+	if (ret)
+		return ret;
+	if (lnxt_parse_input_values(t.reply, t.reply_length, v))
+		return bad_reply("GetInputValues");
+	return EXIT_OK;
 }
 
 static int cmd_sensor(int argc, char **argv)
 {
-	struct nxt_input_values v = { 0 };
+	struct lnxt_input v;
 	int npos, ret;
 	char *pos[1];
+	__u8 port = 0;
 
 	ret = parse_opts("sensor", argc, argv, NULL, pos, &npos, 1, 1);
 	if (ret)
 		return ret;
-	ret = sensor_port("sensor", pos[0], &v.port);
+	ret = sensor_port("sensor", pos[0], &port);
 	if (ret)
 		return ret;
-	ret = do_ioctl(NXT_IOC_GET_INPUT_VALUES, &v, &v.status, "GetInputValues");
+	ret = input_values(port, &v);
 	if (ret)
 		return ret;
 	printf("port: %u\n", v.port + 1);
-	printf("type: %s\n", v.type < NXT_SENSOR_TYPES ? sensor_types[v.type] : "unknown");
+	printf("type: %s\n", v.type < LNXT_SENSOR_TYPES ? sensor_types[v.type] : "unknown");
 	printf("mode: %s\n", sensor_modes[v.mode >> 5]);
 	printf("slope: %u\n", v.mode & 0x1f);
 	printf("valid: %u\n", v.valid);
@@ -963,18 +976,20 @@ static int cmd_sensor(int argc, char **argv)
 
 static int cmd_reset_sensor(int argc, char **argv)
 {
-	struct nxt_input_port p = { 0 };
+	struct lnxt_msg m;
 	int npos, ret;
 	char *pos[1];
+	__u8 port = 0;
 
 	ret = parse_opts("reset-sensor", argc, argv, NULL, pos, &npos, 1, 1);
 	if (ret)
 		return ret;
-	ret = sensor_port("reset-sensor", pos[0], &p.port);
+	ret = sensor_port("reset-sensor", pos[0], &port);
 	if (ret)
 		return ret;
-	return do_ioctl(NXT_IOC_RESET_INPUT_SCALED_VALUE, &p, &p.status,
-			"ResetInputScaledValue");
+	if (lnxt_reset_input_scaled_value(&m, port))
+		return EXIT_USAGE;	/* checked */
+	return simple(&m, "ResetInputScaledValue");
 }
 
 static double now_ms(void)
@@ -992,18 +1007,40 @@ static void sleep_ms(unsigned int ms)
 	nanosleep(&ts, NULL);
 }
 
+/*
+ * @m until the brick stops answering @busy (an I2C port not ready yet, a
+ * transaction still running) or @deadline passes: EXIT_OK with the reply
+ * in @t, or the error.
+ */
+static int retry_busy(const struct lnxt_msg *m, struct nxt_transaction *t, int busy,
+		      double deadline, const char *what)
+{
+	int ret, status;
+
+	for (;;) {
+		ret = exchange(m, t, &status, what);
+		if (ret)
+			return ret;
+		if (status != busy)
+			return status ? brick_error(what, status) : EXIT_OK;
+		if (now_ms() > deadline)
+			return sys_error(what, ETIMEDOUT);
+		sleep_ms(busy == LNXT_STATUS_PENDING ? 5 : 20);
+	}
+}
+
 /* The LEGO ultrasonic sensor: I2C address 0x02, register 0x42 (cm). */
 static int cmd_ultrasonic(int argc, char **argv)
 {
-	struct nxt_input_values v = { 0 };
-	struct nxt_input_mode m = { 0 };
-	struct nxt_ls_status st;
-	struct nxt_ls_write w;
-	struct nxt_ls_read r;
+	static const __u8 distance[] = { 0x02, 0x42 };
+	struct nxt_transaction t;
+	struct lnxt_input v;
+	struct lnxt_data d;
+	struct lnxt_msg m;
 	double deadline;
+	__u8 port = 0, ready;
 	int npos, ret;
 	char *pos[1];
-	__u8 port = 0;
 
 	ret = parse_opts("ultrasonic", argc, argv, NULL, pos, &npos, 1, 1);
 	if (ret)
@@ -1011,58 +1048,44 @@ static int cmd_ultrasonic(int argc, char **argv)
 	ret = sensor_port("ultrasonic", pos[0], &port);
 	if (ret)
 		return ret;
-	v.port = port;
-	ret = do_ioctl(NXT_IOC_GET_INPUT_VALUES, &v, &v.status, "GetInputValues");
+	ret = input_values(port, &v);
 	if (ret)
 		return ret;
-	if (v.type != NXT_SENSOR_LOWSPEED_9V) {
-		m.port = port;
-		m.type = NXT_SENSOR_LOWSPEED_9V;
-		m.mode = NXT_SENSOR_MODE_RAW;
-		ret = do_ioctl(NXT_IOC_SET_INPUT_MODE, &m, &m.status, "SetInputMode");
+	if (v.type != LNXT_SENSOR_LOWSPEED_9V) {
+		lnxt_set_input_mode(&m, port, LNXT_SENSOR_LOWSPEED_9V, LNXT_SENSOR_MODE_RAW);
+		ret = simple(&m, "SetInputMode");
 		if (ret)
 			return ret;
 	}
 	/* The port may need a moment after SetInputMode: retry while busy. */
 	deadline = now_ms() + timeout_ms;
-	for (;;) {
-		memset(&w, 0, sizeof(w));
-		w.port = port;
-		w.tx_length = 2;
-		w.rx_length = 1;
-		w.tx_data[0] = 0x02;
-		w.tx_data[1] = 0x42;
-		if (ioctl(nxt_fd, NXT_IOC_LS_WRITE, &w) == 0)
-			break;
-		if (w.status != NXT_STATUS_CHANNEL_BUSY || now_ms() > deadline)
-			return w.status ? brick_error("LSWrite", w.status) :
-					  sys_error("LSWrite", errno);
-		sleep_ms(20);
-	}
-	for (;;) {
-		memset(&st, 0, sizeof(st));
-		st.port = port;
-		if (ioctl(nxt_fd, NXT_IOC_LS_GET_STATUS, &st) == 0) {
-			if (st.bytes_ready)
-				break;
-		} else if (st.status != NXT_STATUS_PENDING) {
-			return st.status ? brick_error("LSGetStatus", st.status) :
-					   sys_error("LSGetStatus", errno);
-		}
-		if (now_ms() > deadline)
-			return sys_error("LSGetStatus (waiting for the sensor)", ETIMEDOUT);
-		sleep_ms(5);
-	}
-	memset(&r, 0, sizeof(r));
-	r.port = port;
-	ret = do_ioctl(NXT_IOC_LS_READ, &r, &r.status, "LSRead");
+	lnxt_ls_write(&m, port, distance, sizeof(distance), 1);
+	ret = retry_busy(&m, &t, LNXT_STATUS_CHANNEL_BUSY, deadline, "LSWrite");
 	if (ret)
 		return ret;
-	if (r.length < 1) {
+	lnxt_ls_get_status(&m, port);
+	do {
+		ret = retry_busy(&m, &t, LNXT_STATUS_PENDING, deadline, "LSGetStatus");
+		if (ret)
+			return ret;
+		if (lnxt_parse_ls_get_status(t.reply, t.reply_length, &ready))
+			return bad_reply("LSGetStatus");
+		if (!ready && now_ms() > deadline)
+			return sys_error("LSGetStatus (waiting for the sensor)", ETIMEDOUT);
+		if (!ready)
+			sleep_ms(5);
+	} while (!ready);
+	lnxt_ls_read(&m, port);
+	ret = command(&m, &t, "LSRead");
+	if (ret)
+		return ret;
+	if (lnxt_parse_ls_read(t.reply, t.reply_length, &d))
+		return bad_reply("LSRead");
+	if (d.len < 1) {
 		fprintf(stderr, "nxtctl: LSRead: the sensor sent no data\n");
 		return EXIT_DEVICE;
 	}
-	printf("%u\n", r.data[0]);
+	printf("%u\n", d.data[0]);
 	return EXIT_OK;
 }
 
@@ -1079,51 +1102,59 @@ static int mailbox(const char *cmd, const char *s, long max, __u8 *box)
 
 static int cmd_mailbox_send(int argc, char **argv)
 {
-	struct nxt_message m = { 0 };
+	struct lnxt_msg m;
 	int npos, ret;
 	char *pos[2];
 	size_t len;
+	__u8 box;
 
 	ret = parse_opts("mailbox-send", argc, argv, NULL, pos, &npos, 2, 2);
 	if (ret)
 		return ret;
-	ret = mailbox("mailbox-send", pos[0], NXT_INBOXES - 1, &m.inbox);
+	ret = mailbox("mailbox-send", pos[0], INBOXES - 1, &box);
 	if (ret)
 		return ret;
 	len = strlen(pos[1]);
-	if (len >= NXT_MESSAGE_MAX)
+	if (len > LNXT_MESSAGE_MAX)
 		return usage_error("mailbox-send", "mailbox-send: a message has at most %d bytes",
-				   NXT_MESSAGE_MAX - 1);
-	memcpy(m.data, pos[1], len);
-	m.size = len + 1;
-	return do_ioctl(NXT_IOC_MESSAGE_WRITE, &m, &m.status, "MessageWrite");
+				   LNXT_MESSAGE_MAX);
+	if (lnxt_message_write(&m, box, pos[1], len))
+		return EXIT_USAGE;	/* checked */
+	return simple(&m, "MessageWrite");
 }
 
 static int cmd_mailbox_read(int argc, char **argv)
 {
 	struct opt opts[] = { { .name = "remove" }, {} };
-	struct nxt_message m = { 0 };
+	struct nxt_transaction t;
+	struct lnxt_data d;
+	struct lnxt_msg m;
 	int npos, ret;
 	char *pos[1];
+	__u8 box;
 
 	ret = parse_opts("mailbox-read", argc, argv, opts, pos, &npos, 1, 1);
 	if (ret)
 		return ret;
-	ret = mailbox("mailbox-read", pos[0], NXT_REMOTE_INBOXES - 1, &m.inbox);
+	ret = mailbox("mailbox-read", pos[0], REMOTE_INBOXES - 1, &box);
 	if (ret)
 		return ret;
-	m.remove = opts[0].set;
-	ret = do_ioctl(NXT_IOC_MESSAGE_READ, &m, &m.status, "MessageRead");
+	/* The brick's remote inbox @box, into local inbox 0. */
+	if (lnxt_message_read(&m, box, 0, opts[0].set))
+		return EXIT_USAGE;	/* checked */
+	ret = command(&m, &t, "MessageRead");
 	if (ret)
 		return ret;
-	/* The message ends in its NUL; print what precedes it. */
-	printf("%.*s\n", (int)strnlen((char *)m.data, m.size), (char *)m.data);
+	if (lnxt_parse_message_read(t.reply, t.reply_length, &d))
+		return bad_reply("MessageRead");
+	/* Up to the message's NUL. */
+	printf("%.*s\n", (int)strnlen((char *)d.data, d.len), (char *)d.data);
 	return EXIT_OK;
 }
 
 static int cmd_start(int argc, char **argv)
 {
-	struct nxt_program p = {};
+	struct lnxt_msg m;
 	int npos, ret;
 	char *pos[1];
 
@@ -1133,43 +1164,48 @@ static int cmd_start(int argc, char **argv)
 	ret = check_name("start", pos[0]);
 	if (ret)
 		return ret;
-	memcpy(p.name, pos[0], strlen(pos[0]));	/* checked: < NXT_NAME_LEN */
-	return do_ioctl(NXT_IOC_START_PROGRAM, &p, &p.status, "StartProgram");
+	if (lnxt_start_program(&m, pos[0]))
+		return EXIT_USAGE;	/* checked */
+	return simple(&m, "StartProgram");
 }
 
 static int cmd_stop(int argc, char **argv)
 {
-	struct nxt_status_only s = { 0 };
+	struct lnxt_msg m;
 	int npos, ret;
 	char *pos[1];
 
 	ret = parse_opts("stop", argc, argv, NULL, pos, &npos, 0, 0);
 	if (ret)
 		return ret;
-	return do_ioctl(NXT_IOC_STOP_PROGRAM, &s, &s.status, "StopProgram");
+	lnxt_stop_program(&m);
+	return simple(&m, "StopProgram");
 }
 
 static int cmd_current(int argc, char **argv)
 {
-	struct nxt_program p = {};
+	char name[LNXT_NAME_MAX + 1];
+	struct nxt_transaction t;
+	struct lnxt_msg m;
 	int npos, ret;
 	char *pos[1];
 
 	ret = parse_opts("current", argc, argv, NULL, pos, &npos, 0, 0);
 	if (ret)
 		return ret;
-	ret = do_ioctl(NXT_IOC_GET_CURRENT_PROGRAM_NAME, &p, &p.status,
-		       "GetCurrentProgramName");
+	lnxt_get_current_program_name(&m);
+	ret = command(&m, &t, "GetCurrentProgramName");
 	if (ret)
 		return ret;
-	printf("%.*s\n", NXT_NAME_LEN, p.name);
+	if (lnxt_parse_program_name(t.reply, t.reply_length, name))
+		return bad_reply("GetCurrentProgramName");
+	printf("%s\n", name);
 	return EXIT_OK;
 }
 
 static int cmd_name(int argc, char **argv)
 {
-	struct nxt_transaction t;
-	__u8 name[16] = { 0 };
+	struct lnxt_msg m;
 	int npos, ret;
 	char *pos[1];
 	size_t i, len;
@@ -1183,13 +1219,9 @@ static int cmd_name(int argc, char **argv)
 	for (i = 0; i < len; i++)
 		if (pos[0][i] < 0x20 || pos[0][i] > 0x7e)
 			return usage_error("name", "name: a brick name is printable ASCII");
-	memcpy(name, pos[0], len);
-	ret = system_cmd(&t, NXT_SYS_SET_BRICK_NAME, name, sizeof(name), "SetBrickName");
-	if (ret)
-		return ret;
-	if (t.reply[2])
-		return brick_error("SetBrickName", t.reply[2]);
-	return EXIT_OK;
+	if (lnxt_set_brick_name(&m, pos[0]))
+		return EXIT_USAGE;	/* checked */
+	return simple(&m, "SetBrickName");
 }
 
 static int hex_digit(int c)

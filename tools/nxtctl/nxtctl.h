@@ -11,6 +11,8 @@
 #include <linux/types.h>
 #include <linux/lego_nxt.h>
 
+#include "legonxt.h"
+
 #define ARRAY_SIZE(a)	(sizeof(a) / sizeof((a)[0]))
 
 /* Exit codes, see Documentation/lego/nxtctl.rst */
@@ -20,22 +22,12 @@
 #define EXIT_DEVICE	3	/* device, transport or local I/O error */
 #define EXIT_HELP	(-1)	/* --help printed: exit 0 without running */
 
-/* System command opcodes used by nxtctl. */
-#define NXT_SYS_OPEN_READ	0x80
-#define NXT_SYS_OPEN_WRITE	0x81
-#define NXT_SYS_READ		0x82
-#define NXT_SYS_WRITE		0x83
-#define NXT_SYS_CLOSE		0x84
-#define NXT_SYS_DELETE		0x85
-#define NXT_SYS_FIND_FIRST	0x86
-#define NXT_SYS_FIND_NEXT	0x87
-#define NXT_SYS_GET_VERSIONS	0x88
-#define NXT_SYS_SET_BRICK_NAME	0x98
-#define NXT_SYS_GET_DEVICE_INFO	0x9b
-
-/* Data bytes of one Read reply and one Write telegram over USB. */
-#define NXT_READ_CHUNK		58
-#define NXT_WRITE_CHUNK		(NXT_TELEGRAM_MAX - 3)
+/* What nxtctl accepts beyond the firmware's own limits. */
+#define TONE_MIN_HZ	200	/* what the brick's speaker plays */
+#define TONE_MAX_HZ	14000
+#define POWER_MAX	100	/* motor power and turn ratio */
+#define INBOXES		10	/* mailbox-send: the program's inboxes */
+#define REMOTE_INBOXES	20	/* mailbox-read: 10 to 19 for the PC */
 
 extern int nxt_fd;
 extern const char *dev_path;
@@ -45,8 +37,10 @@ int brick_error(const char *what, unsigned int status);
 int sys_error(const char *what, int err);
 int usage_error(const char *cmd, const char *fmt, ...);
 int transact(struct nxt_transaction *t, const char *what);
-int system_cmd(struct nxt_transaction *t, __u8 op, const void *args,
-	       size_t len, const char *what);
+int exchange(const struct lnxt_msg *m, struct nxt_transaction *t, int *status,
+	     const char *what);
+int command(const struct lnxt_msg *m, struct nxt_transaction *t, const char *what);
+int bad_reply(const char *what);
 int check_name(const char *cmd, const char *name);
 
 void progress_end(void);
@@ -69,30 +63,5 @@ struct opt {
 
 int parse_opts(const char *cmd, int argc, char **argv, struct opt *opts,
 	       char **pos, int *npos, int min, int max);
-
-/* Wire data is little-endian whatever the host's byte order. */
-static inline __u16 get_le16(const __u8 *p)
-{
-	return p[0] | p[1] << 8;
-}
-
-static inline __u32 get_le32(const __u8 *p)
-{
-	return p[0] | p[1] << 8 | p[2] << 16 | (__u32)p[3] << 24;
-}
-
-static inline void put_le16(__u8 *p, __u16 v)
-{
-	p[0] = v;
-	p[1] = v >> 8;
-}
-
-static inline void put_le32(__u8 *p, __u32 v)
-{
-	p[0] = v;
-	p[1] = v >> 8;
-	p[2] = v >> 16;
-	p[3] = v >> 24;
-}
 
 #endif /* NXTCTL_H */
