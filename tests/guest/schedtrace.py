@@ -6,13 +6,14 @@ wire log's clock, wire.py), the keep-alive's path through the kernel:
   the work), workqueue_execute_start and _end of ev3_uart_keepalive_work
   (filtered on the work function's address), the discipline's own
   ev3_uart_tx events (the NACK sent);
-- sched_wakeup of kworkers, and every sched_switch on every CPU: what each
-  CPU ran while the work waited.
+- sched_wakeup of kworkers (where the work's worker was woken, and when),
+  and each sched_switch to or from a kworker on any CPU: when it got a
+  CPU, and what ran there before it (every switch would say more, at a
+  cost the whole run of tests paid).
 
 When a wire check fails on a keep-alive, lines() gives what the instance
 holds for the late interval, and the fixture adds it to the failure. A
-test that is not about timing never reads it; its cost is the events'
-(a few per context switch).
+test that is not about timing never reads it; its cost is the events'.
 """
 import os
 
@@ -22,7 +23,7 @@ import wire
 KEEPALIVE_NS = wire.KEEPALIVE_MS * 10 ** 6
 
 NAME = 'lego_wire'
-KB_PER_CPU = 8192
+KB_PER_CPU = 2048
 
 
 def _symbol(name):
@@ -57,6 +58,8 @@ class SchedTrace:
         for e in ('workqueue_execute_start', 'workqueue_execute_end'):
             tracing.write(ev + 'workqueue/%s/filter' % e, 'function == 0x%x' % func)
         tracing.write(ev + 'sched/sched_wakeup/filter', 'comm ~ "kworker*"')
+        tracing.write(ev + 'sched/sched_switch/filter',
+                      'prev_comm ~ "kworker*" || next_comm ~ "kworker*"')
         for e in ('workqueue/workqueue_queue_work', 'workqueue/workqueue_execute_start',
                   'workqueue/workqueue_execute_end', 'sched/sched_wakeup',
                   'sched/sched_switch', 'lego_ev3_uart/ev3_uart_tx'):
