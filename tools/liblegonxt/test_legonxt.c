@@ -407,12 +407,104 @@ static void test_replies(void)
 	CHECK(!strcmp(lnxt_status_name(0xec), "no program running"));
 }
 
+static uint32_t rng_state = 0x2545f491;
+
+static uint32_t rnd(void)
+{
+	rng_state ^= rng_state << 13;
+	rng_state ^= rng_state >> 17;
+	rng_state ^= rng_state << 5;
+	return rng_state;
+}
+
+/*
+ * Replies come from a brick, or from whatever else answers on its node:
+ * random ones, most with a reply's type byte and a known opcode, through
+ * lnxt_reply_check() and every parser, with ASan and UBSan watching
+ * (make check). What a parser accepts must be a reply of its own command
+ * and say no more bytes than its buffer holds.
+ */
+static void test_random_replies(void)
+{
+	static const uint8_t ops[] = {
+		0x00, 0x06, 0x07, 0x0b, 0x0d, 0x0e, 0x10, 0x11, 0x13, 0x19, 0x1b, 0x1c,
+		0x1d, 0x1e, 0x20, 0x80, 0x81, 0x82, 0x83, 0x84, 0x86, 0x87, 0x88, 0x8c,
+		0x90, 0x91, 0x94, 0x95, 0x9a, 0x9b, 0xa1, 0xa2, 0xff,
+	};
+	uint8_t r[LNXT_TELEGRAM_MAX + 8];
+	struct lnxt_device_info info;
+	struct lnxt_versions v;
+	struct lnxt_module mod;
+	struct lnxt_output o;
+	struct lnxt_input in;
+	struct lnxt_data d;
+	struct lnxt_file f;
+	struct lnxt_msg m;
+	char name[LNXT_NAME_MAX + 1], bt[18];
+	uint8_t b1, b2, addr[6];
+	uint16_t u16;
+	uint32_t u32;
+	int i, bad = 0, accepted = 0;
+	size_t len, k;
+
+	for (i = 0; i < 200000; i++) {
+		len = rnd() % (LNXT_TELEGRAM_MAX + 1);
+		for (k = 0; k < len; k++)
+			r[k] = rnd();
+		if (len > 0 && rnd() % 8)
+			r[0] = LNXT_REPLY;
+		if (len > 1 && rnd() % 8)
+			r[1] = ops[rnd() % sizeof(ops)];
+		if (len > 2 && rnd() % 2)
+			r[2] = 0;
+		/* A request of the reply's opcode, its arguments random too. */
+		memset(&m, 0, sizeof(m));
+		m.len = 2 + rnd() % (LNXT_TELEGRAM_MAX - 1);
+		for (k = 0; k < m.len; k++)
+			m.buf[k] = rnd();
+		m.buf[1] = len > 1 ? r[1] : 0;
+		if (lnxt_reply_check(&m, r, len) >= 0)
+			accepted++;
+		d.len = 0;
+		if (!lnxt_parse_ls_read(r, len, &d) || !lnxt_parse_message_read(r, len, &d) ||
+		    !lnxt_parse_datalog_read(r, len, &d) || !lnxt_parse_read(r, len, &d) ||
+		    !lnxt_parse_read_io_map(r, len, &d) || !lnxt_parse_poll(r, len, &d))
+			bad += d.len > sizeof(d.data) || r[0] != LNXT_REPLY || r[2] != 0;
+		lnxt_parse_output_state(r, len, &o);
+		lnxt_parse_input_values(r, len, &in);
+		lnxt_parse_battery_level(r, len, &u16);
+		lnxt_parse_keep_alive(r, len, &u32);
+		lnxt_parse_ls_get_status(r, len, &b1);
+		lnxt_parse_program_name(r, len, name);
+		bad += strlen(name) > LNXT_NAME_MAX;
+		lnxt_parse_bt_count(r, len, &b1);
+		lnxt_parse_bt_name(r, len, &b1, bt);
+		lnxt_parse_property(r, len, &u32);
+		if (!lnxt_parse_file(r, len, &f))
+			bad += strlen(f.name) > LNXT_NAME_MAX;
+		lnxt_parse_handle(r, len, &b1);
+		lnxt_parse_write(r, len, &b1, &u16);
+		lnxt_parse_versions(r, len, &v);
+		if (!lnxt_parse_module(r, len, &mod))
+			bad += strlen(mod.name) > LNXT_NAME_MAX;
+		lnxt_parse_write_io_map(r, len, &u32, &u16);
+		lnxt_parse_bt_address(r, len, addr);
+		if (!lnxt_parse_device_info(r, len, &info))
+			bad += strlen(info.name) > LNXT_BRICK_NAME_MAX;
+		lnxt_parse_poll_length(r, len, &b1, &b2);
+	}
+	CHECK(bad == 0);
+	/* The sweep reached the accepting paths, not only the refusals. */
+	CHECK(accepted > 1000);
+}
+
 int main(void)
 {
 	test_direct();
 	test_direct_refused();
 	test_system();
 	test_replies();
+	test_random_replies();
 	printf("test_legonxt: %d checks, %d failed\n", checks, failures);
 	return failures ? 1 : 0;
 }
