@@ -61,7 +61,7 @@ fi
 # The userspace tools, for the guest tests: $LEGO_BUILD/tools/, warnings
 # as errors (WERROR=1).
 mkdir -p "$out/tools"
-if ! make -s -C "$top/tools" O="$out/tools" CC="$cc" WERROR=1 >"$out/tools.log" 2>&1 || grep -E '(warning|error):' "$out/tools.log" >&2; then
+if ! make -s -C "$top/tools" O="$out/tools" CC="$cc" AR="${CROSS_COMPILE:-}ar" WERROR=1 >"$out/tools.log" 2>&1 || grep -E '(warning|error):' "$out/tools.log" >&2; then
 	cat "$out/tools.log" >&2
 	echo "build-modules: the userspace tools did not build cleanly" >&2
 	exit 1

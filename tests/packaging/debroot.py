@@ -55,7 +55,7 @@ LINKED = ('var/lib/dpkg/info',)
 WRITTEN = ('usr/src', 'var/lib/dkms', 'var/lib/systemd', 'var/cache', 'root')
 MOUNTS = ('proc', 'sys', 'dev')
 PACKAGES = ('lego-mindstorms-dkms', 'lego-mindstorms-tools', 'lego-mindstorms-dev',
-            'python3-lego-nxt-linux')
+            'liblegonxt-dev', 'python3-lego-nxt-linux')
 
 
 def run(cmd, **kw):

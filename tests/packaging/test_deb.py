@@ -38,7 +38,8 @@ import pytest
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import debroot  # noqa: E402
 
-PACKAGES = ['lego-mindstorms-tools', 'lego-mindstorms-dev', 'python3-lego-nxt-linux']
+PACKAGES = ['lego-mindstorms-tools', 'lego-mindstorms-dev', 'liblegonxt-dev',
+            'python3-lego-nxt-linux']
 ALL_PACKAGES = ['lego-mindstorms-dkms'] + PACKAGES
 MODULES = ['lego_ev3_uart', 'lego_nxt_usb']
 # What dpkg, its scripts and systemd-sysusers may leave after a purge.
@@ -186,12 +187,17 @@ def test_install_the_other_packages(root):
 
 def test_packaged_example_builds_with_the_installed_headers(root):
     """The examples of lego-mindstorms-tools, copied out of /usr/share/doc,
-    build against lego-mindstorms-dev's headers (pkg-config)."""
+    build against lego-mindstorms-dev's headers and liblegonxt-dev's
+    library (pkg-config)."""
     assert root.files, 'the packages are not installed'
     root.chroot(['rm', '-rf', '/tmp/ex'])
     root.chroot(['cp', '-r', '/usr/share/doc/lego-mindstorms-tools/examples', '/tmp/ex'])
     root.chroot(['make', '-C', '/tmp/ex', 'O=/tmp/ex/out', '/tmp/ex/out/nxt-ioctl'])
     assert os.access(os.path.join(root.path, 'tmp/ex/out/nxt-ioctl'), os.X_OK)
+    # Linked with the packaged library: its symbols are in the program.
+    nm = subprocess.run(['nm', os.path.join(root.path, 'tmp/ex/out/nxt-ioctl')],
+                        capture_output=True, text=True, check=True).stdout
+    assert ' T lnxt_reply_check' in nm
 
 
 def test_headers_compile_with_pkg_config(root):
