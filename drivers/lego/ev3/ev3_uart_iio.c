@@ -320,9 +320,46 @@ static struct iio_chan_spec *ev3_iio_chan_specs(struct ev3_uart_iio *iio)
  *
  * Return: 0 or a negative errno.
  */
+/*
+ * The IIO device of @sd with its @n channels (and the timestamp), not
+ * registered yet: -ENOMEM, or 0 with what iio_device_free() frees.
+ */
+static int ev3_uart_iio_setup(struct iio_dev *indio, struct ev3_uart_sensor_dev *sd,
+			      unsigned int n)
+{
+	struct ev3_uart_iio *iio = iio_priv(indio);
+	const struct iio_chan_spec *specs;
+
+	iio->sd = sd;
+	iio->indio = indio;
+	iio->buffer_mode = EV3_UART_NO_MODE;
+	iio->num_chans = n;
+	strscpy(iio->name, sd->driver_name, sizeof(iio->name));
+	strscpy(iio->label, sd->address, sizeof(iio->label));
+
+	iio->chans = devm_kcalloc(&indio->dev, n, sizeof(*iio->chans), GFP_KERNEL);
+	/* A value per channel, then the timestamp, 8-byte aligned. */
+	iio->scan_size = round_up(n * sizeof(s32), 8) + 8;
+	iio->scan = devm_kzalloc(&indio->dev, iio->scan_size, GFP_KERNEL);
+	if (!iio->chans || !iio->scan)
+		return -ENOMEM;
+	if (WARN_ON(ev3_uart_chans_build(&sd->desc, iio->chans, n) != n))
+		return -ENOMEM;
+	specs = ev3_iio_chan_specs(iio);
+	if (!specs)
+		return -ENOMEM;
+	indio->channels = specs;
+	indio->num_channels = n + 1;
+	indio->name = iio->name;
+	indio->label = iio->label;
+	indio->info = &ev3_iio_info;
+	indio->modes = INDIO_DIRECT_MODE;
+	indio->setup_ops = &ev3_iio_buffer_ops;
+	return 0;
+}
+
 int ev3_uart_iio_register(struct ev3_uart_sensor_dev *sd)
 {
-	const struct iio_chan_spec *specs;
 	struct ev3_uart_iio *iio;
 	struct iio_dev *indio;
 	unsigned int n;
@@ -340,33 +377,11 @@ int ev3_uart_iio_register(struct ev3_uart_sensor_dev *sd)
 	if (!indio)
 		return -ENOMEM;
 	iio = iio_priv(indio);
-	iio->sd = sd;
-	iio->indio = indio;
-	iio->buffer_mode = EV3_UART_NO_MODE;
-	iio->num_chans = n;
-	strscpy(iio->name, sd->driver_name, sizeof(iio->name));
-	strscpy(iio->label, sd->address, sizeof(iio->label));
+	ret = ev3_uart_iio_setup(indio, sd, n);
+	if (ret)
+		goto free;
 
 	ret = -ENOMEM;
-	iio->chans = devm_kcalloc(&indio->dev, n, sizeof(*iio->chans), GFP_KERNEL);
-	/* A value per channel, then the timestamp, 8-byte aligned. */
-	iio->scan_size = round_up(n * sizeof(s32), 8) + 8;
-	iio->scan = devm_kzalloc(&indio->dev, iio->scan_size, GFP_KERNEL);
-	if (!iio->chans || !iio->scan)
-		goto free;
-	if (WARN_ON(ev3_uart_chans_build(&sd->desc, iio->chans, n) != n))
-		goto free;
-	specs = ev3_iio_chan_specs(iio);
-	if (!specs)
-		goto free;
-	indio->channels = specs;
-	indio->num_channels = n + 1;
-	indio->name = iio->name;
-	indio->label = iio->label;
-	indio->info = &ev3_iio_info;
-	indio->modes = INDIO_DIRECT_MODE;
-	indio->setup_ops = &ev3_iio_buffer_ops;
-
 	iio->buffer = iio_kfifo_allocate();
 	if (!iio->buffer)
 		goto free;

@@ -736,57 +736,84 @@ static const char *ev3_uart_check_string(const u8 *s, size_t size,
 	return NULL;
 }
 
+/* MODES: how many modes, and how many of them to show. */
+static const char *ev3_uart_cmd_modes(struct ev3_uart_parser *p,
+				      const u8 *payload, unsigned int plen)
+{
+	struct ev3_uart_sensor *s = &p->sensor;
+
+	if (p->info_mode != EV3_UART_NO_MODE)
+		return "MODES after INFO";
+	if (payload[0] >= EV3_UART_MAX_EV3_MODES)
+		return "number of modes out of range";
+	/*
+	 * The second byte (views) is optional. Powered Up devices send a
+	 * 4-byte form whose last two bytes count all their modes (up to 16)
+	 * and views; the first two are for EV3 hosts.
+	 */
+	if (plen >= 4) {
+		if (payload[2] >= EV3_UART_MAX_MODES)
+			return "number of modes out of range";
+		payload += 2;
+		s->lump = true;
+	}
+	s->num_modes = payload[0] + 1;
+	s->num_view_modes = plen >= 2 ? min_t(unsigned int, payload[1] + 1,
+					      s->num_modes)
+				      : s->num_modes;
+	return NULL;
+}
+
+/* SPEED: the speed of the data phase. */
+static const char *ev3_uart_cmd_speed(struct ev3_uart_parser *p,
+				      const u8 *payload, unsigned int plen)
+{
+	u32 speed;
+
+	if (p->info_mode != EV3_UART_NO_MODE)
+		return "SPEED after INFO";
+	if (plen < 4)
+		return "short SPEED";
+	speed = get_unaligned_le32(payload);
+	if (speed < EV3_UART_SPEED_MIN || speed > EV3_UART_SPEED_MAX)
+		return "speed out of range";
+	p->sensor.speed = speed;
+	return NULL;
+}
+
+/* VERSION (Powered Up): firmware and hardware versions, BCD. */
+static const char *ev3_uart_cmd_version(struct ev3_uart_parser *p,
+					const u8 *payload, unsigned int plen)
+{
+	struct ev3_uart_sensor *s = &p->sensor;
+
+	if (plen < 8)
+		return "short VERSION";
+	s->fw_version = get_unaligned_le32(payload);
+	s->hw_version = get_unaligned_le32(payload + 4);
+	s->lump = true;
+	return NULL;
+}
+
+/* A CMD message of the handshake, @plen bytes after its header. */
 static void ev3_uart_cmd(struct ev3_uart_parser *p, const u8 *msg,
 			 unsigned int plen, struct ev3_uart_event *ev)
 {
-	struct ev3_uart_sensor *s = &p->sensor;
 	const u8 *payload = msg + 1;
 	u8 cmd = msg[0] & EV3_UART_MSG_CMD_MASK;
-	u32 speed;
+	const char *err;
 
 	switch (cmd) {
 	case EV3_UART_CMD_MODES:
-		if (p->cmd_seen & BIT(cmd))
-			return ev3_uart_error(p, ev, "duplicate MODES");
-		if (p->info_mode != EV3_UART_NO_MODE)
-			return ev3_uart_error(p, ev, "MODES after INFO");
-		if (payload[0] >= EV3_UART_MAX_EV3_MODES)
-			return ev3_uart_error(p, ev, "number of modes out of range");
-		/*
-		 * The second byte (views) is optional. Powered Up devices send
-		 * a 4-byte form whose last two bytes count all their modes
-		 * (up to 16) and views; the first two are for EV3 hosts.
-		 */
-		if (plen >= 4) {
-			if (payload[2] >= EV3_UART_MAX_MODES)
-				return ev3_uart_error(p, ev, "number of modes out of range");
-			payload += 2;
-			s->lump = true;
-		}
-		s->num_modes = payload[0] + 1;
-		s->num_view_modes = plen >= 2 ? min_t(unsigned int, payload[1] + 1,
-						      s->num_modes)
-					      : s->num_modes;
+		err = p->cmd_seen & BIT(cmd) ? "duplicate MODES" :
+		      ev3_uart_cmd_modes(p, payload, plen);
 		break;
 	case EV3_UART_CMD_SPEED:
-		if (p->cmd_seen & BIT(cmd))
-			return ev3_uart_error(p, ev, "duplicate SPEED");
-		if (p->info_mode != EV3_UART_NO_MODE)
-			return ev3_uart_error(p, ev, "SPEED after INFO");
-		if (plen < 4)
-			return ev3_uart_error(p, ev, "short SPEED");
-		speed = get_unaligned_le32(payload);
-		if (speed < EV3_UART_SPEED_MIN || speed > EV3_UART_SPEED_MAX)
-			return ev3_uart_error(p, ev, "speed out of range");
-		s->speed = speed;
+		err = p->cmd_seen & BIT(cmd) ? "duplicate SPEED" :
+		      ev3_uart_cmd_speed(p, payload, plen);
 		break;
 	case EV3_UART_CMD_VERSION:
-		/* Powered Up: firmware and hardware versions, BCD. */
-		if (plen < 8)
-			return ev3_uart_error(p, ev, "short VERSION");
-		s->fw_version = get_unaligned_le32(payload);
-		s->hw_version = get_unaligned_le32(payload + 4);
-		s->lump = true;
+		err = ev3_uart_cmd_version(p, payload, plen);
 		break;
 	case EV3_UART_CMD_EXT_MODE:
 		/*
@@ -794,12 +821,17 @@ static void ev3_uart_cmd(struct ev3_uart_parser *p, const u8 *msg,
 		 * ev3_uart_ext_mode()); modes 8 and up are described with
 		 * the MODE_PLUS_8 flag instead.
 		 */
+		err = NULL;
 		break;
 	case EV3_UART_CMD_TYPE:
-		return ev3_uart_error(p, ev, "duplicate TYPE");
+		err = "duplicate TYPE";
+		break;
 	default:
-		return ev3_uart_error(p, ev, "unexpected command");
+		err = "unexpected command";
+		break;
 	}
+	if (err)
+		return ev3_uart_error(p, ev, err);
 	p->cmd_seen |= BIT(cmd);
 }
 
@@ -895,6 +927,71 @@ static noinline void ev3_uart_info_lump(struct ev3_uart_sensor *s,
 	}
 }
 
+/* NAME: it starts the description of @mode (below num_modes). */
+static const char *ev3_uart_info_name(struct ev3_uart_parser *p, u8 mode,
+				      const u8 *payload, unsigned int plen)
+{
+	struct ev3_uart_sensor *s = &p->sensor;
+	struct ev3_uart_mode *m = &s->modes[mode];
+	const char *err;
+	size_t n;
+
+	if (p->info_mode != EV3_UART_NO_MODE &&
+	    !(p->modes_done & BIT(p->info_mode)))
+		return "NAME before the previous mode's FORMAT";
+	if (p->modes_done & BIT(mode))
+		return "duplicate mode";
+	err = ev3_uart_check_string(payload, plen, EV3_UART_NAME_LEN, &n);
+	if (err)
+		return err;
+	if (payload[0] < 'A' || payload[0] > 'z')
+		return "bad mode name";
+	memset(m, 0, sizeof(*m));
+	/* 8-character names fill their payload with no NUL after them. */
+	ev3_uart_copy_short((u8 *)m->name, payload, n);
+	/* Powered Up: capability flags after a short name, in a 16-byte payload. */
+	if (n <= EV3_UART_SHORT_NAME_LEN &&
+	    plen >= EV3_UART_SHORT_NAME_LEN + 1 + EV3_UART_NAME_FLAGS) {
+		memcpy(m->flags, payload + EV3_UART_SHORT_NAME_LEN + 1,
+		       EV3_UART_NAME_FLAGS);
+		s->lump = true;
+	}
+	ev3_uart_set_mode_defaults(p);
+	p->info_mode = mode;
+	p->info_seen = BIT(EV3_UART_INFO_NAME);
+	return NULL;
+}
+
+/*
+ * RAW, PCT, SI (a range, kept until FORMAT gives the decimals) and UNITS
+ * of the mode being described, @m.
+ */
+static const char *ev3_uart_info_field(struct ev3_uart_parser *p,
+				       struct ev3_uart_mode *m, u8 itype,
+				       const u8 *payload, unsigned int plen)
+{
+	const char *err;
+	size_t n;
+
+	if (itype == EV3_UART_INFO_UNITS) {
+		if (p->info_seen & BIT(itype))
+			return "duplicate UNITS";
+		err = ev3_uart_check_string(payload, plen, EV3_UART_UNITS_LEN, &n);
+		if (err)
+			return err;
+		memcpy(m->units, payload, n);
+	} else {
+		if (p->info_seen & BIT(itype))
+			return "duplicate range INFO";
+		if (plen < 8)
+			return "short range INFO";
+		p->stash[itype - EV3_UART_INFO_RAW][0] = get_unaligned_le32(payload);
+		p->stash[itype - EV3_UART_INFO_RAW][1] = get_unaligned_le32(payload + 4);
+	}
+	p->info_seen |= BIT(itype);
+	return NULL;
+}
+
 /*
  * An INFO message of type @itype for mode @mode (below 16). EV3 types only,
  * and the MODE_PLUS_8 flag already taken off (see ev3_uart_info()).
@@ -904,78 +1001,26 @@ static __always_inline void __ev3_uart_info(struct ev3_uart_parser *p, u8 mode,
 					    unsigned int plen,
 					    struct ev3_uart_event *ev)
 {
-	struct ev3_uart_sensor *s = &p->sensor;
-	struct ev3_uart_mode *m;
 	const char *err;
-	unsigned int bit;
-	size_t n;
 
-	if (mode >= s->num_modes)
-		return ev3_uart_error(p, ev, "INFO for a mode out of range");
-	m = &s->modes[mode];	/* mode < num_modes <= EV3_UART_MAX_MODES */
-
-	if (itype == EV3_UART_INFO_NAME) {
-		if (p->info_mode != EV3_UART_NO_MODE &&
-		    !(p->modes_done & BIT(p->info_mode)))
-			return ev3_uart_error(p, ev, "NAME before the previous mode's FORMAT");
-		if (p->modes_done & BIT(mode))
-			return ev3_uart_error(p, ev, "duplicate mode");
-		err = ev3_uart_check_string(payload, plen, EV3_UART_NAME_LEN, &n);
-		if (err)
-			return ev3_uart_error(p, ev, err);
-		if (payload[0] < 'A' || payload[0] > 'z')
-			return ev3_uart_error(p, ev, "bad mode name");
-		memset(m, 0, sizeof(*m));
-		/* 8-character names fill their payload with no NUL after them. */
-		ev3_uart_copy_short((u8 *)m->name, payload, n);
-		/*
-		 * Powered Up: capability flags after a short name, in a
-		 * 16-byte payload.
-		 */
-		if (n <= EV3_UART_SHORT_NAME_LEN &&
-		    plen >= EV3_UART_SHORT_NAME_LEN + 1 + EV3_UART_NAME_FLAGS) {
-			memcpy(m->flags, payload + EV3_UART_SHORT_NAME_LEN + 1,
-			       EV3_UART_NAME_FLAGS);
-			s->lump = true;
-		}
-		ev3_uart_set_mode_defaults(p);
-		p->info_mode = mode;
-		p->info_seen = BIT(EV3_UART_INFO_NAME);
-		return;
-	}
-
-	if (mode != p->info_mode)
-		return ev3_uart_error(p, ev, "INFO for a mode not being described");
-	if (p->modes_done & BIT(mode))
-		return ev3_uart_error(p, ev, "INFO after FORMAT");
-
-	switch (itype) {
-	case EV3_UART_INFO_RAW:
-	case EV3_UART_INFO_PCT:
-	case EV3_UART_INFO_SI:
-		bit = BIT(itype);
-		if (p->info_seen & bit)
-			return ev3_uart_error(p, ev, "duplicate range INFO");
-		if (plen < 8)
-			return ev3_uart_error(p, ev, "short range INFO");
-		p->stash[itype - EV3_UART_INFO_RAW][0] = get_unaligned_le32(payload);
-		p->stash[itype - EV3_UART_INFO_RAW][1] = get_unaligned_le32(payload + 4);
-		p->info_seen |= bit;
-		return;
-	case EV3_UART_INFO_UNITS:
-		if (p->info_seen & BIT(itype))
-			return ev3_uart_error(p, ev, "duplicate UNITS");
-		err = ev3_uart_check_string(payload, plen, EV3_UART_UNITS_LEN, &n);
-		if (err)
-			return ev3_uart_error(p, ev, err);
-		memcpy(m->units, payload, n);
-		p->info_seen |= BIT(itype);
-		return;
-	case EV3_UART_INFO_FORMAT:
+	if (mode >= p->sensor.num_modes)
+		err = "INFO for a mode out of range";
+	else if (itype == EV3_UART_INFO_NAME)
+		err = ev3_uart_info_name(p, mode, payload, plen);
+	else if (mode != p->info_mode)
+		err = "INFO for a mode not being described";
+	else if (p->modes_done & BIT(mode))
+		err = "INFO after FORMAT";
+	else if (itype == EV3_UART_INFO_FORMAT)
 		return ev3_uart_format(p, mode, payload, plen, ev);
-	default:
-		return ev3_uart_error(p, ev, "unknown INFO type");
-	}
+	else if (itype >= EV3_UART_INFO_RAW && itype <= EV3_UART_INFO_UNITS)
+		/* mode < num_modes <= EV3_UART_MAX_MODES */
+		err = ev3_uart_info_field(p, &p->sensor.modes[mode], itype,
+					  payload, plen);
+	else
+		err = "unknown INFO type";
+	if (err)
+		ev3_uart_error(p, ev, err);
 }
 
 /*
@@ -1176,6 +1221,25 @@ static u8 ev3_uart_us_mode5(const struct ev3_uart_parser *p)
 	return from == 6 ? 6 : 5;
 }
 
+/*
+ * Quirk: US-DC-IN's messages tagged mode 5 (see above). The mode of an
+ * EV3 ultrasonic sensor's DATA message tagged @mode, in @mode, and whether
+ * it is US-DC-IN's in @us_dc_in; EV3_UART_NO_MODE when no one can tell.
+ */
+static u8 ev3_uart_us_mode(struct ev3_uart_parser *p, u8 mode, bool *us_dc_in)
+{
+	if (p->sensor.type != EV3_UART_TYPE_US || p->sensor.lump)
+		return mode;
+	if (mode == 5) {
+		mode = ev3_uart_us_mode5(p);
+		*us_dc_in = mode == 6;
+	} else if (mode == 6 && p->pending_mode == 5) {
+		/* Not switched yet: count again. */
+		p->select_ticks = 0;
+	}
+	return mode;
+}
+
 static void ev3_uart_data_msg(struct ev3_uart_parser *p,
 			      struct ev3_uart_event *ev)
 {
@@ -1192,23 +1256,13 @@ static void ev3_uart_data_msg(struct ev3_uart_parser *p,
 	if (p->msg[len - 1] != ev3_uart_checksum(p->msg, len - 1) &&
 	    !ev3_uart_rgb_raw_quirk(s, hdr))
 		return ev3_uart_bad_frame(p, ev);
-
-	/* Quirk: US-DC-IN's messages tagged mode 5 (see above). */
-	if (s->type == EV3_UART_TYPE_US && !s->lump && mode == 5) {
-		mode = ev3_uart_us_mode5(p);
-		if (mode == EV3_UART_NO_MODE) {
-			/* The sensor is there, but whose value is it? */
-			p->data_since_tick = true;
-			p->msg_len = 0;
-			return;
-		}
-		us_dc_in = mode == 6;
-	} else if (s->type == EV3_UART_TYPE_US && !s->lump && mode == 6 &&
-		   p->pending_mode == 5) {
-		/* Not switched yet: count again. */
-		p->select_ticks = 0;
+	mode = ev3_uart_us_mode(p, mode, &us_dc_in);
+	if (mode == EV3_UART_NO_MODE) {
+		/* The sensor is there, but whose value is it? */
+		p->data_since_tick = true;
+		p->msg_len = 0;
+		return;
 	}
-
 	if (mode >= s->num_modes)
 		return ev3_uart_bad_frame(p, ev);
 	if (mode == p->pending_mode) {
