@@ -168,29 +168,23 @@ def line(ev3_module, request):
     its ACK deadline and keep-alive period on the wire (wire.py), unless
     the test is marked no_wire_timing."""
     import ev3
-    import schedtrace
     import wire
     ev3.load_nullmodem()
     since = wire.head() if wire.available() else None
     ln = ev3.Line(0)
     ln.attach()
-    timed = since is not None and not request.node.get_closest_marker('no_wire_timing')
-    # What the kernel did meanwhile, for a keep-alive found late below.
-    sched = schedtrace.SchedTrace() if timed else None
     yield ln
     end = time.monotonic_ns()
     ln.close()
     left = [d for d in ev3.glob.glob(ev3.CLASS + '/sensor*')
             if ev3.read_attr(d, 'address').split(':')[0] == ln.address]
     assert not left, 'sensor left behind after detach: %s' % left
-    if timed:
+    if since is not None and not request.node.get_closest_marker('no_wire_timing'):
         recs, lost = wire.read(since)
         errors, conns = wire.check(recs, 0, end, lost, ln.detached_ns)
         for c in conns:
             if c.excused:
                 print('wire: %r' % c)
-        errors += sched.explain(conns)
-        sched.close()
         assert not errors, 'timing on the wire:\n' + '\n'.join(errors)
 
 

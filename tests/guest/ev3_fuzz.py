@@ -45,7 +45,6 @@ sys.path.insert(0, HERE)
 sys.path.insert(0, os.path.join(HERE, '..', 'emulator'))
 import ev3  # noqa: E402
 import kmsg  # noqa: E402
-import schedtrace  # noqa: E402
 from kstacks import kernel_stacks  # noqa: E402
 import ev3_gen as gen  # noqa: E402
 import ev3_sensor as es  # noqa: E402
@@ -244,12 +243,6 @@ class Runner:
         self.kmsg = kmsg.Kmsg(writable=True)
         self.info = {}
         self.step_times = []
-        self.sched = None       # a null-modem line's trace (schedtrace.py)
-
-    def close(self):
-        if self.sched is not None:
-            self.sched.close()
-            self.sched = None
 
     @property
     def step(self):
@@ -377,8 +370,6 @@ class Runner:
             ev3.load_nullmodem()
             if wire.available():
                 self.wire_since = wire.head()
-                if self.sched is None:
-                    self.sched = schedtrace.SchedTrace('lego_wire_fuzz%d' % self.pair)
             self.master = None
             self.host = os.open('/dev/ttyNM%d' % (2 * self.pair),
                                 os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
@@ -419,7 +410,6 @@ class Runner:
                 self.extreme('wire_period_ms_min', round(p))
                 self.extreme('wire_period_ms_max', round(p))
         if errors:
-            errors += self.sched.explain(conns)
             return 'timing on the wire:\n  ' + '\n  '.join(errors)
         return None
 
@@ -940,7 +930,6 @@ def worker(q, current, transport, known, pair, seeds, verbose, max_failures):
             print('ev3fuzz: %s worker: %d cases, %d failed, %.0f s'
                   % (transport, done, len(failures), time.monotonic() - t0), flush=True)
     current.value = -1
-    r.close()
     q.put({'count': done, 'failures': failures, 'info': r.info})
 
 

@@ -84,7 +84,6 @@ def one_case(seed, transport='pty'):
     try:
         err = r.run(seed)
     finally:
-        r.close()
         r.kmsg.close()
     return err, r.info
 

@@ -146,7 +146,6 @@ class Connection:
         self.end_ns = None          # the next probe or ACK
         self.end_why = None
         self.excused = []           # what a stall of the guest's CPUs excused
-        self.late = []              # (start, end) ns of each interval too long
 
     @property
     def ack_delay_ms(self):
@@ -235,7 +234,6 @@ def late(c, spans, a, b, limit, what):
         c.excused.append('%s %.1f ms, %.1f ms of it a stall of the guest\'s CPUs'
                          % (what, ms, stalled))
         return False
-    c.late.append((a, b))
     return True
 
 

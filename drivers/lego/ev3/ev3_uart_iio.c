@@ -311,15 +311,6 @@ static struct iio_chan_spec *ev3_iio_chan_specs(struct ev3_uart_iio *iio)
 	return specs;
 }
 
-/**
- * ev3_uart_iio_register() - create and register a sensor's IIO device
- * @sd: the sensor, registered in the lego-sensor class
- *
- * A sensor none of whose values has an IIO channel type (or a scale IIO
- * can show) gets no IIO device.
- *
- * Return: 0 or a negative errno.
- */
 /*
  * The IIO device of @sd with its @n channels (and the timestamp), not
  * registered yet: -ENOMEM, or 0 with what iio_device_free() frees.
@@ -358,6 +349,15 @@ static int ev3_uart_iio_setup(struct iio_dev *indio, struct ev3_uart_sensor_dev 
 	return 0;
 }
 
+/**
+ * ev3_uart_iio_register() - create and register a sensor's IIO device
+ * @sd: the sensor, registered in the lego-sensor class
+ *
+ * A sensor none of whose values has an IIO channel type (or a scale IIO
+ * can show) gets no IIO device.
+ *
+ * Return: 0 or a negative errno.
+ */
 int ev3_uart_iio_register(struct ev3_uart_sensor_dev *sd)
 {
 	struct ev3_uart_iio *iio;
