@@ -57,12 +57,11 @@ void progress_end(void)
 /* Close a handle after an error: best effort, the first error is reported. */
 static void close_quietly(__u8 handle)
 {
-	struct nxt_transaction t = {};
+	struct nxt_transaction t;
 	struct lnxt_msg m;
 
 	lnxt_close(&m, handle);
-	memcpy(t.telegram, m.buf, m.len);
-	t.length = m.len;
+	load_telegram(&t, &m);
 	(void)ioctl(nxt_fd, NXT_IOC_TRANSACT, &t);
 }
 

@@ -101,6 +101,14 @@ int usage_error(const char *cmd, const char *fmt, ...)
 
 /* ---- transport ---- */
 
+/* @t, zeroed, with the telegram @m to send. */
+void load_telegram(struct nxt_transaction *t, const struct lnxt_msg *m)
+{
+	memset(t, 0, sizeof(*t));
+	memcpy(t->telegram, m->buf, m->len);
+	t->length = m->len;
+}
+
 int transact(struct nxt_transaction *t, const char *what)
 {
 	if (ensure_device())
@@ -118,9 +126,7 @@ int transact(struct nxt_transaction *t, const char *what)
 int exchange(const struct lnxt_msg *m, struct nxt_transaction *t, int *status,
 	     const char *what)
 {
-	memset(t, 0, sizeof(*t));
-	memcpy(t->telegram, m->buf, m->len);
-	t->length = m->len;
+	load_telegram(t, m);
 	if (transact(t, what))
 		return EXIT_DEVICE;
 	*status = lnxt_reply_check(m, t->reply, t->reply_length);
@@ -459,9 +465,7 @@ static void ask_brick_info(const char *dev)
 	lnxt_get_device_info(&m[0]);
 	lnxt_get_versions(&m[1]);
 	for (i = 0; i < ARRAY_SIZE(m); i++) {
-		memset(&t, 0, sizeof(t));
-		memcpy(t.telegram, m[i].buf, m[i].len);
-		t.length = m[i].len;
+		load_telegram(&t, &m[i]);
 		if (ioctl(fd, NXT_IOC_TRANSACT, &t) < 0)
 			break;
 	}

@@ -36,6 +36,7 @@ const char *status_name(unsigned int status);
 int brick_error(const char *what, unsigned int status);
 int sys_error(const char *what, int err);
 int usage_error(const char *cmd, const char *fmt, ...);
+void load_telegram(struct nxt_transaction *t, const struct lnxt_msg *m);
 int transact(struct nxt_transaction *t, const char *what);
 int exchange(const struct lnxt_msg *m, struct nxt_transaction *t, int *status,
 	     const char *what);
