@@ -1,38 +1,51 @@
 // SPDX-License-Identifier: GPL-2.0
 /*
  * libFuzzer target: the NXT telegram core (nxt_proto.c) as nxt_usb.c,
- * nxt_cdev.c and nxt_sysfs.c use it: a reply packet from the brick is
- * matched to the telegram sent (nxt_reply_check) and decoded.
+ * nxt_cdev.c and nxt_sysfs.c use it: a telegram from userspace is checked
+ * (nxt_telegram_check), a reply packet from the brick is matched to it
+ * (nxt_reply_check), and what the reply says about the brick is noted for
+ * sysfs (nxt_info_note_sent, nxt_info_note_reply).
  *
- * Input: a selector byte, then
- *  - selector even (NXT_IOC_TRANSACT and the driver's own commands): the
- *    telegram's length - 2 (mod 64), the telegram, then the reply (the
- *    rest of the input);
- *  - selector odd (the typed ioctls, command number selector / 2): the
- *    reply's length (mod 81), the reply, then the ioctl argument as
- *    userspace passes it (_IOC_SIZE bytes, zero-padded), which is encoded
- *    into a telegram.
- * Replies of up to 80 bytes (USB gives at most 64) are in buffers of exactly
- * their size, so ASan sees any read past them.
+ * Input: a flags byte, the telegram's length - 2 (mod 64), the telegram,
+ * then the reply (the rest of the input). The flags say which values of the
+ * brick's information are known before the telegram (bits 0 to 2: the
+ * versions, the device information, the battery voltage); the other bits
+ * are not used. Replies of up to 80 bytes (USB gives at most 64) are in
+ * buffers of exactly their size, so ASan sees any read past them.
  */
 #include <errno.h>
 #include <string.h>
-#include <linux/ioctl.h>
 
 #include <linux/kernel.h>
+#include <linux/unaligned.h>
 
 #include "nxt_proto.h"
-#include "nxt_ioctls.h"
 #include "fuzz_check.h"
 
 #define REPLY_MAX	80
+
+/*
+ * The firmware's numbers, written out here so that the checks do not lean
+ * on the driver's own names for them.
+ */
+#define STATUS_SUCCESS		0x00
+#define OP_GET_OUTPUT_STATE	0x06	/* direct */
+#define OP_GET_INPUT_VALUES	0x07	/* direct */
+#define OP_GET_BATTERY_LEVEL	0x0b	/* direct */
+#define OP_MESSAGE_READ		0x13	/* direct */
+#define OP_GET_VERSIONS		0x88	/* system */
+#define OP_GET_DEVICE_INFO	0x9b	/* system */
+#define OP_DELETE_USER_FLASH	0xa0	/* system */
+
+#define KNOWS_VERSIONS		0x01
+#define KNOWS_DEVICE		0x02
+#define KNOWS_BATTERY		0x04
 
 /* nxt_reply_check() and what its result promises. */
 static int check_reply(const u8 *tg, size_t tg_len, const u8 *reply, size_t len)
 {
 	unsigned int want = nxt_reply_length(tg, tg_len);
 	int ret = nxt_reply_check(tg, tg_len, reply, len);
-	int err;
 
 	CHECK(want == 0 || (want >= NXT_REPLY_MIN && want <= NXT_TELEGRAM_MAX));
 	CHECK(ret == -ENOMSG || ret == -EPROTO || (ret >= 0 && ret <= 0xff));
@@ -40,13 +53,17 @@ static int check_reply(const u8 *tg, size_t tg_len, const u8 *reply, size_t len)
 		return ret;
 	CHECK(len >= NXT_REPLY_MIN && len <= NXT_TELEGRAM_MAX);
 	CHECK(reply[0] == NXT_REPLY && reply[1] == tg[1] && reply[2] == ret);
-	if (want && ret == NXT_STATUS_SUCCESS)
+	if (want && ret == STATUS_SUCCESS)
 		CHECK(len == want);
 	if (want)
 		CHECK(len <= want);
-	err = nxt_status_to_errno(ret);
-	CHECK(err <= 0 && err > -4096);
-	CHECK((err == 0) == (ret == NXT_STATUS_SUCCESS));
+	/* A successful reply echoes the port or the local inbox asked for. */
+	if (ret == STATUS_SUCCESS && tg[0] == NXT_DIRECT_CMD) {
+		if (tg[1] == OP_GET_OUTPUT_STATE || tg[1] == OP_GET_INPUT_VALUES)
+			CHECK(reply[3] == tg[2]);
+		else if (tg[1] == OP_MESSAGE_READ)
+			CHECK(reply[3] == tg[3]);
+	}
 	return ret;
 }
 
@@ -61,130 +78,157 @@ static void decode_sysfs(const u8 *reply, size_t len)
 	ret = nxt_decode_versions(reply, len, protocol, firmware);
 	CHECK(ret == 0 || ret == -EPROTO);
 	if (!ret)
-		CHECK(reply[1] == NXT_GET_VERSIONS && len == 7);
+		CHECK(reply[1] == OP_GET_VERSIONS && len == 7 &&
+		      reply[2] == STATUS_SUCCESS);
 
 	memset(&info, 0xa5, sizeof(info));
 	ret = nxt_decode_device_info(reply, len, &info);
 	CHECK(ret == 0 || ret == -EPROTO);
 	if (ret)
 		return;
-	CHECK(reply[1] == NXT_GET_DEVICE_INFO && len == 33);
+	CHECK(reply[1] == OP_GET_DEVICE_INFO && len == 33 && reply[2] == STATUS_SUCCESS);
 	n = strnlen(info.name, sizeof(info.name));
 	CHECK(n < sizeof(info.name));
 	for (i = 0; i < n; i++)
 		CHECK(info.name[i] >= 0x20 && info.name[i] <= 0x7e);
+	CHECK(!memchr_inv(info.name + n, 0, sizeof(info.name) - n));
+	CHECK(!memcmp(info.bt_address, reply + 18, sizeof(info.bt_address)));
+	CHECK(info.free_flash == get_unaligned_le32(reply + 29));
 }
 
-static void raw(const u8 *data, size_t size)
+/* The brick's information before the telegram, as the flags say. */
+static void brick_info_init(struct nxt_brick_info *info, u8 flags)
+{
+	memset(info, 0x5a, sizeof(*info));
+	info->have_versions = flags & KNOWS_VERSIONS;
+	info->have_device = flags & KNOWS_DEVICE;
+	info->have_battery = flags & KNOWS_BATTERY;
+}
+
+/*
+ * nxt_info_note_sent(): only a system command may make the device
+ * information unknown, and nothing else changes.
+ */
+static void check_note_sent(struct nxt_brick_info *info, const u8 *tg, size_t tg_len)
+{
+	struct nxt_brick_info before;
+
+	memcpy(&before, info, sizeof(before));
+	nxt_info_note_sent(info, tg, tg_len);
+	CHECK(info->have_device == before.have_device || !info->have_device);
+	if (info->have_device != before.have_device)
+		CHECK((tg[0] & ~0x80) == NXT_SYSTEM_CMD && tg[1] != OP_GET_VERSIONS &&
+		      tg[1] != OP_GET_DEVICE_INFO);
+	before.have_device = info->have_device;
+	CHECK(!memcmp(&before, info, sizeof(before)));
+}
+
+/*
+ * nxt_info_note_reply() for a reply that nxt_reply_check() accepted: a
+ * successful reply to GetVersions, GetDeviceInfo or GetBatteryLevel
+ * replaces the values it carries, every other reply changes nothing.
+ */
+static void check_note_reply(struct nxt_brick_info *info, const u8 *tg, size_t tg_len,
+			     const u8 *reply, size_t len)
+{
+	bool success = reply[2] == STATUS_SUCCESS;
+	struct nxt_brick_info before;
+	size_t n;
+
+	memcpy(&before, info, sizeof(before));
+	nxt_info_note_reply(info, tg, tg_len, reply, len);
+	if (success && tg[0] == NXT_SYSTEM_CMD && tg[1] == OP_GET_VERSIONS) {
+		CHECK(info->have_versions && len == 7);
+		CHECK(info->protocol[0] == reply[4] && info->protocol[1] == reply[3]);
+		CHECK(info->firmware[0] == reply[6] && info->firmware[1] == reply[5]);
+		before.have_versions = true;
+		memcpy(before.protocol, info->protocol, sizeof(before.protocol));
+		memcpy(before.firmware, info->firmware, sizeof(before.firmware));
+	} else if (success && tg[0] == NXT_SYSTEM_CMD && tg[1] == OP_GET_DEVICE_INFO) {
+		CHECK(info->have_device && len == 33);
+		n = strnlen(info->device.name, sizeof(info->device.name));
+		CHECK(n < sizeof(info->device.name));
+		CHECK(!memcmp(info->device.bt_address, reply + 18,
+			      sizeof(info->device.bt_address)));
+		CHECK(info->device.free_flash == get_unaligned_le32(reply + 29));
+		before.have_device = true;
+		memcpy(&before.device, &info->device, sizeof(before.device));
+	} else if (success && tg[0] == NXT_DIRECT_CMD && tg[1] == OP_GET_BATTERY_LEVEL) {
+		CHECK(info->have_battery && len == 5);
+		CHECK(info->battery_mv == get_unaligned_le16(reply + 3));
+		before.have_battery = true;
+		before.battery_mv = info->battery_mv;
+	}
+	CHECK(!memcmp(&before, info, sizeof(before)));
+}
+
+/* What nxt_telegram_check() promises, before anything is sent. */
+static int check_telegram(const u8 *tg, size_t tg_len)
+{
+	int ret = nxt_telegram_check(tg, tg_len);
+	unsigned int late;
+	bool command;
+
+	if (tg_len > NXT_TELEGRAM_MAX) {
+		CHECK(ret == -EMSGSIZE);
+		return ret;
+	}
+	CHECK(ret == 0 || ret == 1 || ret == -EINVAL);
+	command = tg[0] == NXT_DIRECT_CMD || tg[0] == NXT_SYSTEM_CMD ||
+		  tg[0] == NXT_DIRECT_CMD_NOREPLY || tg[0] == NXT_SYSTEM_CMD_NOREPLY;
+	/* Refused only for its type byte or for bytes its command reads. */
+	if (!command)
+		CHECK(ret == -EINVAL);
+	else
+		CHECK((ret == -EINVAL) == !nxt_request_complete(tg, tg_len));
+	if (ret < 0)
+		return ret;
+	CHECK(ret == (tg[0] == NXT_DIRECT_CMD || tg[0] == NXT_SYSTEM_CMD));
+	if (!ret)
+		CHECK(nxt_reply_length(tg, tg_len) == 0);
+	late = nxt_reply_late_ms(tg, tg_len);
+	if (tg[0] == NXT_SYSTEM_CMD && tg[1] == OP_DELETE_USER_FLASH)
+		CHECK(late == NXT_SLOW_REPLY_MS);
+	else
+		CHECK(late == NXT_LATE_REPLY_MS);
+	return ret;
+}
+
+int LLVMFuzzerTestOneInput(const unsigned char *data, size_t size)
 {
 	u8 tg[NXT_TELEGRAM_MAX + 1] = { };
+	struct nxt_brick_info info;
 	size_t tg_len, len;
-	u8 *reply;
+	u8 flags, *reply;
 	int ret;
 
-	if (size < 1)
-		return;
+	if (size < 2)
+		return 0;
+	flags = data[0];
 	/* One byte too many is refused before anything is sent. */
-	tg_len = NXT_TELEGRAM_MIN + data[0] % NXT_TELEGRAM_MAX;
-	data++;
-	size--;
+	tg_len = NXT_TELEGRAM_MIN + data[1] % NXT_TELEGRAM_MAX;
+	data += 2;
+	size -= 2;
 	len = tg_len < size ? tg_len : size;
 	memcpy(tg, data, len);
 	data += len;
 	size -= len;
 
-	ret = nxt_telegram_check(tg, tg_len);
-	if (tg_len > NXT_TELEGRAM_MAX)
-		CHECK(ret == -EMSGSIZE);
-	else
-		CHECK(ret == 0 || ret == 1 || ret == -EINVAL);
+	ret = check_telegram(tg, tg_len);
+	if (ret < 0)
+		return 0;
+	brick_info_init(&info, flags);
+	check_note_sent(&info, tg, tg_len);
 	if (ret != 1)
-		return;
+		return 0;
 	len = size < REPLY_MAX ? size : REPLY_MAX;
 	reply = malloc(len ? len : 1);
 	CHECK(reply);
 	memcpy(reply, data, len);
-	if (check_reply(tg, tg_len, reply, len) >= 0)
+	if (check_reply(tg, tg_len, reply, len) >= 0) {
 		decode_sysfs(reply, len);
-	free(reply);
-}
-
-static void typed(unsigned int sel, const u8 *data, size_t size)
-{
-	const struct nxt_command *cmd;
-	u8 tg[NXT_TELEGRAM_MAX], status;
-	size_t arg_size, len, i;
-	u8 *arg, *reply;
-	int tg_len, ret;
-
-	cmd = nxt_command_find(nxt_test_ioctls[sel % ARRAY_SIZE(nxt_test_ioctls)]);
-	CHECK(cmd);
-	arg_size = _IOC_SIZE(cmd->ioctl);
-	CHECK(arg_size <= NXT_TELEGRAM_MAX && cmd->status_offset < arg_size);
-	if (size < 1)
-		return;
-	len = data[0] % (REPLY_MAX + 1);
-	data++;
-	size--;
-	len = len < size ? len : size;
-	reply = malloc(len ? len : 1);
-	CHECK(reply);
-	memcpy(reply, data, len);
-	data += len;
-	size -= len;
-	arg = calloc(1, arg_size);
-	CHECK(arg);
-	memcpy(arg, data, arg_size < size ? arg_size : size);
-
-	memset(tg, 0xa5, sizeof(tg));
-	tg_len = nxt_command_encode(cmd, arg, tg);
-	if (tg_len < 0) {
-		CHECK(tg_len == -EINVAL);
-		CHECK(!memchr_inv(tg, 0, sizeof(tg)));
-		goto out;
+		check_note_reply(&info, tg, tg_len, reply, len);
 	}
-	CHECK(tg_len >= NXT_TELEGRAM_MIN && tg_len <= NXT_TELEGRAM_MAX);
-	CHECK(tg[0] == NXT_DIRECT_CMD && tg[1] == cmd->opcode);
-	CHECK(!memchr_inv(tg + tg_len, 0, sizeof(tg) - tg_len));
-	CHECK(nxt_telegram_check(tg, tg_len) == 1);
-	CHECK(nxt_reply_length(tg, tg_len) >= NXT_REPLY_MIN);
-
-	if (check_reply(tg, tg_len, reply, len) < 0)
-		goto out;
-	status = reply[2];
-	ret = nxt_command_decode(cmd, reply, len, arg);
-	CHECK(ret == 0 || ret == -EPROTO);
-	CHECK(arg[cmd->status_offset] == status);
-	if (!ret && status == NXT_STATUS_SUCCESS) {
-		/* Counts the caller trusts to index its buffers. */
-		switch (cmd->opcode) {
-		case NXT_LS_GET_STATUS:
-			CHECK(((struct nxt_ls_status *)arg)->bytes_ready <= NXT_LS_DATA_MAX);
-			break;
-		case NXT_LS_READ:
-			CHECK(((struct nxt_ls_read *)arg)->length <= NXT_LS_DATA_MAX);
-			break;
-		case NXT_MESSAGE_READ:
-			CHECK(((struct nxt_message *)arg)->size <= NXT_MESSAGE_MAX);
-			break;
-		case NXT_GET_CURRENT_PROGRAM_NAME:
-			i = strnlen(((struct nxt_program *)arg)->name, NXT_NAME_LEN);
-			CHECK(i < NXT_NAME_LEN);
-			break;
-		}
-	}
-out:
-	free(arg);
 	free(reply);
-}
-
-int LLVMFuzzerTestOneInput(const unsigned char *data, size_t size)
-{
-	if (size < 1)
-		return 0;
-	if (data[0] & 1)
-		typed(data[0] >> 1, data + 1, size - 1);
-	else
-		raw(data + 1, size - 1);
 	return 0;
 }

@@ -11,9 +11,10 @@ fuzz_nxt.c:
   devices included), its handshake byte for byte as the emulator sends it,
   followed by DATA messages of every mode (with EXT_MODE for Powered Up) (with the quiet host, seed 0, and with a pseudo-random host); the
   emulator's hostile byte sequences followed by a good handshake.
-- nxt: telegrams and the replies tests/emulator/nxt_brick.py's firmware model
-  gives them, for the raw path (NXT_IOC_TRANSACT, sysfs) and for each typed
-  ioctl.
+- nxt: telegrams (as NXT_IOC_TRANSACT and write() take them) and the
+  replies tests/emulator/nxt_brick.py's firmware model gives them, with no
+  brick information known before them, and those that fill or clear the
+  sysfs attributes' information again with all of it known.
 
 The output is deterministic; tests/bench/proto uses the same streams.
 """
@@ -127,9 +128,18 @@ def nxt_raw_pairs():
            b'\x01\x86' + b'*.*'.ljust(20, b'\0'),
            b'\x01\x94\x01\x00\x01\x00\x00\x00\x20\x00',
            b'\x01\xa2\x00\x00\x10',
-           b'\x00\x13\x0a\x00\x01']
+           b'\x00\x13\x0a\x00\x01',
+           # A program runs and has posted a message: a successful
+           # MessageRead (its local inbox echoed).
+           b'\x00\x00Demo.rxe\0', b'\x00\x0d\x00',
+           lambda: fw.program_send(10, b'hello'),
+           b'\x00\x13\x0a\x04\x01\x00',
+           b'\x01\x98Fuzz\0', b'\x01\xa0']
     pairs = []
     for tg in tgs:
+        if callable(tg):
+            tg()
+            continue
         clock.t += 0.1
         r = fw.handle(tg)
         if r is not None:
@@ -137,35 +147,24 @@ def nxt_raw_pairs():
     return pairs
 
 
-# The typed ioctls in the order of tests/fuzz/nxt_ioctls.h, and a telegram for each.
-TYPED = [(0x00, b'Demo.rxe'.ljust(20, b'\0')), (0x01, b''),
-         (0x02, b'\x00' + b'Woops.rso'.ljust(20, b'\0')), (0x03, b'\xb8\x01\xe8\x03'),
-         (0x04, b'\x00\x32\x07\x01\x00\x20\x00\x00\x00\x00'), (0x05, b'\x03\x0b\x00'),
-         (0x06, b'\x01'), (0x07, b'\x02'), (0x08, b'\x00'), (0x09, b'\x00\x03hi\0'),
-         (0x0a, b'\x00\x01'), (0x0b, b''), (0x0c, b''), (0x0d, b''), (0x0e, b'\x03'),
-         (0x0f, b'\x03\x02\x01\x02\x42'), (0x10, b'\x03'), (0x11, b''),
-         (0x13, b'\x0a\x00\x01')]
-
-
-def nxt_typed_pairs():
-    fw, clock = nxt_firmware()
-    fw.program_send(10, b'hello')
-    pairs = []
-    for i, (op, args) in enumerate(TYPED):
-        clock.t += 0.5
-        r = fw.handle(bytes([0x00, op]) + args)
-        pairs.append((i, args, r))
-    return pairs
+# The telegrams whose replies fill the information the sysfs attributes
+# show (GetVersions, GetDeviceInfo, GetBatteryLevel) or that make it
+# unknown (SetBrickName, DeleteUserFlash): again with all of it known.
+KNOWN_ALL = 0x07
+NOTED = {(0x01, 0x88), (0x01, 0x9b), (0x00, 0x0b), (0x01, 0x98), (0x01, 0xa0)}
 
 
 def nxt_seeds():
+    """fuzz_nxt.c's input: the flags byte (what the brick's information
+    holds before the telegram), the telegram's length - 2, the telegram,
+    the reply."""
     seeds = {}
     for tg, r in nxt_raw_pairs():
         seeds['raw-%02x%02x-%d' % (tg[0], tg[1], len(tg))] = \
             bytes([0x00, len(tg) - 2]) + tg + r
-    for i, args, r in nxt_typed_pairs():
-        # The argument is left zero: the fuzzer finds the valid ones.
-        seeds['typed-%02d' % i] = bytes([2 * i + 1, len(r)]) + r
+        if (tg[0], tg[1]) in NOTED:
+            seeds['known-%02x%02x-%d' % (tg[0], tg[1], len(tg))] = \
+                bytes([KNOWN_ALL, len(tg) - 2]) + tg + r
     return seeds
 
 

@@ -2,23 +2,34 @@
 /*
  * A 32-bit client of /dev/nxtN: every ioctl of include/uapi/linux/lego_nxt.h
  * through the driver's compat_ioctl (compat_ptr_ioctl), which is right only
- * if every structure has the same layout on i386 as on x86_64.
- * tests/build-modules.sh builds it with gcc -m32 -static;
- * tests/guest/test_nxt_compat.py runs it against the emulated brick.
+ * if struct nxt_transaction has the same layout on i386 as on x86_64, and
+ * the ioctl numbers the header does not have, the retired typed ones
+ * included, which must fail with ENOTTY. tests/build-modules.sh builds it
+ * with gcc -m32 -static; tests/guest/test_nxt_compat.py runs it against the
+ * emulated brick.
  *
  *   nxt-compat-client --layout
- *	prints the sizes, the members' offsets and the ioctl numbers as this
- *	(32-bit) compiler sees them, one "name value" a line;
+ *	prints the size and the members' offsets of struct nxt_transaction,
+ *	the header's constants and its ioctl numbers as this (32-bit)
+ *	compiler sees them, one "name value" a line;
  *   nxt-compat-client NODE BATTERY_MV SLEEP_LIMIT_MS DISTANCE_CM SOUND_RAW
- *	issues every ioctl on NODE and checks each reply against what the
- *	emulated brick answers (tests/emulator/nxt_brick.py), given the
- *	brick's battery voltage, sleep limit, ultrasonic distance and the
- *	raw value of its sound sensor on port 2. The brick must have no
- *	program running and its motors at rest with zero counters.
+ *	sends telegrams through NXT_IOC_TRANSACT on NODE and checks each
+ *	reply byte for byte against what the emulated brick answers
+ *	(tests/emulator/nxt_brick.py), given the brick's battery voltage,
+ *	sleep limit, ultrasonic distance and the raw value of its sound
+ *	sensor on port 2; checks the telegrams the driver must refuse, the
+ *	timeouts, and ENOTTY for the numbers it does not know. The brick must
+ *	have no program running, the sensors of its default set (sound on
+ *	port 2, ultrasonic on port 4) and its IOMaps as they start.
  *
- * Prints "FAIL IOCTL: why" for every failed check, then "ok IOCTL" for
- * each ioctl that was called and passed all its checks, and "telegrams N",
- * the number of calls that reached the brick; exits 1 if a check failed.
+ * The brick's status byte is data: a reply that says the brick refused a
+ * command is a successful NXT_IOC_TRANSACT.
+ *
+ * Prints "FAIL NAME: why" for every failed check, then "ok NAME" for each
+ * of TRANSACT, SET_TIMEOUT, GET_TIMEOUT, RETIRED (the numbers of the typed
+ * ioctls of earlier releases) and UNKNOWN (other numbers of the header's
+ * magic) that was called and passed all its checks, and "telegrams N", the
+ * number of calls that reached the brick; exits 1 if a check failed.
  */
 #include <errno.h>
 #include <fcntl.h>
@@ -32,34 +43,61 @@
 #include <unistd.h>
 #include <linux/lego_nxt.h>
 
-enum {
-	I_TRANSACT, I_SET_TIMEOUT, I_GET_TIMEOUT, I_START_PROGRAM,
-	I_STOP_PROGRAM, I_PLAY_SOUND_FILE, I_PLAY_TONE, I_SET_OUTPUT_STATE,
-	I_SET_INPUT_MODE, I_GET_OUTPUT_STATE, I_GET_INPUT_VALUES,
-	I_RESET_INPUT_SCALED_VALUE, I_MESSAGE_WRITE, I_RESET_MOTOR_POSITION,
-	I_GET_BATTERY_LEVEL, I_STOP_SOUND_PLAYBACK, I_KEEP_ALIVE,
-	I_LS_GET_STATUS, I_LS_WRITE, I_LS_READ, I_GET_CURRENT_PROGRAM_NAME,
-	I_MESSAGE_READ, I_COUNT
-};
+#define ARRAY_SIZE(a)	(sizeof(a) / sizeof((a)[0]))
 
-/* Every ioctl of the header, in the order of the enum above. */
-#define IOC(n)	{ #n, NXT_IOC_##n }
+enum { I_TRANSACT, I_SET_TIMEOUT, I_GET_TIMEOUT, I_RETIRED, I_UNKNOWN, I_COUNT };
 
 static const struct {
 	const char *name;
 	unsigned long nr;
 } iocs[I_COUNT] = {
-	IOC(TRANSACT), IOC(SET_TIMEOUT), IOC(GET_TIMEOUT), IOC(START_PROGRAM),
-	IOC(STOP_PROGRAM), IOC(PLAY_SOUND_FILE), IOC(PLAY_TONE),
-	IOC(SET_OUTPUT_STATE), IOC(SET_INPUT_MODE), IOC(GET_OUTPUT_STATE),
-	IOC(GET_INPUT_VALUES), IOC(RESET_INPUT_SCALED_VALUE),
-	IOC(MESSAGE_WRITE), IOC(RESET_MOTOR_POSITION), IOC(GET_BATTERY_LEVEL),
-	IOC(STOP_SOUND_PLAYBACK), IOC(KEEP_ALIVE), IOC(LS_GET_STATUS),
-	IOC(LS_WRITE), IOC(LS_READ), IOC(GET_CURRENT_PROGRAM_NAME),
-	IOC(MESSAGE_READ),
+	{ "TRANSACT", NXT_IOC_TRANSACT },
+	{ "SET_TIMEOUT", NXT_IOC_SET_TIMEOUT },
+	{ "GET_TIMEOUT", NXT_IOC_GET_TIMEOUT },
+	{ "RETIRED", 0 },
+	{ "UNKNOWN", 0 },
 };
 
-/* Calls of each ioctl, and failed checks. */
+/*
+ * The typed ioctls of the releases before the driver went into the kernel:
+ * _IOWR(NXT_IOC_MAGIC, 0x10 + opcode, the command's structure), the same
+ * on i386 and x86_64. No argument was larger than 64 bytes.
+ */
+#define RETIRED_ARG_MAX	64
+
+static const struct {
+	const char *name;
+	unsigned long nr;
+} retired[] = {
+	{ "START_PROGRAM", 0xc018e410 },
+	{ "STOP_PROGRAM", 0xc004e411 },
+	{ "PLAY_SOUND_FILE", 0xc018e412 },
+	{ "PLAY_TONE", 0xc008e413 },
+	{ "SET_OUTPUT_STATE", 0xc018e414 },
+	{ "SET_INPUT_MODE", 0xc004e415 },
+	{ "GET_OUTPUT_STATE", 0xc018e416 },
+	{ "GET_INPUT_VALUES", 0xc010e417 },
+	{ "RESET_INPUT_SCALED_VALUE", 0xc004e418 },
+	{ "MESSAGE_WRITE", 0xc040e419 },
+	{ "RESET_MOTOR_POSITION", 0xc004e41a },
+	{ "GET_BATTERY_LEVEL", 0xc004e41b },
+	{ "STOP_SOUND_PLAYBACK", 0xc004e41c },
+	{ "KEEP_ALIVE", 0xc008e41d },
+	{ "LS_GET_STATUS", 0xc004e41e },
+	{ "LS_WRITE", 0xc014e41f },
+	{ "LS_READ", 0xc014e420 },
+	{ "GET_CURRENT_PROGRAM_NAME", 0xc018e421 },
+	{ "MESSAGE_READ", 0xc040e423 },
+};
+
+/* The firmware's status bytes that the emulated brick answers here. */
+#define STATUS_SUCCESS		0x00
+#define STATUS_PENDING		0x20
+#define STATUS_NO_PROGRAM	0xec
+#define STATUS_ILLEGAL_VALUE	0xc0
+#define STATUS_NOT_READY	0xe0
+
+/* Calls of each kind, and failed checks. */
 static unsigned int calls[I_COUNT], failed[I_COUNT];
 
 static unsigned int telegrams;
@@ -72,16 +110,21 @@ static int refused(int err)
 	       err == EFAULT || err == EAGAIN;
 }
 
-/* ioctl(): 0 or the errno. Counts the call, and the telegram it sent. */
-static int call(int fd, int which, void *arg)
+/* ioctl() with number @nr: 0 or the errno. Counts the call, and the telegram it sent. */
+static int call_nr(int fd, int which, unsigned long nr, void *arg)
 {
 	int err;
 
 	calls[which]++;
-	err = ioctl(fd, iocs[which].nr, arg) ? errno : 0;
-	if (which != I_SET_TIMEOUT && which != I_GET_TIMEOUT && !refused(err))
+	err = ioctl(fd, nr, arg) ? errno : 0;
+	if (which == I_TRANSACT && !refused(err))
 		telegrams++;
 	return err;
+}
+
+static int call(int fd, int which, void *arg)
+{
+	return call_nr(fd, which, iocs[which].nr, arg);
 }
 
 static void fail(int which, const char *fmt, ...)
@@ -123,6 +166,7 @@ static const char *err_name(int err)
 	case EBUSY: return "EBUSY";
 	case EINPROGRESS: return "EINPROGRESS";
 	case ETIMEDOUT: return "ETIMEDOUT";
+	case EPROTO: return "EPROTO";
 	case EIO: return "EIO";
 	}
 	snprintf(buf, sizeof(bufs[0]), "errno %d", err);
@@ -130,15 +174,26 @@ static const char *err_name(int err)
 }
 
 /* A call's result @got, which must be @want (0 or an errno). */
-static void expect_err(int which, int got, int want, const char *func, int line)
+static void expect_err(int which, int got, int want, const char *what)
 {
 	if (got != want)
-		fail(which, "%s:%d: %s, expected %s", func, line, err_name(got),
-		     err_name(want));
+		fail(which, "%s: %s, expected %s", what, err_name(got), err_name(want));
 }
 
-#define EXPECT_ERR(which, got, want) \
-	expect_err(which, got, want, __func__, __LINE__)
+/* Bytes in hex, for messages; a buffer of two, for two in one message. */
+static const char *hex(const void *p, size_t n)
+{
+	static char bufs[2][3 * NXT_TELEGRAM_MAX + 1];
+	static unsigned int k;
+	char *buf = bufs[k++ % 2];
+	const unsigned char *b = p;
+	size_t i;
+
+	buf[0] = 0;
+	for (i = 0; i < n && i < NXT_TELEGRAM_MAX; i++)
+		sprintf(buf + 3 * i, "%02x%s", b[i], i + 1 < n ? " " : "");
+	return buf;
+}
 
 /*
  * poll() with no file: its timeout is in milliseconds, so it needs none of
@@ -154,14 +209,62 @@ static void sleep_ms(unsigned int ms)
 	}
 }
 
-static int all_zero(const void *p, size_t n)
+static int all_bytes(const void *p, int c, size_t n)
 {
 	const unsigned char *b = p;
 
 	while (n--)
-		if (*b++)
+		if (*b++ != c)
 			return 0;
 	return 1;
+}
+
+/* The telegrams' filler: what the driver must neither read nor change. */
+#define FILL	0xa5
+
+/*
+ * A telegram through NXT_IOC_TRANSACT: the errno. On success, checks what
+ * came back besides the reply: the telegram and its length as they were,
+ * the filler past the telegram, zeros past the reply.
+ */
+static int transact(int fd, struct nxt_transaction *t, const void *tg, size_t len,
+		    const char *what)
+{
+	int err;
+
+	memset(t, FILL, sizeof(*t));
+	memcpy(t->telegram, tg, len);
+	t->length = len;
+	err = call(fd, I_TRANSACT, t);
+	if (err)
+		return err;
+	EXPECT(I_TRANSACT, t->length == len && !memcmp(t->telegram, tg, len) &&
+	       all_bytes(t->telegram + len, FILL, sizeof(t->telegram) - len),
+	       "%s: the telegram came back changed: length %u, %s", what, t->length,
+	       hex(t->telegram, t->length <= NXT_TELEGRAM_MAX ? t->length : 0));
+	EXPECT(I_TRANSACT, t->reply_length <= NXT_TELEGRAM_MAX &&
+	       all_bytes(t->reply + t->reply_length, 0, NXT_TELEGRAM_MAX - t->reply_length),
+	       "%s: reply_length %u, reply not zero past it: %s", what, t->reply_length,
+	       hex(t->reply, NXT_TELEGRAM_MAX));
+	return 0;
+}
+
+/* A telegram whose reply must be @want, @want_len bytes, exactly: the errno. */
+static int expect_reply(int fd, const void *tg, size_t len, const void *want,
+			size_t want_len, const char *what)
+{
+	struct nxt_transaction t;
+	int err;
+
+	err = transact(fd, &t, tg, len, what);
+	expect_err(I_TRANSACT, err, 0, what);
+	if (err)
+		return err;
+	EXPECT(I_TRANSACT, t.reply_length == want_len && !memcmp(t.reply, want, want_len),
+	       "%s: reply %s, expected %s", what,
+	       hex(t.reply, t.reply_length <= NXT_TELEGRAM_MAX ? t.reply_length : 0),
+	       hex(want, want_len));
+	return 0;
 }
 
 static void test_timeouts(int fd)
@@ -170,669 +273,389 @@ static void test_timeouts(int fd)
 	int err;
 
 	err = call(fd, I_GET_TIMEOUT, &ms);
-	EXPECT_ERR(I_GET_TIMEOUT, err, 0);
+	expect_err(I_GET_TIMEOUT, err, 0, "default");
 	EXPECT(I_GET_TIMEOUT, ms == 1000, "default timeout %u ms, expected 1000", ms);
+	ms = 60000;
+	expect_err(I_SET_TIMEOUT, call(fd, I_SET_TIMEOUT, &ms), 0, "60000 ms");
+	ms = 0;
+	expect_err(I_GET_TIMEOUT, call(fd, I_GET_TIMEOUT, &ms), 0, "after 60000 ms");
+	EXPECT(I_GET_TIMEOUT, ms == 60000, "timeout %u ms after setting 60000", ms);
 	ms = 2500;
-	EXPECT_ERR(I_SET_TIMEOUT, call(fd, I_SET_TIMEOUT, &ms), 0);
+	expect_err(I_SET_TIMEOUT, call(fd, I_SET_TIMEOUT, &ms), 0, "2500 ms");
 	ms = 0;
-	EXPECT_ERR(I_SET_TIMEOUT, call(fd, I_SET_TIMEOUT, &ms), EINVAL);
+	expect_err(I_SET_TIMEOUT, call(fd, I_SET_TIMEOUT, &ms), EINVAL, "0 ms");
 	ms = 60001;
-	EXPECT_ERR(I_SET_TIMEOUT, call(fd, I_SET_TIMEOUT, &ms), EINVAL);
+	expect_err(I_SET_TIMEOUT, call(fd, I_SET_TIMEOUT, &ms), EINVAL, "60001 ms");
 	ms = 0;
-	EXPECT_ERR(I_GET_TIMEOUT, call(fd, I_GET_TIMEOUT, &ms), 0);
+	expect_err(I_GET_TIMEOUT, call(fd, I_GET_TIMEOUT, &ms), 0, "after 2500 ms");
 	EXPECT(I_GET_TIMEOUT, ms == 2500, "timeout %u ms after setting 2500", ms);
 }
 
-static void test_transact(int fd)
+static void put_le16(unsigned char *p, unsigned int v)
 {
-	static const __u8 versions[] = { 0x02, 0x88, 0x00, 0x7c, 0x01, 0x1d, 0x01 };
+	p[0] = v;
+	p[1] = v >> 8;
+}
+
+static void put_le32(unsigned char *p, unsigned int v)
+{
+	put_le16(p, v);
+	put_le16(p + 2, v >> 16);
+}
+
+/* The emulated brick's IOMap of the input module, as it starts. */
+#define INPUT_MODULE	0x00030001u
+#define IOMAP_OFFSET	17
+#define IOMAP_COUNT	55	/* a 64-byte reply */
+
+static unsigned char iomap_pattern(unsigned int module, unsigned int offset)
+{
+	return offset + 37 * ((module >> 16) & 0xff) + (module & 0xff);
+}
+
+/* Replies of every size, from the brick's own values and the client's. */
+static void test_replies(int fd, unsigned int mv, unsigned int sleep_limit)
+{
+	static const unsigned char versions[] = { 0x01, 0x88 };
+	static const unsigned char versions_r[] = { 0x02, 0x88, 0x00, 0x7c, 0x01, 0x1d, 0x01 };
+	static const unsigned char battery[] = { 0x00, 0x0b };
+	static const unsigned char keep_alive[] = { 0x00, 0x0d };
+	static const unsigned char missing[] = "\x00\x00Missing.rxe";
+	static const unsigned char missing_r[] = { 0x02, 0x00, STATUS_ILLEGAL_VALUE };
+	static const unsigned char program[] = { 0x00, 0x11 };
+	unsigned char want[NXT_TELEGRAM_MAX], tg[NXT_TELEGRAM_MAX];
+	unsigned int i;
+
+	/* GetVersions: protocol 1.124, firmware 1.29. */
+	expect_reply(fd, versions, sizeof(versions), versions_r, sizeof(versions_r),
+		     "GetVersions");
+
+	memcpy(want, "\x02\x0b\x00", 3);
+	put_le16(want + 3, mv);
+	expect_reply(fd, battery, sizeof(battery), want, 5, "GetBatteryLevel");
+
+	memcpy(want, "\x02\x0d\x00", 3);
+	put_le32(want + 3, sleep_limit);
+	expect_reply(fd, keep_alive, sizeof(keep_alive), want, 7, "KeepAlive");
+
+	/* The brick's refusal is data: the call succeeds, the status says it. */
+	expect_reply(fd, missing, sizeof(missing), missing_r, sizeof(missing_r),
+		     "StartProgram of a missing file");
+	memset(want, 0, sizeof(want));
+	memcpy(want, "\x02\x11", 2);
+	want[2] = STATUS_NO_PROGRAM;
+	expect_reply(fd, program, sizeof(program), want, 23,
+		     "GetCurrentProgramName with no program");
+
+	/*
+	 * ReadIOMap: a telegram of 64 bytes (the command reads 10; the rest
+	 * is the brick's to ignore) and a reply of 64.
+	 */
+	memset(tg, 0x5a, sizeof(tg));
+	tg[0] = NXT_SYSTEM_CMD;
+	tg[1] = 0x94;
+	put_le32(tg + 2, INPUT_MODULE);
+	put_le16(tg + 6, IOMAP_OFFSET);
+	put_le16(tg + 8, IOMAP_COUNT);
+	memcpy(want, "\x02\x94\x00", 3);
+	put_le32(want + 3, INPUT_MODULE);
+	put_le16(want + 7, IOMAP_COUNT);
+	for (i = 0; i < IOMAP_COUNT; i++)
+		want[9 + i] = iomap_pattern(INPUT_MODULE, IOMAP_OFFSET + i);
+	expect_reply(fd, tg, sizeof(tg), want, 9 + IOMAP_COUNT, "ReadIOMap of 55 bytes");
+}
+
+/*
+ * GetInputValues of @port: 0, the errno, or -1 for a reply that is not the
+ * command's; @reply gets the reply's 16 bytes.
+ */
+static int input_values(int fd, unsigned char port, unsigned char *reply)
+{
+	unsigned char tg[] = { 0x00, 0x07, port };
 	struct nxt_transaction t;
 	int err;
 
-	/* GetVersions: protocol 1.124, firmware 1.29. */
-	memset(&t, 0xa5, sizeof(t));
-	t.telegram[0] = NXT_SYSTEM_CMD;
-	t.telegram[1] = 0x88;
-	t.length = 2;
-	err = call(fd, I_TRANSACT, &t);
-	EXPECT_ERR(I_TRANSACT, err, 0);
-	if (!err) {
-		EXPECT(I_TRANSACT, t.reply_length == sizeof(versions),
-		       "GetVersions: reply_length %u, expected %zu", t.reply_length,
-		       sizeof(versions));
-		EXPECT(I_TRANSACT, !memcmp(t.reply, versions, sizeof(versions)),
-		       "GetVersions: reply %02x %02x %02x %02x %02x %02x %02x",
-		       t.reply[0], t.reply[1], t.reply[2], t.reply[3], t.reply[4],
-		       t.reply[5], t.reply[6]);
-		EXPECT(I_TRANSACT, all_zero(t.reply + sizeof(versions),
-					    sizeof(t.reply) - sizeof(versions)),
-		       "GetVersions: the reply is not zero past its length");
-		EXPECT(I_TRANSACT, t.length == 2, "length changed to %u", t.length);
+	err = transact(fd, &t, tg, sizeof(tg), "GetInputValues");
+	expect_err(I_TRANSACT, err, 0, "GetInputValues");
+	if (err)
+		return err;
+	if (t.reply_length != 16 || memcmp(t.reply, "\x02\x07\x00", 3) || t.reply[3] != port) {
+		fail(I_TRANSACT, "GetInputValues of port %u: reply %s", port,
+		     hex(t.reply, t.reply_length));
+		return -1;
 	}
-
-	/* GetBatteryLevel as a raw direct command. */
-	memset(&t, 0, sizeof(t));
-	t.telegram[0] = NXT_DIRECT_CMD;
-	t.telegram[1] = NXT_GET_BATTERY_LEVEL;
-	t.length = 2;
-	err = call(fd, I_TRANSACT, &t);
-	EXPECT_ERR(I_TRANSACT, err, 0);
-	EXPECT(I_TRANSACT, err || (t.reply_length == 5 && t.reply[0] == NXT_REPLY &&
-				   t.reply[1] == NXT_GET_BATTERY_LEVEL && !t.reply[2]),
-	       "GetBatteryLevel: reply_length %u, reply %02x %02x %02x",
-	       t.reply_length, t.reply[0], t.reply[1], t.reply[2]);
-
-	/* A telegram that asks for no reply: KeepAlive. */
-	memset(&t, 0xa5, sizeof(t));
-	t.telegram[0] = NXT_DIRECT_CMD_NOREPLY;
-	t.telegram[1] = NXT_KEEP_ALIVE;
-	t.length = 2;
-	err = call(fd, I_TRANSACT, &t);
-	EXPECT_ERR(I_TRANSACT, err, 0);
-	EXPECT(I_TRANSACT, err || t.reply_length == 0,
-	       "no-reply telegram: reply_length %u", t.reply_length);
-
-	/* The length member is read where the driver reads it. */
-	t.length = NXT_TELEGRAM_MAX + 1;
-	EXPECT_ERR(I_TRANSACT, call(fd, I_TRANSACT, &t), EMSGSIZE);
-	t.length = 1;
-	EXPECT_ERR(I_TRANSACT, call(fd, I_TRANSACT, &t), EINVAL);
+	memcpy(reply, t.reply, 16);
+	return 0;
 }
 
-/* GetCurrentProgramName until a program runs (or none does): the errno. */
-static int wait_program(int fd, int running, struct nxt_program *p)
+/* The sound sensor on port 2 (1): a no-reply telegram, then its values. */
+static void test_sound_sensor(int fd, unsigned int raw)
 {
-	int i, err = 0;
-
-	for (i = 0; i < 100; i++) {
-		memset(p, 0, sizeof(*p));
-		err = call(fd, I_GET_CURRENT_PROGRAM_NAME, p);
-		if (running ? !err : err)
-			break;
-		sleep_ms(20);
-	}
-	return err;
-}
-
-static void test_program_and_mailboxes(int fd)
-{
-	static const char msg[] = "from 32 bits";
-	struct nxt_status_only so;
-	struct nxt_program p;
-	struct nxt_message m;
-	int err;
-
-	/* No program runs yet. */
-	memset(&p, 0x5a, sizeof(p));
-	memset(p.reserved, 0, sizeof(p.reserved));
-	err = call(fd, I_GET_CURRENT_PROGRAM_NAME, &p);
-	EXPECT_ERR(I_GET_CURRENT_PROGRAM_NAME, err, ESRCH);
-	EXPECT(I_GET_CURRENT_PROGRAM_NAME, p.status == NXT_STATUS_NO_PROGRAM &&
-	       all_zero(p.name, sizeof(p.name)),
-	       "no program: status 0x%02x, name \"%.20s\"", p.status, p.name);
-	memset(&so, 0, sizeof(so));
-	err = call(fd, I_STOP_PROGRAM, &so);
-	EXPECT_ERR(I_STOP_PROGRAM, err, ESRCH);
-	EXPECT(I_STOP_PROGRAM, so.status == NXT_STATUS_NO_PROGRAM,
-	       "no program: status 0x%02x", so.status);
-	so.reserved[2] = 1;
-	EXPECT_ERR(I_STOP_PROGRAM, call(fd, I_STOP_PROGRAM, &so), EINVAL);
-
-	memset(&p, 0, sizeof(p));
-	snprintf(p.name, sizeof(p.name), "%s", "Missing.rxe");
-	err = call(fd, I_START_PROGRAM, &p);
-	EXPECT_ERR(I_START_PROGRAM, err, ERANGE);
-	EXPECT(I_START_PROGRAM, p.status == NXT_STATUS_OUT_OF_RANGE,
-	       "missing program: status 0x%02x", p.status);
-	p.reserved[0] = 1;
-	EXPECT_ERR(I_START_PROGRAM, call(fd, I_START_PROGRAM, &p), EINVAL);
-
-	memset(&p, 0, sizeof(p));
-	snprintf(p.name, sizeof(p.name), "%s", "Demo.rxe");
-	err = call(fd, I_START_PROGRAM, &p);
-	EXPECT_ERR(I_START_PROGRAM, err, 0);
-	EXPECT(I_START_PROGRAM, p.status == 0 && !strcmp(p.name, "Demo.rxe"),
-	       "status 0x%02x, name \"%.20s\"", p.status, p.name);
-	err = wait_program(fd, 1, &p);
-	EXPECT_ERR(I_GET_CURRENT_PROGRAM_NAME, err, 0);
-	EXPECT(I_GET_CURRENT_PROGRAM_NAME, !strcmp(p.name, "Demo.rxe") && !p.status,
-	       "running: name \"%.20s\", status 0x%02x", p.name, p.status);
-
-	/* A message to inbox 3 and back (the emulated program's mailboxes). */
-	memset(&m, 0, sizeof(m));
-	m.inbox = 3;
-	m.size = sizeof(msg);
-	memcpy(m.data, msg, sizeof(msg));
-	err = call(fd, I_MESSAGE_WRITE, &m);
-	EXPECT_ERR(I_MESSAGE_WRITE, err, 0);
-	EXPECT(I_MESSAGE_WRITE, m.status == 0, "status 0x%02x", m.status);
-	m.inbox = NXT_INBOXES;
-	EXPECT_ERR(I_MESSAGE_WRITE, call(fd, I_MESSAGE_WRITE, &m), EINVAL);
-	m.inbox = 3;
-	m.data[m.size - 1] = 'x';	/* no NUL */
-	EXPECT_ERR(I_MESSAGE_WRITE, call(fd, I_MESSAGE_WRITE, &m), EINVAL);
-
-	memset(&m, 0xee, sizeof(m));
-	m.inbox = 3;
-	m.local_inbox = 7;
-	m.remove = 1;
-	err = call(fd, I_MESSAGE_READ, &m);
-	EXPECT_ERR(I_MESSAGE_READ, err, 0);
-	EXPECT(I_MESSAGE_READ, !m.status && m.local_inbox == 7 && m.size == sizeof(msg) &&
-	       !memcmp(m.data, msg, sizeof(msg)) &&
-	       all_zero(m.data + sizeof(msg), sizeof(m.data) - sizeof(msg)),
-	       "status 0x%02x, local_inbox %u, size %u, data \"%.59s\"",
-	       m.status, m.local_inbox, m.size, m.data);
-	m.inbox = 3;
-	m.local_inbox = 7;
-	m.remove = 1;
-	m.status = 0x55;
-	err = call(fd, I_MESSAGE_READ, &m);
-	EXPECT_ERR(I_MESSAGE_READ, err, ENOMSG);
-	EXPECT(I_MESSAGE_READ, m.status == NXT_STATUS_MAILBOX_EMPTY,
-	       "empty mailbox: status 0x%02x", m.status);
-	m.inbox = NXT_REMOTE_INBOXES;
-	EXPECT_ERR(I_MESSAGE_READ, call(fd, I_MESSAGE_READ, &m), EINVAL);
-	m.inbox = 0;
-	m.remove = 2;
-	EXPECT_ERR(I_MESSAGE_READ, call(fd, I_MESSAGE_READ, &m), EINVAL);
-
-	memset(&so, 0, sizeof(so));
-	so.status = 0x55;
-	err = call(fd, I_STOP_PROGRAM, &so);
-	EXPECT_ERR(I_STOP_PROGRAM, err, 0);
-	EXPECT(I_STOP_PROGRAM, so.status == 0, "status 0x%02x", so.status);
-	err = wait_program(fd, 0, &p);
-	EXPECT_ERR(I_GET_CURRENT_PROGRAM_NAME, err, ESRCH);
-}
-
-static void test_sound(int fd)
-{
-	struct nxt_sound_file sf;
-	struct nxt_status_only so;
-	struct nxt_tone t;
-	int err;
-
-	memset(&sf, 0, sizeof(sf));
-	snprintf(sf.name, sizeof(sf.name), "%s", "Woops.rso");
-	sf.loop = 1;
-	err = call(fd, I_PLAY_SOUND_FILE, &sf);
-	EXPECT_ERR(I_PLAY_SOUND_FILE, err, 0);
-	EXPECT(I_PLAY_SOUND_FILE, sf.status == 0 && sf.loop == 1,
-	       "status 0x%02x, loop %u", sf.status, sf.loop);
-	snprintf(sf.name, sizeof(sf.name), "%s", "Missing.rso");
-	err = call(fd, I_PLAY_SOUND_FILE, &sf);
-	EXPECT_ERR(I_PLAY_SOUND_FILE, err, ERANGE);
-	EXPECT(I_PLAY_SOUND_FILE, sf.status == NXT_STATUS_OUT_OF_RANGE,
-	       "missing file: status 0x%02x", sf.status);
-	sf.loop = 2;
-	EXPECT_ERR(I_PLAY_SOUND_FILE, call(fd, I_PLAY_SOUND_FILE, &sf), EINVAL);
-	sf.loop = 0;
-	sf.reserved[1] = 1;
-	EXPECT_ERR(I_PLAY_SOUND_FILE, call(fd, I_PLAY_SOUND_FILE, &sf), EINVAL);
-
-	memset(&so, 0, sizeof(so));
-	so.status = 0x55;
-	err = call(fd, I_STOP_SOUND_PLAYBACK, &so);
-	EXPECT_ERR(I_STOP_SOUND_PLAYBACK, err, 0);
-	EXPECT(I_STOP_SOUND_PLAYBACK, so.status == 0, "status 0x%02x", so.status);
-	so.reserved[0] = 1;
-	EXPECT_ERR(I_STOP_SOUND_PLAYBACK, call(fd, I_STOP_SOUND_PLAYBACK, &so), EINVAL);
-
-	/* Last: the test reads this tone back from the emulated brick. */
-	memset(&t, 0, sizeof(t));
-	t.frequency = NXT_TONE_MIN_HZ - 1;
-	t.duration = 10;
-	EXPECT_ERR(I_PLAY_TONE, call(fd, I_PLAY_TONE, &t), EINVAL);
-	t.frequency = NXT_TONE_MAX_HZ + 1;
-	EXPECT_ERR(I_PLAY_TONE, call(fd, I_PLAY_TONE, &t), EINVAL);
-	t.frequency = 1234;
-	t.duration = 30000;
-	t.status = 0x55;
-	err = call(fd, I_PLAY_TONE, &t);
-	EXPECT_ERR(I_PLAY_TONE, err, 0);
-	EXPECT(I_PLAY_TONE, t.status == 0 && t.frequency == 1234 && t.duration == 30000,
-	       "status 0x%02x, frequency %u, duration %u", t.status, t.frequency,
-	       t.duration);
-}
-
-static int get_output(int fd, __u8 port, struct nxt_output_state *o)
-{
-	int err;
-
-	memset(o, 0, sizeof(*o));
-	o->port = port;
-	o->status = 0x55;
-	err = call(fd, I_GET_OUTPUT_STATE, o);
-	EXPECT_ERR(I_GET_OUTPUT_STATE, err, 0);
-	EXPECT(I_GET_OUTPUT_STATE, o->port == port && o->status == 0,
-	       "port %u, status 0x%02x", o->port, o->status);
-	return err;
-}
-
-static void test_motors(int fd)
-{
-	struct nxt_output_state o, g;
-	struct nxt_motor_position mp;
-	int err;
-
-	/* Port B backwards, regulated, steering, with a far limit. */
-	memset(&o, 0, sizeof(o));
-	o.port = 1;
-	o.power = -75;
-	o.mode = NXT_MODE_MOTORON | NXT_MODE_BRAKE | NXT_MODE_REGULATED;
-	o.regulation_mode = NXT_REGULATION_MOTOR_SPEED;
-	o.turn_ratio = -20;
-	o.run_state = NXT_RUN_STATE_RUNNING;
-	o.tacho_limit = 123456;
-	o.status = 0x55;
-	err = call(fd, I_SET_OUTPUT_STATE, &o);
-	EXPECT_ERR(I_SET_OUTPUT_STATE, err, 0);
-	EXPECT(I_SET_OUTPUT_STATE, o.status == 0, "status 0x%02x", o.status);
-	sleep_ms(100);
-	if (!get_output(fd, 1, &g)) {
-		EXPECT(I_GET_OUTPUT_STATE, g.power == -75 &&
-		       g.mode == (NXT_MODE_MOTORON | NXT_MODE_BRAKE | NXT_MODE_REGULATED) &&
-		       g.regulation_mode == NXT_REGULATION_MOTOR_SPEED &&
-		       g.turn_ratio == -20 && g.run_state == NXT_RUN_STATE_RUNNING &&
-		       g.tacho_limit == 123456,
-		       "running: power %d, mode 0x%02x, regulation %u, turn %d, run state 0x%02x, limit %u",
-		       g.power, g.mode, g.regulation_mode, g.turn_ratio, g.run_state,
-		       g.tacho_limit);
-		/* 100 ms backwards at power 75: about -75 degrees. */
-		EXPECT(I_GET_OUTPUT_STATE, g.tacho_count < -10 && g.tacho_count > -5000 &&
-		       g.block_tacho_count == g.tacho_count &&
-		       g.rotation_count == g.tacho_count,
-		       "running backwards: tacho %d, block %d, rotation %d",
-		       g.tacho_count, g.block_tacho_count, g.rotation_count);
-	}
-	o.port = NXT_OUTPUT_PORTS;
-	EXPECT_ERR(I_SET_OUTPUT_STATE, call(fd, I_SET_OUTPUT_STATE, &o), EINVAL);
-	o.port = 1;
-	o.power = NXT_POWER_MAX + 1;
-	EXPECT_ERR(I_SET_OUTPUT_STATE, call(fd, I_SET_OUTPUT_STATE, &o), EINVAL);
-	o.power = 0;
-	o.turn_ratio = -NXT_POWER_MAX - 1;
-	EXPECT_ERR(I_SET_OUTPUT_STATE, call(fd, I_SET_OUTPUT_STATE, &o), EINVAL);
-
-	/* Stop it: a new goal zeroes the tacho count, not the others. */
-	memset(&o, 0, sizeof(o));
-	o.port = 1;
-	EXPECT_ERR(I_SET_OUTPUT_STATE, call(fd, I_SET_OUTPUT_STATE, &o), 0);
-	if (!get_output(fd, 1, &g))
-		EXPECT(I_GET_OUTPUT_STATE, g.power == 0 && g.run_state == 0 &&
-		       g.tacho_count == 0 && g.block_tacho_count < -10 &&
-		       g.rotation_count == g.block_tacho_count,
-		       "stopped: power %d, run state 0x%02x, tacho %d, block %d, rotation %d",
-		       g.power, g.run_state, g.tacho_count, g.block_tacho_count,
-		       g.rotation_count);
-	memset(&g, 0, sizeof(g));
-	g.port = NXT_OUTPUT_PORTS;
-	EXPECT_ERR(I_GET_OUTPUT_STATE, call(fd, I_GET_OUTPUT_STATE, &g), EINVAL);
-	g.port = 0;
-	g.reserved = 1;
-	EXPECT_ERR(I_GET_OUTPUT_STATE, call(fd, I_GET_OUTPUT_STATE, &g), EINVAL);
-
-	/* Relative: the block count only; then absolute: the rotation count. */
-	memset(&mp, 0, sizeof(mp));
-	mp.port = 1;
-	mp.relative = 1;
-	mp.status = 0x55;
-	err = call(fd, I_RESET_MOTOR_POSITION, &mp);
-	EXPECT_ERR(I_RESET_MOTOR_POSITION, err, 0);
-	EXPECT(I_RESET_MOTOR_POSITION, mp.status == 0, "status 0x%02x", mp.status);
-	if (!get_output(fd, 1, &g))
-		EXPECT(I_RESET_MOTOR_POSITION, g.block_tacho_count == 0 &&
-		       g.rotation_count < -10,
-		       "after a relative reset: block %d, rotation %d",
-		       g.block_tacho_count, g.rotation_count);
-	mp.relative = 0;
-	EXPECT_ERR(I_RESET_MOTOR_POSITION, call(fd, I_RESET_MOTOR_POSITION, &mp), 0);
-	if (!get_output(fd, 1, &g))
-		EXPECT(I_RESET_MOTOR_POSITION, g.rotation_count == 0,
-		       "after an absolute reset: rotation %d", g.rotation_count);
-	mp.relative = 2;
-	EXPECT_ERR(I_RESET_MOTOR_POSITION, call(fd, I_RESET_MOTOR_POSITION, &mp), EINVAL);
-	mp.relative = 0;
-	mp.port = NXT_OUTPUT_PORTS;
-	EXPECT_ERR(I_RESET_MOTOR_POSITION, call(fd, I_RESET_MOTOR_POSITION, &mp), EINVAL);
-}
-
-static int get_input(int fd, __u8 port, struct nxt_input_values *v)
-{
-	int err;
-
-	memset(v, 0, sizeof(*v));
-	v->port = port;
-	v->status = 0x55;
-	err = call(fd, I_GET_INPUT_VALUES, v);
-	EXPECT_ERR(I_GET_INPUT_VALUES, err, 0);
-	EXPECT(I_GET_INPUT_VALUES, v->port == port && v->status == 0,
-	       "port %u, status 0x%02x", v->port, v->status);
-	return err;
-}
-
-static void set_input(int fd, __u8 port, __u8 type, __u8 mode)
-{
-	struct nxt_input_mode im = { .port = port, .type = type, .mode = mode,
-				     .status = 0x55 };
-	int err;
-
-	err = call(fd, I_SET_INPUT_MODE, &im);
-	EXPECT_ERR(I_SET_INPUT_MODE, err, 0);
-	EXPECT(I_SET_INPUT_MODE, im.status == 0 && im.port == port && im.type == type &&
-	       im.mode == mode, "status 0x%02x", im.status);
-}
-
-static void test_sensors(int fd, unsigned int sound_raw)
-{
-	struct nxt_input_mode im;
-	struct nxt_input_values v;
-	struct nxt_input_port ip;
-	int pct = (1023 - (int)sound_raw) * 100 / 1023;
-	int i, err;
-
-	/* The sound sensor on port 2 (1), in percent of full scale. */
-	set_input(fd, 1, NXT_SENSOR_SOUND_DB, NXT_SENSOR_MODE_PERCENT);
-	for (i = 0; i < 100; i++) {
-		if (get_input(fd, 1, &v) || v.valid)
-			break;
-		sleep_ms(20);
-	}
-	EXPECT(I_GET_INPUT_VALUES, v.valid == 1 && v.calibrated == 0 &&
-	       v.type == NXT_SENSOR_SOUND_DB && v.mode == NXT_SENSOR_MODE_PERCENT &&
-	       v.raw == sound_raw && v.normalized == sound_raw && v.scaled == pct &&
-	       v.calibrated_value == (__s16)sound_raw && v.reserved == 0,
-	       "valid %u, calibrated %u, type 0x%02x, mode 0x%02x, raw %u, normalized %u, scaled %d (expected %d), calibrated value %d",
-	       v.valid, v.calibrated, v.type, v.mode, v.raw, v.normalized, v.scaled, pct,
-	       v.calibrated_value);
-	set_input(fd, 1, NXT_SENSOR_SOUND_DB, NXT_SENSOR_MODE_RAW);
-	if (!get_input(fd, 1, &v))
-		EXPECT(I_GET_INPUT_VALUES, v.mode == NXT_SENSOR_MODE_RAW &&
-		       v.scaled == (__s16)sound_raw,
-		       "raw mode: mode 0x%02x, scaled %d", v.mode, v.scaled);
-	memset(&v, 0, sizeof(v));
-	v.port = NXT_INPUT_PORTS;
-	EXPECT_ERR(I_GET_INPUT_VALUES, call(fd, I_GET_INPUT_VALUES, &v), EINVAL);
-	v.port = 0;
-	v.reserved = 1;
-	EXPECT_ERR(I_GET_INPUT_VALUES, call(fd, I_GET_INPUT_VALUES, &v), EINVAL);
-
-	memset(&im, 0, sizeof(im));
-	im.port = NXT_INPUT_PORTS;
-	EXPECT_ERR(I_SET_INPUT_MODE, call(fd, I_SET_INPUT_MODE, &im), EINVAL);
-	im.port = 0;
-	im.type = NXT_SENSOR_TYPES;
-	EXPECT_ERR(I_SET_INPUT_MODE, call(fd, I_SET_INPUT_MODE, &im), EINVAL);
-
-	memset(&ip, 0, sizeof(ip));
-	ip.port = 1;
-	ip.status = 0x55;
-	err = call(fd, I_RESET_INPUT_SCALED_VALUE, &ip);
-	EXPECT_ERR(I_RESET_INPUT_SCALED_VALUE, err, 0);
-	EXPECT(I_RESET_INPUT_SCALED_VALUE, ip.status == 0 && ip.port == 1,
-	       "status 0x%02x, port %u", ip.status, ip.port);
-	ip.port = NXT_INPUT_PORTS;
-	EXPECT_ERR(I_RESET_INPUT_SCALED_VALUE, call(fd, I_RESET_INPUT_SCALED_VALUE, &ip),
-		   EINVAL);
-	ip.port = 0;
-	ip.reserved[1] = 1;
-	EXPECT_ERR(I_RESET_INPUT_SCALED_VALUE, call(fd, I_RESET_INPUT_SCALED_VALUE, &ip),
-		   EINVAL);
-}
-
-static void test_battery_and_keep_alive(int fd, unsigned int mv, unsigned int sleep_limit)
-{
-	struct nxt_keep_alive k;
-	struct nxt_battery b;
-	int err;
-
-	memset(&b, 0, sizeof(b));
-	b.status = 0x55;
-	err = call(fd, I_GET_BATTERY_LEVEL, &b);
-	EXPECT_ERR(I_GET_BATTERY_LEVEL, err, 0);
-	EXPECT(I_GET_BATTERY_LEVEL, b.millivolts == mv && b.status == 0,
-	       "%u mV (expected %u), status 0x%02x", b.millivolts, mv, b.status);
-	b.reserved = 1;
-	EXPECT_ERR(I_GET_BATTERY_LEVEL, call(fd, I_GET_BATTERY_LEVEL, &b), EINVAL);
-
-	memset(&k, 0, sizeof(k));
-	k.status = 0x55;
-	err = call(fd, I_KEEP_ALIVE, &k);
-	EXPECT_ERR(I_KEEP_ALIVE, err, 0);
-	EXPECT(I_KEEP_ALIVE, k.sleep_limit == sleep_limit && k.status == 0,
-	       "sleep limit %u ms (expected %u), status 0x%02x", k.sleep_limit,
-	       sleep_limit, k.status);
-	k.reserved[2] = 1;
-	EXPECT_ERR(I_KEEP_ALIVE, call(fd, I_KEEP_ALIVE, &k), EINVAL);
-}
-
-/* LSGetStatus until the transfer is done: the errno; *ready its bytes. */
-static int ls_wait(int fd, __u8 port, unsigned int *ready)
-{
-	struct nxt_ls_status s;
-	int i, err = 0;
-
-	for (i = 0; i < 500; i++) {
-		memset(&s, 0, sizeof(s));
-		s.port = port;
-		s.bytes_ready = 0x55;
-		err = call(fd, I_LS_GET_STATUS, &s);
-		if (err != EINPROGRESS)
-			break;
-		EXPECT(I_LS_GET_STATUS, s.status == NXT_STATUS_PENDING,
-		       "pending: status 0x%02x", s.status);
-		sleep_ms(2);
-	}
-	EXPECT(I_LS_GET_STATUS, err || (s.status == 0 && s.port == port),
-	       "done: status 0x%02x, port %u", s.status, s.port);
-	*ready = s.bytes_ready;
-	return err;
-}
-
-static int ls_write(int fd, __u8 reg, __u8 rx_length)
-{
-	struct nxt_ls_write w;
-	int err;
-
-	memset(&w, 0, sizeof(w));
-	w.port = 3;
-	w.tx_length = 2;
-	w.rx_length = rx_length;
-	w.tx_data[0] = 0x02;	/* the ultrasonic sensor's I2C address */
-	w.tx_data[1] = reg;
-	w.status = 0x55;
-	err = call(fd, I_LS_WRITE, &w);
-	EXPECT_ERR(I_LS_WRITE, err, 0);
-	EXPECT(I_LS_WRITE, err || w.status == 0, "status 0x%02x", w.status);
-	return err;
-}
-
-static void test_ultrasonic(int fd, unsigned int distance)
-{
-	struct nxt_ls_status s;
-	struct nxt_ls_write w;
-	struct nxt_ls_read r;
-	unsigned int ready = 0;
+	/* SetInputMode: port 1, SOUND_DB, PCTFULLSCALEMODE; no reply. */
+	static const unsigned char pct[] = { NXT_DIRECT_CMD_NOREPLY, 0x05, 1, 0x07, 0x80 };
+	static const unsigned char raw_mode[] = { 0x00, 0x05, 1, 0x07, 0x00 };
+	static const unsigned char ok_r[] = { 0x02, 0x05, STATUS_SUCCESS };
+	unsigned int scaled = (1023 - raw) * 100 / 1023;
+	unsigned char want[16], got[16] = { 0 };
+	struct nxt_transaction t;
 	int err, i;
 
-	/* Sensor port 4 (3): the ultrasonic sensor, 9 V low-speed. */
-	set_input(fd, 3, NXT_SENSOR_LOWSPEED_9V, NXT_SENSOR_MODE_RAW);
+	err = transact(fd, &t, pct, sizeof(pct), "no-reply SetInputMode");
+	expect_err(I_TRANSACT, err, 0, "no-reply SetInputMode");
+	EXPECT(I_TRANSACT, err || (t.reply_length == 0 && all_bytes(t.reply, 0, sizeof(t.reply))),
+	       "no-reply telegram: reply_length %u, reply %s", t.reply_length,
+	       hex(t.reply, sizeof(t.reply)));
+
+	/* port, valid, calibrated, type, mode, raw, normalized, scaled, calibrated value */
+	memcpy(want, "\x02\x07\x00\x01\x01\x00\x07\x80", 8);
+	put_le16(want + 8, raw);
+	put_le16(want + 10, raw);
+	put_le16(want + 12, scaled);
+	put_le16(want + 14, raw);
 	for (i = 0; i < 100; i++) {
-		memset(&s, 0, sizeof(s));
-		s.port = 3;
-		err = call(fd, I_LS_GET_STATUS, &s);
-		if (err != EBUSY)
+		if (input_values(fd, 1, got) || got[4])
 			break;
-		EXPECT(I_LS_GET_STATUS, s.status == NXT_STATUS_CHANNEL_BUSY,
-		       "settling: status 0x%02x", s.status);
 		sleep_ms(20);
 	}
-	EXPECT_ERR(I_LS_GET_STATUS, err, 0);
+	EXPECT(I_TRANSACT, !memcmp(got, want, 16), "sound sensor in percent: reply %s, expected %s",
+	       hex(got, 16), hex(want, 16));
 
-	/* Register 0x42: the distance, one byte. */
-	if (!ls_write(fd, 0x42, 1)) {
-		err = ls_wait(fd, 3, &ready);
-		EXPECT_ERR(I_LS_GET_STATUS, err, 0);
-		EXPECT(I_LS_GET_STATUS, ready == 1, "bytes ready %u, expected 1", ready);
+	expect_reply(fd, raw_mode, sizeof(raw_mode), ok_r, sizeof(ok_r), "SetInputMode");
+	want[7] = 0x00;
+	put_le16(want + 12, raw);
+	if (!input_values(fd, 1, got))
+		EXPECT(I_TRANSACT, !memcmp(got, want, 4) && !memcmp(got + 5, want + 5, 11),
+		       "sound sensor raw: reply %s, expected %s (valid or not)", hex(got, 16),
+		       hex(want, 16));
+}
+
+/*
+ * LSGetStatus of port 3 until its status is no longer @busy: the last
+ * status; *ready the bytes ready. Every reply is 4 bytes, the count 0
+ * unless the status is success.
+ */
+static int ls_status(int fd, unsigned char busy, unsigned int *ready)
+{
+	static const unsigned char tg[] = { 0x00, 0x0e, 3 };
+	struct nxt_transaction t;
+	int i, err, status = -1;
+
+	*ready = 0;
+	for (i = 0; i < 500; i++) {
+		err = transact(fd, &t, tg, sizeof(tg), "LSGetStatus");
+		expect_err(I_TRANSACT, err, 0, "LSGetStatus");
+		if (err)
+			return -1;
+		if (t.reply_length != 4 || memcmp(t.reply, "\x02\x0e", 2) ||
+		    (t.reply[2] != STATUS_SUCCESS && t.reply[3])) {
+			fail(I_TRANSACT, "LSGetStatus: reply %s", hex(t.reply, t.reply_length));
+			return -1;
+		}
+		status = t.reply[2];
+		*ready = t.reply[3];
+		if (status != busy)
+			break;
+		sleep_ms(status == STATUS_PENDING ? 2 : 20);
 	}
-	memset(&r, 0xee, sizeof(r));
-	r.port = 3;
-	r.reserved = 0;
-	err = call(fd, I_LS_READ, &r);
-	EXPECT_ERR(I_LS_READ, err, 0);
-	EXPECT(I_LS_READ, err || (r.status == 0 && r.port == 3 && r.length == 1 &&
-				  r.data[0] == distance && all_zero(r.data + 1, 15)),
-	       "status 0x%02x, length %u, data[0] %u (expected %u)", r.status, r.length,
-	       r.data[0], distance);
+	return status;
+}
 
-	/* Register 0x08: the vendor, eight bytes. */
-	if (!ls_write(fd, 0x08, 8)) {
-		err = ls_wait(fd, 3, &ready);
-		EXPECT_ERR(I_LS_GET_STATUS, err, 0);
-		EXPECT(I_LS_GET_STATUS, ready == 8, "bytes ready %u, expected 8", ready);
+/* The ultrasonic sensor on port 4 (3): statuses that are not errors. */
+static void test_ultrasonic(int fd, unsigned int distance)
+{
+	static const unsigned char mode[] = { 0x00, 0x05, 3, 0x0b, 0x00 };
+	static const unsigned char mode_r[] = { 0x02, 0x05, STATUS_SUCCESS };
+	static const unsigned char ls_write[] = { 0x00, 0x0f, 3, 2, 1, 0x02, 0x42 };
+	static const unsigned char ls_write_r[] = { 0x02, 0x0f, STATUS_SUCCESS };
+	static const unsigned char ls_read[] = { 0x00, 0x10, 3 };
+	static const unsigned char ls_read0[] = { 0x00, 0x10, 0 };
+	unsigned char want[20];
+	unsigned int ready;
+	int status;
+
+	/* LOWSPEED_9V: the channel is not ready until the sensor settles. */
+	expect_reply(fd, mode, sizeof(mode), mode_r, sizeof(mode_r), "SetInputMode");
+	status = ls_status(fd, STATUS_NOT_READY, &ready);
+	EXPECT(I_TRANSACT, status == STATUS_SUCCESS && ready == 0,
+	       "LSGetStatus after settling: status 0x%02x, %u bytes ready", status, ready);
+
+	/* Register 0x42, the distance: pending, then one byte. */
+	if (!expect_reply(fd, ls_write, sizeof(ls_write), ls_write_r, sizeof(ls_write_r),
+			  "LSWrite")) {
+		status = ls_status(fd, STATUS_PENDING, &ready);
+		EXPECT(I_TRANSACT, status == STATUS_SUCCESS && ready == 1,
+		       "LSGetStatus after LSWrite: status 0x%02x, %u bytes ready", status,
+		       ready);
 	}
-	memset(&r, 0, sizeof(r));
-	r.port = 3;
-	err = call(fd, I_LS_READ, &r);
-	EXPECT_ERR(I_LS_READ, err, 0);
-	EXPECT(I_LS_READ, err || (r.length == 8 && !memcmp(r.data, "LEGO\0\0\0\0", 8) &&
-				  all_zero(r.data + 8, 8)),
-	       "length %u, data \"%.16s\"", r.length, r.data);
+	memset(want, 0, sizeof(want));
+	memcpy(want, "\x02\x10\x00\x01", 4);
+	want[4] = distance;
+	expect_reply(fd, ls_read, sizeof(ls_read), want, sizeof(want), "LSRead");
 
-	/* Port 1 (0) is no low-speed port: the firmware's channel busy. */
-	memset(&r, 0xee, sizeof(r));
-	r.port = 0;
-	r.reserved = 0;
-	err = call(fd, I_LS_READ, &r);
-	EXPECT_ERR(I_LS_READ, err, EBUSY);
-	EXPECT(I_LS_READ, r.status == NXT_STATUS_CHANNEL_BUSY && r.length == 0,
-	       "not low-speed: status 0x%02x, length %u", r.status, r.length);
-	r.port = NXT_INPUT_PORTS;
-	EXPECT_ERR(I_LS_READ, call(fd, I_LS_READ, &r), EINVAL);
-	memset(&s, 0, sizeof(s));
-	s.port = 3;
-	s.reserved = 1;
-	EXPECT_ERR(I_LS_GET_STATUS, call(fd, I_LS_GET_STATUS, &s), EINVAL);
+	/* Port 1 (0) is no low-speed port: the firmware's channel not ready. */
+	memset(want, 0, sizeof(want));
+	memcpy(want, "\x02\x10", 2);
+	want[2] = STATUS_NOT_READY;
+	expect_reply(fd, ls_read0, sizeof(ls_read0), want, sizeof(want), "LSRead of port 1");
+}
 
-	memset(&w, 0, sizeof(w));
-	w.port = 3;
-	w.tx_length = NXT_LS_DATA_MAX + 1;
-	EXPECT_ERR(I_LS_WRITE, call(fd, I_LS_WRITE, &w), EINVAL);
-	w.tx_length = 1;
-	w.rx_length = NXT_LS_DATA_MAX + 1;
-	EXPECT_ERR(I_LS_WRITE, call(fd, I_LS_WRITE, &w), EINVAL);
+/* The telegrams the driver refuses: nothing sent, the structure untouched. */
+static void test_refused(int fd)
+{
+	static const struct {
+		const char *what;
+		unsigned char tg[NXT_TELEGRAM_MAX];
+		__u32 length;
+		int err;
+	} cases[] = {
+		{ "65 bytes", { 0x00, 0x0b }, NXT_TELEGRAM_MAX + 1, EMSGSIZE },
+		{ "length 0xffffffff", { 0x00, 0x0b }, 0xffffffff, EMSGSIZE },
+		{ "1 byte", { 0x00, 0x0b }, 1, EINVAL },
+		{ "0 bytes", { 0x00, 0x0b }, 0, EINVAL },
+		{ "a reply", { 0x02, 0x0b, 0x00, 0x1c, 0x1d }, 5, EINVAL },
+		{ "type 0x7f", { 0x7f, 0x0b }, 2, EINVAL },
+		{ "StartProgram, no NUL", { 0x00, 0x00, 'a', 'b', 'c' }, 5, EINVAL },
+		{ "SetOutputState, 11 bytes", { 0x00, 0x04, 0x01, 50 }, 11, EINVAL },
+		{ "MessageWrite short of its size", { 0x00, 0x09, 0x01, 10, 'h', 'i' }, 6, EINVAL },
+		{ "ReadIOMap, 9 bytes", { 0x01, 0x94, 0x01, 0x00, 0x03 }, 9, EINVAL },
+	};
+	struct nxt_transaction t, saved;
+	unsigned int i;
+	int err;
+
+	for (i = 0; i < ARRAY_SIZE(cases); i++) {
+		memset(&t, FILL, sizeof(t));
+		memcpy(t.telegram, cases[i].tg, sizeof(t.telegram));
+		t.length = cases[i].length;
+		saved = t;
+		err = call(fd, I_TRANSACT, &t);
+		expect_err(I_TRANSACT, err, cases[i].err, cases[i].what);
+		EXPECT(I_TRANSACT, !memcmp(&t, &saved, sizeof(t)),
+		       "%s: refused, but the structure changed", cases[i].what);
+	}
+}
+
+/* An unknown number: ENOTTY, and the buffer (at least its size) untouched. */
+static void expect_enotty(int fd, int which, unsigned long nr, const char *what)
+{
+	unsigned char buf[sizeof(struct nxt_transaction)], saved[sizeof(buf)];
+	unsigned int i;
+	int err;
+
+	if (_IOC_SIZE(nr) > sizeof(buf)) {
+		fail(which, "%s: 0x%08lx needs a larger buffer", what, nr);
+		return;
+	}
+	for (i = 0; i < sizeof(buf); i++)
+		buf[i] = i * 7 + 1;
+	memcpy(saved, buf, sizeof(buf));
+	err = call_nr(fd, which, nr, buf);
+	if (err != ENOTTY || memcmp(buf, saved, sizeof(buf)))
+		fail(which, "%s (0x%08lx): %s%s, expected ENOTTY", what, nr, err_name(err),
+		     memcmp(buf, saved, sizeof(buf)) ? " and the buffer changed" : "");
+}
+
+static void test_unknown(int fd)
+{
+	char what[64];
+	unsigned int i;
+
+	for (i = 0; i < ARRAY_SIZE(retired); i++) {
+		snprintf(what, sizeof(what), "NXT_IOC_%s", retired[i].name);
+		if (_IOC_TYPE(retired[i].nr) != NXT_IOC_MAGIC ||
+		    _IOC_SIZE(retired[i].nr) > RETIRED_ARG_MAX)
+			fail(I_RETIRED, "%s: 0x%08lx is no typed number", what, retired[i].nr);
+		expect_enotty(fd, I_RETIRED, retired[i].nr, what);
+	}
+	/* Every other number the typed ioctls had room for. */
+	for (i = 0x10; i <= 0x33; i++) {
+		snprintf(what, sizeof(what), "_IOWR(NXT_IOC_MAGIC, 0x%02x, __u32)", i);
+		expect_enotty(fd, I_RETIRED, _IOWR(NXT_IOC_MAGIC, i, __u32), what);
+		snprintf(what, sizeof(what), "_IO(NXT_IOC_MAGIC, 0x%02x)", i);
+		expect_enotty(fd, I_RETIRED, _IO(NXT_IOC_MAGIC, i), what);
+	}
+
+	/* The numbers of the three ioctls with another direction or size. */
+	expect_enotty(fd, I_UNKNOWN, _IO(NXT_IOC_MAGIC, 0x00), "_IO(0x00)");
+	expect_enotty(fd, I_UNKNOWN, _IOR(NXT_IOC_MAGIC, 0x00, struct nxt_transaction),
+		      "_IOR(0x00, struct nxt_transaction)");
+	expect_enotty(fd, I_UNKNOWN, _IOW(NXT_IOC_MAGIC, 0x00, struct nxt_transaction),
+		      "_IOW(0x00, struct nxt_transaction)");
+	expect_enotty(fd, I_UNKNOWN, _IOWR(NXT_IOC_MAGIC, 0x00, __u32), "_IOWR(0x00, __u32)");
+	expect_enotty(fd, I_UNKNOWN, _IOR(NXT_IOC_MAGIC, 0x01, __u32), "_IOR(0x01, __u32)");
+	expect_enotty(fd, I_UNKNOWN, _IOWR(NXT_IOC_MAGIC, 0x01, __u32), "_IOWR(0x01, __u32)");
+	expect_enotty(fd, I_UNKNOWN, _IOW(NXT_IOC_MAGIC, 0x01, __u64), "_IOW(0x01, __u64)");
+	expect_enotty(fd, I_UNKNOWN, _IOW(NXT_IOC_MAGIC, 0x02, __u32), "_IOW(0x02, __u32)");
+	expect_enotty(fd, I_UNKNOWN, _IOR(NXT_IOC_MAGIC, 0x02, __u64), "_IOR(0x02, __u64)");
+	for (i = 0x03; i <= 0xff; i++) {
+		if (i >= 0x10 && i <= 0x33)
+			continue;
+		snprintf(what, sizeof(what), "_IOWR(NXT_IOC_MAGIC, 0x%02x, struct nxt_transaction)",
+			 i);
+		expect_enotty(fd, I_UNKNOWN, _IOWR(NXT_IOC_MAGIC, i, struct nxt_transaction),
+			      what);
+	}
+}
+
+/* Last: the test reads this tone back from the emulated brick. */
+static void test_tone(int fd)
+{
+	/* PlayTone: 1234 Hz for 30 s. */
+	static const unsigned char tone[] = { 0x00, 0x03, 0xd2, 0x04, 0x30, 0x75 };
+	static const unsigned char tone_r[] = { 0x02, 0x03, STATUS_SUCCESS };
+
+	expect_reply(fd, tone, sizeof(tone), tone_r, sizeof(tone_r), "PlayTone");
 }
 
 /* A file opened read-only: the timeouts work, nothing is sent. */
 static void test_read_only(const char *node)
 {
-	struct nxt_battery b;
+	struct nxt_transaction t, saved;
 	__u32 ms = 0;
 	int fd;
 
 	fd = open(node, O_RDONLY);
 	if (fd < 0) {
-		fail(I_GET_BATTERY_LEVEL, "open %s read-only: %s", node, strerror(errno));
+		fail(I_TRANSACT, "open %s read-only: %s", node, strerror(errno));
 		return;
 	}
-	EXPECT_ERR(I_GET_TIMEOUT, call(fd, I_GET_TIMEOUT, &ms), 0);
+	expect_err(I_GET_TIMEOUT, call(fd, I_GET_TIMEOUT, &ms), 0, "read-only file");
 	EXPECT(I_GET_TIMEOUT, ms == 1000, "read-only file: timeout %u ms", ms);
-	memset(&b, 0, sizeof(b));
-	EXPECT_ERR(I_GET_BATTERY_LEVEL, call(fd, I_GET_BATTERY_LEVEL, &b), EBADF);
+	ms = 3000;
+	expect_err(I_SET_TIMEOUT, call(fd, I_SET_TIMEOUT, &ms), 0, "read-only file");
+	ms = 0;
+	expect_err(I_GET_TIMEOUT, call(fd, I_GET_TIMEOUT, &ms), 0, "read-only file");
+	EXPECT(I_GET_TIMEOUT, ms == 3000, "read-only file: timeout %u ms after 3000", ms);
+
+	memset(&t, FILL, sizeof(t));
+	memcpy(t.telegram, "\x00\x0b", 2);
+	t.length = 2;
+	saved = t;
+	expect_err(I_TRANSACT, call(fd, I_TRANSACT, &t), EBADF, "read-only file");
+	EXPECT(I_TRANSACT, !memcmp(&t, &saved, sizeof(t)),
+	       "read-only file: EBADF, but the structure changed");
+	expect_enotty(fd, I_RETIRED, retired[11].nr, "GET_BATTERY_LEVEL on a read-only file");
 	close(fd);
 }
 
-#define SIZE(t)		printf("%s %zu\n", #t, sizeof(struct nxt_##t))
 #define OFFSET(t, m)	printf("%s.%s %zu\n", #t, #m, offsetof(struct nxt_##t, m))
+#define VALUE(n)	printf("%s %lu\n", #n, (unsigned long)(n))
 
 static void print_layout(void)
 {
 	int i;
 
-	SIZE(transaction);
+	printf("transaction %zu\n", sizeof(struct nxt_transaction));
 	OFFSET(transaction, telegram);
 	OFFSET(transaction, reply);
 	OFFSET(transaction, length);
 	OFFSET(transaction, reply_length);
-	SIZE(status_only);
-	OFFSET(status_only, status);
-	SIZE(program);
-	OFFSET(program, name);
-	OFFSET(program, status);
-	SIZE(sound_file);
-	OFFSET(sound_file, name);
-	OFFSET(sound_file, loop);
-	OFFSET(sound_file, status);
-	SIZE(tone);
-	OFFSET(tone, frequency);
-	OFFSET(tone, duration);
-	OFFSET(tone, status);
-	SIZE(output_state);
-	OFFSET(output_state, port);
-	OFFSET(output_state, power);
-	OFFSET(output_state, mode);
-	OFFSET(output_state, regulation_mode);
-	OFFSET(output_state, turn_ratio);
-	OFFSET(output_state, run_state);
-	OFFSET(output_state, status);
-	OFFSET(output_state, tacho_limit);
-	OFFSET(output_state, tacho_count);
-	OFFSET(output_state, block_tacho_count);
-	OFFSET(output_state, rotation_count);
-	SIZE(input_mode);
-	OFFSET(input_mode, port);
-	OFFSET(input_mode, type);
-	OFFSET(input_mode, mode);
-	OFFSET(input_mode, status);
-	SIZE(input_values);
-	OFFSET(input_values, port);
-	OFFSET(input_values, valid);
-	OFFSET(input_values, calibrated);
-	OFFSET(input_values, type);
-	OFFSET(input_values, mode);
-	OFFSET(input_values, status);
-	OFFSET(input_values, raw);
-	OFFSET(input_values, normalized);
-	OFFSET(input_values, scaled);
-	OFFSET(input_values, calibrated_value);
-	SIZE(input_port);
-	OFFSET(input_port, port);
-	OFFSET(input_port, status);
-	SIZE(motor_position);
-	OFFSET(motor_position, port);
-	OFFSET(motor_position, relative);
-	OFFSET(motor_position, status);
-	SIZE(message);
-	OFFSET(message, inbox);
-	OFFSET(message, local_inbox);
-	OFFSET(message, remove);
-	OFFSET(message, size);
-	OFFSET(message, data);
-	OFFSET(message, status);
-	SIZE(battery);
-	OFFSET(battery, millivolts);
-	OFFSET(battery, status);
-	SIZE(keep_alive);
-	OFFSET(keep_alive, sleep_limit);
-	OFFSET(keep_alive, status);
-	SIZE(ls_status);
-	OFFSET(ls_status, port);
-	OFFSET(ls_status, bytes_ready);
-	OFFSET(ls_status, status);
-	SIZE(ls_write);
-	OFFSET(ls_write, port);
-	OFFSET(ls_write, tx_length);
-	OFFSET(ls_write, rx_length);
-	OFFSET(ls_write, status);
-	OFFSET(ls_write, tx_data);
-	SIZE(ls_read);
-	OFFSET(ls_read, port);
-	OFFSET(ls_read, length);
-	OFFSET(ls_read, status);
-	OFFSET(ls_read, data);
+	VALUE(NXT_TELEGRAM_MIN);
+	VALUE(NXT_TELEGRAM_MAX);
+	VALUE(NXT_IOC_MAGIC);
 	for (i = 0; i < I_COUNT; i++)
-		printf("%s %lu\n", iocs[i].name, iocs[i].nr);
+		if (iocs[i].nr)
+			printf("%s %lu\n", iocs[i].name, iocs[i].nr);
 	printf("long %zu\n", sizeof(long));
 }
 
@@ -875,13 +698,12 @@ int main(int argc, char **argv)
 		return 2;
 	}
 	test_timeouts(fd);
-	test_transact(fd);
-	test_program_and_mailboxes(fd);
-	test_sound(fd);
-	test_motors(fd);
-	test_sensors(fd, sound_raw);
-	test_battery_and_keep_alive(fd, mv, sleep_limit);
+	test_replies(fd, mv, sleep_limit);
+	test_sound_sensor(fd, sound_raw);
 	test_ultrasonic(fd, distance);
+	test_refused(fd);
+	test_unknown(fd);
+	test_tone(fd);
 	close(fd);
 	test_read_only(argv[1]);
 

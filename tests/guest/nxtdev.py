@@ -1,8 +1,9 @@
 """Helpers for the NXT guest tests: the uapi of /dev/nxtN in Python.
 
-The ioctl numbers and structure layouts are written out here by hand and
+The ioctl numbers and the structure layout are written out here by hand and
 checked against include/uapi/linux/lego_nxt.h by uapi_layout(), which
-compiles a small C program against the header.
+compiles a small C program against the header. The direct commands are
+built and decoded here (command()), as a program does with liblegonxt.
 """
 import ctypes
 import errno
@@ -32,50 +33,50 @@ def iowr(nr, size):
     return _ioc(_IOC_READ | _IOC_WRITE, nr, size)
 
 
-# name -> (struct format, field names, opcode); formats use native x86 order.
 STRUCTS = {
     'transaction': ('<64s64sII', 'telegram reply length reply_length'),
-    'status_only': ('<B3x', 'status'),
-    'program': ('<20sB3x', 'name status'),
-    'sound_file': ('<20sBB2x', 'name loop status'),
-    'tone': ('<HHB3x', 'frequency duration status'),
-    'output_state': ('<BbBBbBBxIiii', 'port power mode regulation_mode turn_ratio run_state '
-                     'status tacho_limit tacho_count block_tacho_count rotation_count'),
-    'input_mode': ('<BBBB', 'port type mode status'),
-    'input_values': ('<BBBBBBHHhhxx', 'port valid calibrated type mode status raw normalized '
-                     'scaled calibrated_value'),
-    'input_port': ('<BB2x', 'port status'),
-    'motor_position': ('<BBBx', 'port relative status'),
-    'message': ('<BBBB59sB', 'inbox local_inbox remove size data status'),
-    'battery': ('<HBx', 'millivolts status'),
-    'keep_alive': ('<IB3x', 'sleep_limit status'),
-    'ls_status': ('<BBBx', 'port bytes_ready status'),
-    'ls_write': ('<BBBB16s', 'port tx_length rx_length status tx_data'),
-    'ls_read': ('<BBBx16s', 'port length status data'),
 }
 
-# ioctl name -> (opcode or None, struct)
-IOCTLS = {
-    'START_PROGRAM': (0x00, 'program'),
-    'STOP_PROGRAM': (0x01, 'status_only'),
-    'PLAY_SOUND_FILE': (0x02, 'sound_file'),
-    'PLAY_TONE': (0x03, 'tone'),
-    'SET_OUTPUT_STATE': (0x04, 'output_state'),
-    'SET_INPUT_MODE': (0x05, 'input_mode'),
-    'GET_OUTPUT_STATE': (0x06, 'output_state'),
-    'GET_INPUT_VALUES': (0x07, 'input_values'),
-    'RESET_INPUT_SCALED_VALUE': (0x08, 'input_port'),
-    'MESSAGE_WRITE': (0x09, 'message'),
-    'RESET_MOTOR_POSITION': (0x0a, 'motor_position'),
-    'GET_BATTERY_LEVEL': (0x0b, 'battery'),
-    'STOP_SOUND_PLAYBACK': (0x0c, 'status_only'),
-    'KEEP_ALIVE': (0x0d, 'keep_alive'),
-    'LS_GET_STATUS': (0x0e, 'ls_status'),
-    'LS_WRITE': (0x0f, 'ls_write'),
-    'LS_READ': (0x10, 'ls_read'),
-    'GET_CURRENT_PROGRAM_NAME': (0x11, 'program'),
-    'MESSAGE_READ': (0x13, 'message'),
+# The direct commands the tests send, built and decoded here in Python: the
+# kernel only carries telegrams. Written from the firmware's documentation
+# (research nxt.md), not from liblegonxt, so that each checks the other.
+# name -> (opcode, request format and fields after the opcode,
+#          reply format and fields after the status byte, reply length)
+COMMANDS = {
+    'START_PROGRAM': (0x00, '<20s', 'name', '', '', 3),
+    'STOP_PROGRAM': (0x01, '', '', '', '', 3),
+    'PLAY_SOUND_FILE': (0x02, '<B20s', 'loop name', '', '', 3),
+    'PLAY_TONE': (0x03, '<HH', 'frequency duration', '', '', 3),
+    'SET_OUTPUT_STATE': (0x04, '<BbBBbBI', 'port power mode regulation_mode turn_ratio '
+                         'run_state tacho_limit', '', '', 3),
+    'SET_INPUT_MODE': (0x05, '<BBB', 'port type mode', '', '', 3),
+    'GET_OUTPUT_STATE': (0x06, '<B', 'port', '<BbBBbBIiii',
+                         'port power mode regulation_mode turn_ratio run_state tacho_limit '
+                         'tacho_count block_tacho_count rotation_count', 25),
+    'GET_INPUT_VALUES': (0x07, '<B', 'port', '<BBBBBHHhh',
+                         'port valid calibrated type mode raw normalized scaled '
+                         'calibrated_value', 16),
+    'RESET_INPUT_SCALED_VALUE': (0x08, '<B', 'port', '', '', 3),
+    'MESSAGE_WRITE': (0x09, '<BB', 'inbox size', '', '', 3),          # then the message
+    'RESET_MOTOR_POSITION': (0x0a, '<BB', 'port relative', '', '', 3),
+    'GET_BATTERY_LEVEL': (0x0b, '', '', '<H', 'millivolts', 5),
+    'STOP_SOUND_PLAYBACK': (0x0c, '', '', '', '', 3),
+    'KEEP_ALIVE': (0x0d, '', '', '<I', 'sleep_limit', 7),
+    'LS_GET_STATUS': (0x0e, '<B', 'port', '<B', 'bytes_ready', 4),
+    'LS_WRITE': (0x0f, '<BBB', 'port tx_length rx_length', '', '', 3),  # then the bytes
+    'LS_READ': (0x10, '<B', 'port', '<B16s', 'length data', 20),
+    'GET_CURRENT_PROGRAM_NAME': (0x11, '', '', '<20s', 'name', 23),
+    'MESSAGE_READ': (0x13, '<BBB', 'inbox local_inbox remove', '<BB59s',
+                     'local_inbox size data', 64),
 }
+
+# Status bytes of the brick that the tests look for.
+STATUS_PENDING = 0x20
+STATUS_MAILBOX_EMPTY = 0x40
+STATUS_FILE_NOT_FOUND = 0x87
+STATUS_OUT_OF_RANGE = 0xc0
+STATUS_CHANNEL_BUSY = 0xe0
+STATUS_NO_PROGRAM = 0xec
 
 
 # What the firmware reads of each known command (drivers/lego/nxt/nxt_proto.c,
@@ -130,8 +131,7 @@ def ioctl_number(name):
         return _ioc(_IOC_WRITE, 0x01, 4)
     if name == 'GET_TIMEOUT':
         return _ioc(_IOC_READ, 0x02, 4)
-    op, sname = IOCTLS[name]
-    return iowr(0x10 + op, struct_size(sname))
+    raise KeyError(name)
 
 
 def pack(sname, **fields):
@@ -176,17 +176,51 @@ def raw_ioctl(fd, request, data):
     return ret, err, buf.raw
 
 
+def telegram(which, /, reply=True, **fields):
+    """The telegram of a direct command, from its fields (missing ones are 0)."""
+    op, fmt, names, _, _, _ = COMMANDS[which]
+    names = names.split()
+    unknown = set(fields) - set(names) - {'data', 'tx_data'}
+    assert not unknown, unknown
+    args = [fields.get(n, b'' if c == 's' else 0) for n, c in zip(names, _codes(fmt))]
+    tg = bytes([0x00 if reply else 0x80, op]) + (struct.pack(fmt, *args) if fmt else b'')
+    if which == 'MESSAGE_WRITE':
+        tg += bytes(fields.get('data', b''))[:fields.get('size', 0)]
+    elif which == 'LS_WRITE':
+        tg += bytes(fields.get('tx_data', b''))[:fields.get('tx_length', 0)]
+    return tg
+
+
+def decode(which, reply):
+    """A reply's status byte and values; values are 0 when the reply is
+    shorter (the brick's three-byte error replies)."""
+    _, _, _, fmt, names, length = COMMANDS[which]
+    out = {'status': reply[2] if len(reply) > 2 else None}
+    if fmt:
+        body = bytes(reply[3:length]).ljust(length - 3, b'\0')
+        out.update(zip(names.split(), struct.unpack(fmt, body)))
+    return out
+
+
 def command(fd, which, /, **fields):
-    """A typed ioctl: (errno, the decoded structure as copied back)."""
-    sname = IOCTLS[which][1]
-    _, err, out = raw_ioctl(fd, ioctl_number(which), pack(sname, **fields))
-    return err, unpack(sname, out)
+    """A direct command through NXT_IOC_TRANSACT: (errno, the decoded reply).
+
+    The errno is the transport's; the brick's answer is out['status']. The
+    reply is checked for its opcode and, on success, its length.
+    """
+    err, reply = transact(fd, telegram(which, **fields))
+    if err:
+        return err, {'status': None}
+    op, length = COMMANDS[which][0], COMMANDS[which][5]
+    assert reply[:2] == bytes([0x02, op]), '%s: reply %s' % (which, reply.hex())
+    assert reply[2] != 0 or len(reply) == length, '%s: reply %s' % (which, reply.hex())
+    return 0, decode(which, reply)
 
 
 def ok(fd, which, /, **fields):
     err, out = command(fd, which, **fields)
-    assert err == 0, '%s: %s (status 0x%02x)' % (which, errno.errorcode.get(err, err),
-                                                   out.get('status', 0))
+    assert err == 0, '%s: %s' % (which, errno.errorcode.get(err, err))
+    assert out['status'] == 0, '%s: status 0x%02x' % (which, out['status'])
     return out
 
 
@@ -203,7 +237,7 @@ def mixed_request(fd, index, i):
     depends on what was asked, so a reply given to the wrong client shows.
 
     Cycles through a ReadIOMap at an offset unique to the client and the
-    request (NXT_IOC_TRANSACT or write()/read()), a typed GET_INPUT_VALUES and
+    request (NXT_IOC_TRANSACT or write()/read()), a GetInputValues and
     a raw GetOutputState (opcode 0x06) by write()/read(), each for a port
     that depends on the client and the request. Returns (kind, errno or 0,
     reply matched).

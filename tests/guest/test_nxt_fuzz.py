@@ -10,7 +10,10 @@ with the command that replays the failed epoch. `make soak` runs thousands
 The other tests show that the fuzzer's checks can fail: a brick whose
 replies the fuzzer did not see sent, a wrong errno expectation, a call
 that hangs, a brick that answers with its previous reply to the same
-opcode (which the driver cannot tell), a reply of the wrong length or opcode.
+opcode (which the driver cannot tell), a reply of the wrong length or
+opcode, an ioctl number that the driver answers where it must fail with
+ENOTTY; and that the unknown numbers the fuzzer tries include every typed
+ioctl of earlier releases, each with a buffer as large as its number says.
 """
 import errno
 import os
@@ -68,13 +71,52 @@ def one_epoch(seed, tamper=None, sequences=12, **kw):
     return fz
 
 
+def honest_plan(seed, sequences):
+    """Whether the epoch's plan is an honest brick with no mid-epoch unplug."""
+    p = nxt_fuzz.epoch_plan(seed, sequences)
+    return p['profile'] == 'honest' and p['unplug_after'] is None and not p['resets']
+
+
 def honest_seed(sequences=12):
     """An epoch seed whose plan is an honest brick with no mid-epoch unplug."""
     for s in range(1000):
-        p = nxt_fuzz.epoch_plan(s, sequences)
-        if p['profile'] == 'honest' and p['unplug_after'] is None and not p['resets']:
+        if honest_plan(s, sequences):
             return s
     raise AssertionError('no such seed')
+
+
+def test_the_unknown_numbers_tried():
+    """gen_retired(): numbers of the magic that the driver does not know,
+    every retired typed one among them, never with a buffer smaller than
+    the number's size field."""
+    known = {nxt_fuzz.nxt.ioctl_number(n) for n in ('TRANSACT', 'SET_TIMEOUT', 'GET_TIMEOUT')}
+    # Two of the typed numbers as the old header made them.
+    assert nxt_fuzz.nxt.iowr(0x10 + 0x00, nxt_fuzz.RETIRED_TYPED[0x00]) == 0xc018e410
+    assert nxt_fuzz.nxt.iowr(0x10 + 0x13, nxt_fuzz.RETIRED_TYPED[0x13]) == 0xc040e423
+    seen = set()
+    for seed in range(3000):
+        num, arg = nxt_fuzz.gen_retired(random.Random(seed))
+        assert num not in known and (num >> 8) & 0xff == nxt_fuzz.nxt.MAGIC, hex(num)
+        assert num & 0xff in nxt_fuzz.RETIRED_NR or num & 0xff < 3, hex(num)
+        assert len(arg) >= nxt_fuzz.ioc_size(num), (hex(num), len(arg))
+        seen.add(num)
+    typed = {nxt_fuzz.nxt.iowr(0x10 + op, size) for op, size in nxt_fuzz.RETIRED_TYPED.items()}
+    assert typed <= seen, sorted(hex(n) for n in typed - seen)
+    assert len(seen - typed) > 500
+
+
+def test_a_known_number_among_the_unknown_is_caught(monkeypatch):
+    # Stand in for a driver that still answered a retired number: the
+    # action for unknown numbers is handed GET_TIMEOUT's, which the driver
+    # answers (0, and the timeout written to the buffer).
+    num = nxt_fuzz.nxt.ioctl_number('GET_TIMEOUT')
+    monkeypatch.setattr(nxt_fuzz, 'gen_retired', lambda rng: (num, bytes(4)))
+    seed = next(s for s in range(1000) if honest_plan(s, 12) and any(
+        op[0] == 'retired' and op[1] == 0
+        for i in range(12) for op in nxt_fuzz.gen_sequence(nxt_fuzz.derive(s, 'seq', i))))
+    fz = one_epoch(seed)
+    assert any('must be ENOTTY' in m for m in fz.failures), fz.failures
+    assert any('changed its buffer' in m for m in fz.failures), fz.failures
 
 
 def test_a_reply_the_brick_did_not_send_is_caught():

@@ -1,9 +1,10 @@
 #!/usr/bin/env python3
 """Whole-driver fuzzer of lego_nxt_usb: runs inside the test VM.
 
-Random sequences of open/write/read/poll/ioctl/close (every typed ioctl
-with random fields, NXT_IOC_TRANSACT with random telegrams, unknown ioctl
-numbers, timeouts, O_NONBLOCK switches, signals, sysfs reads) run in
+Random sequences of open/write/read/poll/ioctl/close (NXT_IOC_TRANSACT
+with random telegrams, the typed ioctl numbers of earlier releases and
+other unknown ioctl numbers, timeouts, O_NONBLOCK switches, signals, sysfs
+reads) run in
 several processes at once against an emulated brick that is often hostile
 (tests/emulator/nxt_hostile.py: wrong lengths, types and opcodes,
 duplicated, late and missing replies, stalls, vanishing in mid-transfer),
@@ -23,9 +24,12 @@ that replays them):
   - every errno is one Documentation/lego/nxt-usb.rst documents for that
     call, and the deterministic ones are exact (EINVAL for bad arguments,
     EMSGSIZE, ENOTTY, ENODATA with nothing asked, EINTR only with a signal);
-  - a typed ioctl: a failed transaction leaves the structure untouched; a
-    status byte maps to its errno, the output members are zero on a bad
-    status, input members are kept, counts are in range, bytes past them 0;
+  - NXT_IOC_TRANSACT: a failed transaction leaves the structure untouched
+    (the brick's status byte is data: a reply that says the brick refused
+    is a success); a telegram with no reply gets reply_length 0;
+  - every other ioctl number, the retired typed ones (0x10 to 0x33 of the
+    magic, with arguments of any size, never smaller than the number's
+    size field) included, fails with ENOTTY and leaves its buffer as it was;
   - replies: type 0x02, the file's own command's opcode, the length the
     firmware gives that command, bytes past reply_length zero, and every
     reply a client got is a packet the brick sent (no stale kernel data);
@@ -80,25 +84,6 @@ E = errno
 # What a transaction may end in (nxt-usb.rst, "Errors"): EINTR only with a
 # signal, EAGAIN only with O_NONBLOCK; both are checked separately.
 TRANSACTION = {E.ETIMEDOUT, E.EPROTO, E.EPIPE, E.EIO, E.ENODEV, E.EINTR, E.EAGAIN}
-
-# The status table of nxt-usb.rst; any other status is EIO.
-STATUS_ERRNO = {
-    0x00: 0, 0x20: E.EINPROGRESS, 0x40: E.ENOMSG, 0x81: E.EMFILE, 0x82: E.ENOSPC,
-    0x83: E.ENOENT, 0x84: E.EIO, 0x85: E.ENODATA, 0x86: E.EINVAL, 0x87: E.ENOENT,
-    0x88: E.EBADF, 0x89: E.ENOSPC, 0x8a: E.EIO, 0x8b: E.EBUSY, 0x8c: E.ENOBUFS,
-    0x8d: E.EINVAL, 0x8e: E.EFBIG, 0x8f: E.EEXIST, 0x90: E.ENOENT, 0x91: E.ERANGE,
-    0x92: E.EINVAL, 0x93: E.EBADF, 0x94: E.EBUSY, 0x95: E.ECONNREFUSED,
-    0x96: E.ETIMEDOUT, 0x97: E.ETIMEDOUT, 0x98: E.EEXIST, 0x99: E.ENOENT, 0x9a: E.EIO,
-    0x9b: E.EIO, 0xbd: E.EIO, 0xbe: E.EOPNOTSUPP, 0xbf: E.EBADMSG, 0xc0: E.ERANGE,
-    0xdd: E.EIO, 0xde: E.ENOBUFS, 0xdf: E.ENXIO, 0xe0: E.EBUSY, 0xec: E.ESRCH,
-    0xed: E.EMSGSIZE, 0xee: E.EINVAL, 0xef: E.EINVAL, 0xf0: E.EINVAL, 0xfb: E.ENOMEM,
-    0xff: E.EINVAL,
-}
-
-
-def status_errno(status):
-    return STATUS_ERRNO.get(status, E.EIO)
-
 
 def ename(err):
     return errno.errorcode.get(err, str(err)) if err else 'ok'
@@ -281,119 +266,23 @@ def telegram_errno(tg):
     return None
 
 
-# Typed ioctls: reserved byte offsets, inputs checked, outputs decoded.
-RESERVED = {'status_only': [1, 2, 3], 'program': [21, 22, 23], 'sound_file': [22, 23],
-            'tone': [5, 6, 7], 'output_state': [7], 'input_values': [14, 15],
-            'input_port': [2, 3], 'motor_position': [3], 'battery': [3],
-            'keep_alive': [5, 6, 7], 'ls_status': [3], 'ls_read': [3]}
-# Which reserved members a command checks (all that it has).
-OUTPUTS = {
-    'GET_CURRENT_PROGRAM_NAME': ['name'],
-    'GET_OUTPUT_STATE': ['power', 'mode', 'regulation_mode', 'turn_ratio', 'run_state',
-                         'tacho_limit', 'tacho_count', 'block_tacho_count', 'rotation_count'],
-    'GET_INPUT_VALUES': ['valid', 'calibrated', 'type', 'mode', 'raw', 'normalized', 'scaled',
-                         'calibrated_value'],
-    'GET_BATTERY_LEVEL': ['millivolts'],
-    'KEEP_ALIVE': ['sleep_limit'],
-    'LS_GET_STATUS': ['bytes_ready'],
-    'LS_READ': ['length', 'data'],
-    'MESSAGE_READ': ['size', 'data'],
+# The three ioctls of the header; every other number fails with ENOTTY.
+KNOWN_IOCTLS = {nxt.ioctl_number(n) for n in ('TRANSACT', 'SET_TIMEOUT', 'GET_TIMEOUT')}
+_IOC_SIZEMASK = 0x3FFF
+
+# The typed ioctls of the releases before the driver went into the kernel,
+# retired by issue 30: _IOWR(MAGIC, 0x10 + opcode, its structure), opcode ->
+# the structure's size (the same on i386 and x86_64).
+RETIRED_TYPED = {
+    0x00: 24, 0x01: 4, 0x02: 24, 0x03: 8, 0x04: 24, 0x05: 4, 0x06: 24, 0x07: 16, 0x08: 4,
+    0x09: 64, 0x0a: 4, 0x0b: 4, 0x0c: 4, 0x0d: 8, 0x0e: 4, 0x0f: 20, 0x10: 20, 0x11: 24,
+    0x13: 64,
 }
-CANARY = 0xA5       # written to every status member: the driver must overwrite it
+RETIRED_NR = range(0x10, 0x34)      # the numbers the typed ioctls had room for
 
 
-def name_ok(raw):
-    n = raw.find(b'\0')
-    if n <= 0:
-        return False
-    return all(0x20 <= c <= 0x7e for c in raw[:n])
-
-
-def gen_typed(rng, which):
-    """Random fields for a typed ioctl: (fields, poke reserved, valid)."""
-    r = rng
-    bad = lambda: r.random() < 0.15  # noqa: E731
-    f = {}
-    ok = True
-    if which in ('START_PROGRAM', 'PLAY_SOUND_FILE'):
-        f['name'] = gen_name(r)
-        ok = name_ok(f['name'])
-        if which == 'PLAY_SOUND_FILE':
-            f['loop'] = r.randrange(256) if bad() else r.randrange(2)
-            ok = ok and f['loop'] <= 1
-    elif which == 'PLAY_TONE':
-        f['frequency'] = r.choice([199, 200, 440, 14000, 14001, r.randrange(65536)])
-        f['duration'] = r.randrange(65536) if bad() else r.choice([0, 1, 10])
-        ok = 200 <= f['frequency'] <= 14000
-    elif which in ('SET_OUTPUT_STATE', 'GET_OUTPUT_STATE'):
-        f['port'] = r.choice([0, 1, 2, 3, 0xff, r.randrange(256)])
-        f['power'] = r.choice([-101, -100, 0, 50, 100, 101, r.randint(-128, 127)])
-        f['mode'] = r.randrange(256) if bad() else r.randrange(8)
-        f['regulation_mode'] = r.randrange(256) if bad() else r.randrange(3)
-        f['turn_ratio'] = r.choice([-101, -100, 0, 100, 101, r.randint(-128, 127)])
-        f['run_state'] = r.choice([0, 0x10, 0x20, 0x40, r.randrange(256)])
-        f['tacho_limit'] = r.choice([0, 360, r.randrange(1 << 32)])
-        f['tacho_count'] = r.randint(-2 ** 31, 2 ** 31 - 1)
-        if which == 'SET_OUTPUT_STATE':
-            ok = ((f['port'] < 3 or f['port'] == 0xff) and abs(f['power']) <= 100 and
-                  abs(f['turn_ratio']) <= 100 and not f['mode'] & ~7 and
-                  f['regulation_mode'] <= 2 and f['run_state'] in (0, 0x10, 0x20, 0x40))
-        else:
-            ok = f['port'] < 3
-    elif which == 'SET_INPUT_MODE':
-        f['port'] = u8(r, 5)
-        f['type'] = u8(r, 13)
-        f['mode'] = r.randrange(256)
-        ok = f['port'] < 4 and f['type'] < 12
-    elif which in ('GET_INPUT_VALUES', 'RESET_INPUT_SCALED_VALUE', 'LS_GET_STATUS', 'LS_READ'):
-        f['port'] = u8(r, 5)
-        ok = f['port'] < 4
-    elif which == 'MESSAGE_WRITE':
-        size = r.choice([0, 1, 5, 59, 60, r.randrange(256)])
-        data = bytes(r.randrange(1, 256) for _ in range(59))
-        if size and size <= 59 and r.random() < 0.8:
-            data = data[:size - 1] + b'\0' + data[size:]
-        f['inbox'] = u8(r, 11)
-        f['size'] = size
-        f['data'] = data
-        ok = f['inbox'] < 10 and 1 <= size <= 59 and data[size - 1] == 0
-    elif which == 'RESET_MOTOR_POSITION':
-        f['port'] = u8(r, 4)
-        f['relative'] = u8(r, 2)
-        ok = f['port'] < 3 and f['relative'] <= 1
-    elif which == 'LS_WRITE':
-        f['port'] = u8(r, 5)
-        f['tx_length'] = r.choice([0, 1, 2, 3, 16, 17, r.randrange(256)])
-        f['rx_length'] = r.choice([0, 1, 8, 16, 17, r.randrange(256)])
-        f['tx_data'] = bytes([0x02, r.choice([0x00, 0x08, 0x41, 0x42])]) + bytes(
-            r.randrange(256) for _ in range(14))
-        ok = (f['port'] < 4 and 1 <= f['tx_length'] <= 16 and f['rx_length'] <= 16)
-    elif which == 'MESSAGE_READ':
-        f['inbox'] = u8(r, 21)
-        f['local_inbox'] = u8(r, 11)
-        f['remove'] = u8(r, 2)
-        ok = f['inbox'] < 20 and f['local_inbox'] < 10 and f['remove'] <= 1
-    sname = nxt.IOCTLS[which][1]
-    poke = sname in RESERVED and r.random() < 0.1
-    if poke:
-        ok = False
-    # Members that are output only may hold anything on the way in.
-    if which == 'GET_CURRENT_PROGRAM_NAME' and r.random() < 0.5:
-        f['name'] = bytes(r.randrange(256) for _ in range(20))
-    return f, poke, ok
-
-
-def typed_buffer(which, fields, poke, rng):
-    sname = nxt.IOCTLS[which][1]
-    buf = bytearray(nxt.pack(sname, **fields, status=CANARY))
-    if poke:
-        at = rng.choice(RESERVED[sname])
-        buf[at] = rng.randrange(1, 256)
-    return bytes(buf)
-
-
-KNOWN_IOCTLS = {nxt.ioctl_number(n) for n in list(nxt.IOCTLS) + ['TRANSACT', 'SET_TIMEOUT',
-                                                                   'GET_TIMEOUT']}
+def ioc_size(num):
+    return (num >> 16) & _IOC_SIZEMASK
 
 
 def gen_unknown_ioctl(rng):
@@ -405,6 +294,32 @@ def gen_unknown_ioctl(rng):
         num = d << 30 | size << 16 | magic << 8 | nr
         if num not in KNOWN_IOCTLS:
             return num
+
+
+def gen_retired(rng):
+    """An ioctl number of the magic that the driver does not know, most of
+    them the retired typed ones, and its argument: random bytes, never
+    fewer than the number's size field says (often a few more)."""
+    r = rng
+    k = r.random()
+    if k < 0.6:
+        op = r.choice(sorted(RETIRED_TYPED))
+        num = nxt.iowr(0x10 + op, RETIRED_TYPED[op])
+    else:
+        while True:
+            if k < 0.85:
+                nr = r.choice(RETIRED_NR)
+            else:
+                nr = r.randrange(3)         # a known ioctl's, another size or direction
+            size = r.choice([0, 1, 4, 8, 16, 20, 24, 64, 136, r.randrange(257),
+                             r.randrange(_IOC_SIZEMASK + 1)])
+            num = nxt._ioc(r.randrange(4), nr, size)
+            if num not in KNOWN_IOCTLS:
+                break
+    size = ioc_size(num)
+    extra = r.choice([0, 0, 1, 4, r.randrange(65)])
+    arg = bytes(r.randrange(256) for _ in range(size + extra))
+    return num, arg
 
 
 TIMEOUTS_OK = [1, 5, 20, 100, 300, 1000, 2000]
@@ -431,14 +346,13 @@ def gen_sequence(seed):
             ops.append(('read', s, r.choice([0, 1, 2, 3, 4, 16, 63, 64, 64, 64, 200])))
         elif k < 0.44:
             ops.append(('poll', s, r.choice([0, 0, 10, 50]), r.random() < 0.7))
-        elif k < 0.60:
+        elif k < 0.72:
             tg = gen_telegram(r)
             length = len(tg) if r.random() < 0.9 else r.choice([0, 1, 65, 1 << 31, r.randrange(80)])
             ops.append(('transact', s, tg[:64], length))
         elif k < 0.80:
-            which = r.choice(sorted(nxt.IOCTLS))
-            fields, poke, ok = gen_typed(r, which)
-            ops.append(('typed', s, which, typed_buffer(which, fields, poke, r), ok))
+            num, arg = gen_retired(r)
+            ops.append(('retired', s, num, arg))
         elif k < 0.83:
             ops.append(('ioctl', s, gen_unknown_ioctl(r)))
         elif k < 0.88:
@@ -463,8 +377,9 @@ def describe(op):
         return 'write fd%d %s' % (op[1], op[2].hex() or '(empty)')
     if kind == 'transact':
         return 'NXT_IOC_TRANSACT fd%d length=%d %s' % (op[1], op[3], op[2].hex() or '(empty)')
-    if kind == 'typed':
-        return 'NXT_IOC_%s fd%d %s%s' % (op[2], op[1], op[3].hex(), '' if op[4] else ' (bad)')
+    if kind == 'retired':
+        return 'ioctl fd%d 0x%08x (unknown) %d bytes %s' % (op[1], op[2], len(op[3]),
+                                                          op[3][:64].hex())
     if kind == 'ioctl':
         return 'ioctl fd%d 0x%08x' % (op[1], op[2])
     return ' '.join(str(x) for x in op)
@@ -507,7 +422,7 @@ def ioctl_buf(fd, num, data):
     return err, buf.raw[:len(data)]
 
 
-SLOT_OPS = {'close', 'write', 'read', 'poll', 'transact', 'typed', 'ioctl', 'set_timeout',
+SLOT_OPS = {'close', 'write', 'read', 'poll', 'transact', 'retired', 'ioctl', 'set_timeout',
             'get_timeout', 'nonblock'}
 
 
@@ -767,50 +682,17 @@ class Sequence:
             self.fail(i, op, 'bytes past reply_length %d not zero: %s' % (rlen, reply.hex()))
         self._got_reply(i, op, full, reply[:rlen], 'TRANSACT')
 
-    def op_typed(self, i, op, slot):
-        _, _, which, inp, valid = op
-        sname = nxt.IOCTLS[which][1]
-        err, out = ioctl_buf(slot.fd, nxt.ioctl_number(which), inp)
-        if not valid:
-            self.note('typed-bad', err)
-            if err != E.EINVAL or out != inp:
-                self.fail(i, op, 'bad arguments gave %s%s, must be EINVAL, untouched' % (
-                    ename(err), '' if out == inp else ' and changed the structure'))
-            return
-        a, b = nxt.unpack(sname, inp), nxt.unpack(sname, out)
-        slot.pending = None if err in (E.EAGAIN, E.EINTR) else False
-        if out == inp:
-            # The transaction failed: nothing copied back.
-            self.allowed(i, op, 'typed', err, (), slot.nonblock)
-            if err == 0:
-                self.fail(i, op, 'success, but the status member was not written')
-            return
-        status = b['status']
-        self.note('typed', err)
-        if err != status_errno(status):
-            self.fail(i, op, 'status 0x%02x copied back, errno %s (the table says %s)' % (
-                status, ename(err), ename(status_errno(status))))
-        if self.honest and err == E.EPIPE:
-            self.fail(i, op, 'EPIPE from an honest brick')
-        outs = OUTPUTS.get(which, []) if which != 'SET_OUTPUT_STATE' else []
-        for k in a:
-            if k != 'status' and k not in outs and a[k] != b[k]:
-                self.fail(i, op, 'input member %s changed: %r -> %r' % (k, a[k], b[k]))
-        if status:
-            for k in outs:
-                if b[k] not in (0, bytes(len(b[k])) if isinstance(b[k], bytes) else 0):
-                    self.fail(i, op, 'status 0x%02x, but output %s = %r' % (status, k, b[k]))
-            return
-        if which == 'LS_READ' and (b['length'] > 16 or any(b['data'][b['length']:])):
-            self.fail(i, op, 'LS_READ length %d data %s' % (b['length'], b['data'].hex()))
-        if which == 'MESSAGE_READ' and (b['size'] > 59 or any(b['data'][b['size']:])):
-            self.fail(i, op, 'MESSAGE_READ size %d data %s' % (b['size'], b['data'].hex()))
-        if which == 'LS_GET_STATUS' and b['bytes_ready'] > 16:
-            self.fail(i, op, 'bytes_ready %d' % b['bytes_ready'])
-        if which == 'GET_CURRENT_PROGRAM_NAME':
-            n = b['name'].find(b'\0')
-            if n < 0 or any(b['name'][n:]):
-                self.fail(i, op, 'program name %r' % b['name'])
+    def op_retired(self, i, op, slot):
+        _, _, num, arg = op
+        if len(arg) < ioc_size(num):
+            raise AssertionError('a buffer smaller than the size field of 0x%08x' % num)
+        err, out = ioctl_buf(slot.fd, num, arg)
+        self.note('retired-ioctl', err)
+        if err != E.ENOTTY:
+            self.fail(i, op, 'an ioctl number the driver does not know gave %s, must be ENOTTY'
+                      % ename(err))
+        if out != arg:
+            self.fail(i, op, 'ioctl 0x%08x failed but changed its buffer' % num)
 
     def op_ioctl(self, i, op, slot):
         err, _ = ioctl_buf(slot.fd, op[2], bytes(max(64, (op[2] >> 16) & 0x3FFF)))
@@ -981,7 +863,7 @@ class Fuzzer:
         self.slowest = 0.0
         nxt.load_driver()
         self.workers = [Worker(i, op_bound) for i in range(workers)]
-        nxt.nxt_brick._ensure_wake_handler()
+        nh.nb._ensure_wake_handler()
         self.kmsg = Kmsg()
         self.tamper = None      # test hook: called with the brick after the plug
         self.t0 = time.monotonic()
@@ -1223,11 +1105,17 @@ class Fuzzer:
             checks.append(('read', 0))
         except OSError as e:
             checks.append(('read', e.errno))
-        checks.append(('GET_BATTERY_LEVEL', nxt.command(probe, 'GET_BATTERY_LEVEL')[0]))
         checks.append(('TRANSACT', nxt.transact(probe, b'\x01\x88')[0]))
+        checks.append(('TRANSACT with no reply', nxt.transact(probe, b'\x80\x0d')[0]))
         for what, err in checks:
             if err != E.ENODEV:
                 self.fail(eseed, '%s after the unplug gave %s, not ENODEV' % (what, ename(err)))
+        # A number the driver does not know stays unknown.
+        num = nxt.iowr(0x10 + 0x0b, RETIRED_TYPED[0x0b])
+        err, _ = ioctl_buf(probe, num, bytes(RETIRED_TYPED[0x0b]))
+        if err != E.ENOTTY:
+            self.fail(eseed, 'ioctl 0x%08x after the unplug gave %s, not ENOTTY'
+                      % (num, ename(err)))
 
     def summary(self):
         return dict(seed=self.seed, epochs=self.epochs, sequences=self.sequences,

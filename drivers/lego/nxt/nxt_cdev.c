@@ -4,9 +4,10 @@
  *
  * write() sends one telegram; read() returns the reply to that same open
  * file's last telegram, so that two processes never see each other's
- * replies. NXT_IOC_TRANSACT and the typed ioctls do both in one call. The
- * userspace interface is in include/uapi/linux/lego_nxt.h and
- * Documentation/lego/nxt-usb.rst.
+ * replies. NXT_IOC_TRANSACT does both in one call. The brick's status byte
+ * is part of the reply, for userspace to read: an errno here is always a
+ * failure of the telegram or of the transport. The userspace interface is
+ * in include/uapi/linux/lego_nxt.h and Documentation/lego/nxt-usb.rst.
  *
  * Each open file has one transaction of its own (struct nxt_file), and
  * @lock makes its operations take turns: a write() waits for the reply to
@@ -257,58 +258,9 @@ static long nxt_ioctl_transact(struct nxt_file *f, void __user *argp,
 }
 
 /*
- * Errors: those of nxt_file_transact() (-EAGAIN only when, under O_NONBLOCK,
- * nothing was sent; the argument is then not written), -EPROTO for a reply
- * out of range, else the errno of the brick's status byte, which is in the
- * argument copied back (-EINPROGRESS: an I2C transaction is still pending).
- */
-static long nxt_ioctl_command(struct nxt_file *f, const struct nxt_command *cmd,
-			      void __user *argp, bool nonblock)
-{
-	struct device *dev = &f->nxt->udev->dev;
-	size_t size = _IOC_SIZE(cmd->ioctl);
-	union nxt_command_arg arg;
-	u8 tg[NXT_TELEGRAM_MAX];
-	int len, ret;
-	u8 status;
-
-	if (WARN_ON_ONCE(size > sizeof(arg)))
-		return -EINVAL;
-	if (copy_from_user(&arg, argp, size))
-		return -EFAULT;
-	len = nxt_command_encode(cmd, &arg, tg);
-	if (len < 0) {
-		dev_dbg_ratelimited(dev, "bad arguments for opcode 0x%02x\n", cmd->opcode);
-		return len;
-	}
-
-	ret = nxt_file_lock(f, nonblock);
-	if (ret)
-		return ret;
-	ret = nxt_file_transact(f, tg, len, nonblock);
-	if (!ret) {
-		ret = nxt_command_decode(cmd, f->xfer.reply, f->xfer.reply_len, &arg);
-		if (ret)
-			dev_warn_ratelimited(dev, "reply to opcode 0x%02x out of range\n",
-					     cmd->opcode);
-	}
-	mutex_unlock(&f->lock);
-	if (ret)
-		return ret;
-
-	if (copy_to_user(argp, &arg, size))
-		return -EFAULT;
-	status = arg.bytes[cmd->status_offset];
-	if (status)
-		dev_dbg_ratelimited(dev, "opcode 0x%02x: status 0x%02x\n", cmd->opcode, status);
-	return nxt_status_to_errno(status);
-}
-
-/*
- * Every ioctl that sends a telegram needs a file opened for writing, as
- * write() does: a read-only file must not make the brick act (erase its
- * flash, start its firmware update, drive its motors). The timeout ioctls
- * send nothing.
+ * NXT_IOC_TRANSACT needs a file opened for writing, as write() does: a
+ * read-only file must not make the brick act (erase its flash, start its
+ * firmware update, drive its motors). The timeout ioctls send nothing.
  */
 static bool nxt_may_send(struct file *file, unsigned int cmd)
 {
@@ -326,7 +278,6 @@ static long nxt_ioctl(struct file *file, unsigned int cmd, unsigned long arg)
 	struct nxt_file *f = file->private_data;
 	bool nonblock = file->f_flags & O_NONBLOCK;
 	void __user *argp = (void __user *)arg;
-	const struct nxt_command *c;
 	u32 ms;
 
 	switch (cmd) {
@@ -346,14 +297,9 @@ static long nxt_ioctl(struct file *file, unsigned int cmd, unsigned long arg)
 		return 0;
 	case NXT_IOC_GET_TIMEOUT:
 		return put_user(READ_ONCE(f->timeout_ms), (u32 __user *)argp);
-	}
-
-	c = nxt_command_find(cmd);
-	if (!c)
+	default:
 		return -ENOTTY;
-	if (!nxt_may_send(file, cmd))
-		return -EBADF;
-	return nxt_ioctl_command(f, c, argp, nonblock);
+	}
 }
 
 static const struct file_operations nxt_fops = {

@@ -1,6 +1,7 @@
 /* SPDX-License-Identifier: GPL-2.0 */
 /*
- * LEGO MINDSTORMS NXT telegrams: validation, encoding and decoding.
+ * LEGO MINDSTORMS NXT telegrams: what may be sent, and which packet answers
+ * which telegram.
  *
  * Pure functions with no USB calls, tested with KUnit and fuzzed in
  * userspace. Nothing here trusts a byte that came from the brick.
@@ -15,63 +16,35 @@
 #define NXT_REPLY_MIN		3
 
 /**
- * struct nxt_command - a direct command with a typed ioctl
- * @ioctl: its ioctl number; _IOC_SIZE() of it is the size of its argument
- * @opcode: its opcode
- * @status_offset: offset of the status byte in the ioctl's argument
- * @encode: checks the argument and writes the telegram to its second
- *	parameter (NXT_TELEGRAM_MAX bytes); returns the telegram's length or
- *	-EINVAL
- * @decode: reads a reply (a whole telegram, zero-padded to
- *	NXT_TELEGRAM_MAX bytes) into the argument's output members; returns
- *	0 or -EPROTO; NULL when the reply carries nothing but the status
+ * enum nxt_opcode - the direct commands the driver checks by name
+ *
+ * The commands of LEGO's firmware 1.05; the driver also knows the shapes of
+ * 1.28's and of the system commands, by number (nxt_proto.c).
  */
-struct nxt_command {
-	unsigned int ioctl;
-	u8 opcode;
-	u8 status_offset;
-	int (*encode)(const void *arg, u8 *tg);
-	int (*decode)(const u8 *reply, void *arg);
+enum nxt_opcode {
+	NXT_START_PROGRAM		= 0x00,
+	NXT_STOP_PROGRAM		= 0x01,
+	NXT_PLAY_SOUND_FILE		= 0x02,
+	NXT_PLAY_TONE			= 0x03,
+	NXT_SET_OUTPUT_STATE		= 0x04,
+	NXT_SET_INPUT_MODE		= 0x05,
+	NXT_GET_OUTPUT_STATE		= 0x06,
+	NXT_GET_INPUT_VALUES		= 0x07,
+	NXT_RESET_INPUT_SCALED_VALUE	= 0x08,
+	NXT_MESSAGE_WRITE		= 0x09,
+	NXT_RESET_MOTOR_POSITION	= 0x0a,
+	NXT_GET_BATTERY_LEVEL		= 0x0b,
+	NXT_STOP_SOUND_PLAYBACK		= 0x0c,
+	NXT_KEEP_ALIVE			= 0x0d,
+	NXT_LS_GET_STATUS		= 0x0e,
+	NXT_LS_WRITE			= 0x0f,
+	NXT_LS_READ			= 0x10,
+	NXT_GET_CURRENT_PROGRAM_NAME	= 0x11,
+	NXT_MESSAGE_READ		= 0x13,
 };
 
-/**
- * union nxt_command_arg - room for the argument of any typed ioctl, aligned
- *	for each of them
- * @program: StartProgram, GetCurrentProgramName
- * @status_only: StopProgram, StopSoundPlayback
- * @sound_file: PlaySoundFile
- * @tone: PlayTone
- * @output_state: SetOutputState, GetOutputState
- * @input_mode: SetInputMode
- * @input_values: GetInputValues
- * @input_port: ResetInputScaledValue
- * @motor_position: ResetMotorPosition
- * @message: MessageWrite, MessageRead
- * @battery: GetBatteryLevel
- * @keep_alive: KeepAlive
- * @ls_status: LSGetStatus
- * @ls_write: LSWrite
- * @ls_read: LSRead
- * @bytes: the argument as bytes
- */
-union nxt_command_arg {
-	struct nxt_program program;
-	struct nxt_status_only status_only;
-	struct nxt_sound_file sound_file;
-	struct nxt_tone tone;
-	struct nxt_output_state output_state;
-	struct nxt_input_mode input_mode;
-	struct nxt_input_values input_values;
-	struct nxt_input_port input_port;
-	struct nxt_motor_position motor_position;
-	struct nxt_message message;
-	struct nxt_battery battery;
-	struct nxt_keep_alive keep_alive;
-	struct nxt_ls_status ls_status;
-	struct nxt_ls_write ls_write;
-	struct nxt_ls_read ls_read;
-	u8 bytes[NXT_TELEGRAM_MAX];
-};
+/* The status byte of a successful reply; any other value is the brick's error. */
+#define NXT_STATUS_SUCCESS	0x00
 
 /**
  * struct nxt_device_info - the reply to GetDeviceInfo (system command 0x9b)
@@ -127,16 +100,11 @@ struct nxt_brick_info {
 int nxt_telegram_check(const u8 *tg, size_t len);
 unsigned int nxt_reply_length(const u8 *tg, size_t len);
 int nxt_reply_check(const u8 *tg, size_t tg_len, const u8 *reply, size_t len);
-int nxt_status_to_errno(u8 status);
 unsigned int nxt_reply_late_ms(const u8 *tg, size_t len);
 unsigned int nxt_stall_backoff_ms(unsigned int stalls);
 u64 nxt_time_left(u64 now, u64 until, u64 max);
 bool nxt_request_complete(const u8 *tg, size_t len);
 
-const struct nxt_command *nxt_command_find(unsigned int ioctl);
-int nxt_command_encode(const struct nxt_command *cmd, const void *arg, u8 *tg);
-int nxt_command_decode(const struct nxt_command *cmd, const u8 *reply,
-		       size_t len, void *arg);
 int nxt_decode_versions(const u8 *reply, size_t len, u8 protocol[2],
 			u8 firmware[2]);
 int nxt_decode_device_info(const u8 *reply, size_t len,

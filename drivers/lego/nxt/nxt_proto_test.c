@@ -2,12 +2,11 @@
 /*
  * KUnit tests for the NXT telegram core.
  *
- * The request and reply bytes of the direct commands are those that
- * nxt-python 3.5.1's test suite (tests/test_brick.py) asserts, so that the
- * driver and the most used host library agree on every byte. nxt-python
- * sends PlaySoundFile, PlayTone, SetOutputState and SetInputMode without a
- * reply (type 0x80); the typed ioctls always ask for one (type 0x00), so
- * those telegrams are compared from their opcode on.
+ * The request bytes are those that nxt-python 3.5.1's test suite
+ * (tests/test_brick.py) asserts, and those the firmware reads (research
+ * nxt.md), so that the driver refuses no telegram the most used host
+ * library sends, and lets through none that the firmware would complete
+ * with stale bytes.
  */
 #include <kunit/test.h>
 #include <linux/module.h>
@@ -15,345 +14,6 @@
 
 #include "lego_compat.h"
 #include "nxt_proto.h"
-
-/* Encodes @arg with the command of @ioctl; checks the telegram's bytes. */
-static void expect_telegram(struct kunit *test, unsigned int ioctl,
-			    const void *arg, const u8 *want, size_t want_len)
-{
-	const struct nxt_command *cmd = nxt_command_find(ioctl);
-	u8 tg[NXT_TELEGRAM_MAX];
-	int len;
-
-	KUNIT_ASSERT_NOT_NULL(test, cmd);
-	len = nxt_command_encode(cmd, arg, tg);
-	KUNIT_ASSERT_EQ(test, len, (int)want_len);
-	KUNIT_EXPECT_EQ(test, tg[0], NXT_DIRECT_CMD);
-	KUNIT_EXPECT_MEMEQ(test, tg + 1, want + 1, want_len - 1);
-	KUNIT_EXPECT_EQ(test, nxt_telegram_check(tg, len), 1);
-}
-
-/* Checks @reply against the telegram of @arg, then decodes it into @arg. */
-static int decode_reply(struct kunit *test, unsigned int ioctl, void *arg,
-			const u8 *reply, size_t len)
-{
-	const struct nxt_command *cmd = nxt_command_find(ioctl);
-	u8 tg[NXT_TELEGRAM_MAX];
-	int tg_len, status;
-
-	KUNIT_ASSERT_NOT_NULL(test, cmd);
-	tg_len = nxt_command_encode(cmd, arg, tg);
-	KUNIT_ASSERT_GT(test, tg_len, 0);
-	status = nxt_reply_check(tg, tg_len, reply, len);
-	KUNIT_ASSERT_GE(test, status, 0);
-	KUNIT_EXPECT_EQ(test, nxt_command_decode(cmd, reply, len, arg), 0);
-	return status;
-}
-
-static const char test_rxe[NXT_NAME_LEN] = "test.rxe";
-
-static void nxt_test_start_stop_program(struct kunit *test)
-{
-	u8 want[22] = { 0x00, 0x00 };
-	static const u8 ok[] = { 0x02, 0x00, 0x00 };
-	static const u8 stop[] = { 0x00, 0x01 };
-	static const u8 stop_ok[] = { 0x02, 0x01, 0x00 };
-	static const u8 no_program[] = { 0x02, 0x01, 0xec };
-	struct nxt_program prog = { };
-	struct nxt_status_only s = { };
-
-	memcpy(want + 2, test_rxe, sizeof(test_rxe));
-	memcpy(prog.name, "test.rxe", 9);
-	expect_telegram(test, NXT_IOC_START_PROGRAM, &prog, want, sizeof(want));
-	KUNIT_EXPECT_EQ(test, decode_reply(test, NXT_IOC_START_PROGRAM, &prog, ok, 3), 0);
-	KUNIT_EXPECT_EQ(test, prog.status, 0);
-
-	expect_telegram(test, NXT_IOC_STOP_PROGRAM, &s, stop, sizeof(stop));
-	KUNIT_EXPECT_EQ(test, decode_reply(test, NXT_IOC_STOP_PROGRAM, &s, stop_ok, 3), 0);
-	KUNIT_EXPECT_EQ(test, decode_reply(test, NXT_IOC_STOP_PROGRAM, &s, no_program, 3),
-			NXT_STATUS_NO_PROGRAM);
-	KUNIT_EXPECT_EQ(test, s.status, NXT_STATUS_NO_PROGRAM);
-	KUNIT_EXPECT_EQ(test, nxt_status_to_errno(s.status), -ESRCH);
-}
-
-static void nxt_test_sound(struct kunit *test)
-{
-	u8 want[23] = { 0x80, 0x02, 0x01 };
-	static const u8 tone[] = { 0x80, 0x03, 0xb8, 0x01, 0xe8, 0x03 };
-	static const u8 stop[] = { 0x00, 0x0c };
-	static const u8 stop_ok[] = { 0x02, 0x0c, 0x00 };
-	struct nxt_sound_file sf = { .loop = 1 };
-	struct nxt_tone t = { .frequency = 440, .duration = 1000 };
-	struct nxt_status_only s = { };
-
-	memcpy(want + 3, "test.rso", 8);
-	memcpy(sf.name, "test.rso", 9);
-	expect_telegram(test, NXT_IOC_PLAY_SOUND_FILE, &sf, want, sizeof(want));
-	expect_telegram(test, NXT_IOC_PLAY_TONE, &t, tone, sizeof(tone));
-	expect_telegram(test, NXT_IOC_STOP_SOUND_PLAYBACK, &s, stop, sizeof(stop));
-	KUNIT_EXPECT_EQ(test, decode_reply(test, NXT_IOC_STOP_SOUND_PLAYBACK, &s, stop_ok, 3), 0);
-}
-
-static void nxt_test_output_state(struct kunit *test)
-{
-	static const u8 set[] = {
-		0x80, 0x04, 0x01, 0x9c, 0x01, 0x00, 0xfb, 0x20, 0x01, 0x02, 0x03, 0x04 };
-	static const u8 get[] = { 0x00, 0x06, 0x01 };
-	static const u8 reply[] = {
-		0x02, 0x06, 0x00, 0x01, 0x9c, 0x01, 0x00, 0xfb, 0x20,
-		0x01, 0x02, 0x03, 0x04, 0x11, 0x12, 0x13, 0x14,
-		0x21, 0x22, 0x23, 0x24, 0x31, 0x32, 0x33, 0x34 };
-	struct nxt_output_state o = {
-		.port = 1, .power = -100, .mode = NXT_MODE_MOTORON,
-		.regulation_mode = NXT_REGULATION_IDLE, .turn_ratio = -5,
-		.run_state = NXT_RUN_STATE_RUNNING, .tacho_limit = 0x04030201,
-	};
-	struct nxt_output_state g = { .port = 1 };
-
-	/* 12 bytes on the wire, though the documentation counts 13. */
-	expect_telegram(test, NXT_IOC_SET_OUTPUT_STATE, &o, set, sizeof(set));
-	expect_telegram(test, NXT_IOC_GET_OUTPUT_STATE, &g, get, sizeof(get));
-	KUNIT_EXPECT_EQ(test, decode_reply(test, NXT_IOC_GET_OUTPUT_STATE, &g, reply,
-					   sizeof(reply)), 0);
-	KUNIT_EXPECT_EQ(test, g.port, 1);
-	KUNIT_EXPECT_EQ(test, g.power, -100);
-	KUNIT_EXPECT_EQ(test, g.mode, NXT_MODE_MOTORON);
-	KUNIT_EXPECT_EQ(test, g.regulation_mode, NXT_REGULATION_IDLE);
-	KUNIT_EXPECT_EQ(test, g.turn_ratio, -5);
-	KUNIT_EXPECT_EQ(test, g.run_state, NXT_RUN_STATE_RUNNING);
-	KUNIT_EXPECT_EQ(test, g.tacho_limit, 0x04030201U);
-	KUNIT_EXPECT_EQ(test, g.tacho_count, 0x14131211);
-	KUNIT_EXPECT_EQ(test, g.block_tacho_count, 0x24232221);
-	KUNIT_EXPECT_EQ(test, g.rotation_count, 0x34333231);
-}
-
-static void nxt_test_inputs(struct kunit *test)
-{
-	static const u8 mode[] = { 0x80, 0x05, 0x02, 0x01, 0x20 };
-	static const u8 get[] = { 0x00, 0x07, 0x02 };
-	static const u8 reply[] = {
-		0x02, 0x07, 0x00, 0x02, 0x01, 0x00, 0x01, 0x20,
-		0x01, 0x02, 0x11, 0x12, 0x21, 0x22, 0x31, 0x32 };
-	static const u8 reset[] = { 0x00, 0x08, 0x02 };
-	static const u8 reset_ok[] = { 0x02, 0x08, 0x00 };
-	struct nxt_input_mode m = {
-		.port = 2, .type = NXT_SENSOR_SWITCH, .mode = NXT_SENSOR_MODE_BOOLEAN };
-	struct nxt_input_values v = { .port = 2 };
-	struct nxt_input_port p = { .port = 2 };
-
-	expect_telegram(test, NXT_IOC_SET_INPUT_MODE, &m, mode, sizeof(mode));
-	expect_telegram(test, NXT_IOC_GET_INPUT_VALUES, &v, get, sizeof(get));
-	KUNIT_EXPECT_EQ(test, decode_reply(test, NXT_IOC_GET_INPUT_VALUES, &v, reply,
-					   sizeof(reply)), 0);
-	KUNIT_EXPECT_EQ(test, v.port, 2);
-	KUNIT_EXPECT_EQ(test, v.valid, 1);
-	KUNIT_EXPECT_EQ(test, v.calibrated, 0);
-	KUNIT_EXPECT_EQ(test, v.type, NXT_SENSOR_SWITCH);
-	KUNIT_EXPECT_EQ(test, v.mode, NXT_SENSOR_MODE_BOOLEAN);
-	KUNIT_EXPECT_EQ(test, v.raw, 0x0201);
-	KUNIT_EXPECT_EQ(test, v.normalized, 0x1211);
-	KUNIT_EXPECT_EQ(test, v.scaled, 0x2221);
-	KUNIT_EXPECT_EQ(test, v.calibrated_value, 0x3231);
-
-	expect_telegram(test, NXT_IOC_RESET_INPUT_SCALED_VALUE, &p, reset, sizeof(reset));
-	KUNIT_EXPECT_EQ(test, decode_reply(test, NXT_IOC_RESET_INPUT_SCALED_VALUE, &p,
-					   reset_ok, 3), 0);
-}
-
-static void nxt_test_messages(struct kunit *test)
-{
-	static const u8 write[] = {
-		0x00, 0x09, 0x03, 0x08, 0x21, 0x22, 0x23, 0x24, 0x25, 0x26, 0x27, 0x00 };
-	static const u8 write_ok[] = { 0x02, 0x09, 0x00 };
-	static const u8 read[] = { 0x00, 0x13, 0x0a, 0x00, 0x01 };
-	u8 reply[64] = { 0x02, 0x13, 0x00, 0x00, 0x07, 0x21, 0x22, 0x23, 0x24, 0x25, 0x26, 0x27 };
-	u8 empty[64] = { 0x02, 0x13, 0x40 };
-	static const u8 payload[] = { 0x21, 0x22, 0x23, 0x24, 0x25, 0x26, 0x27 };
-	struct nxt_message w = { .inbox = 3, .size = 8 };
-	struct nxt_message r = { .inbox = 10, .local_inbox = 0, .remove = 1 };
-
-	memcpy(w.data, payload, sizeof(payload));
-	expect_telegram(test, NXT_IOC_MESSAGE_WRITE, &w, write, sizeof(write));
-	KUNIT_EXPECT_EQ(test, decode_reply(test, NXT_IOC_MESSAGE_WRITE, &w, write_ok, 3), 0);
-
-	expect_telegram(test, NXT_IOC_MESSAGE_READ, &r, read, sizeof(read));
-	memset(r.data, 0xaa, sizeof(r.data));
-	KUNIT_EXPECT_EQ(test, decode_reply(test, NXT_IOC_MESSAGE_READ, &r, reply,
-					   sizeof(reply)), 0);
-	KUNIT_EXPECT_EQ(test, r.size, 7);
-	KUNIT_EXPECT_MEMEQ(test, r.data, payload, sizeof(payload));
-	KUNIT_EXPECT_EQ(test, r.data[7], 0);
-	KUNIT_EXPECT_EQ(test, r.data[NXT_MESSAGE_MAX - 1], 0);
-
-	/* nxt-python's EmptyMailboxError reply. */
-	KUNIT_EXPECT_EQ(test, decode_reply(test, NXT_IOC_MESSAGE_READ, &r, empty,
-					   sizeof(empty)), NXT_STATUS_MAILBOX_EMPTY);
-	KUNIT_EXPECT_EQ(test, r.status, NXT_STATUS_MAILBOX_EMPTY);
-	KUNIT_EXPECT_EQ(test, r.size, 0);
-	KUNIT_EXPECT_EQ(test, nxt_status_to_errno(r.status), -ENOMSG);
-}
-
-static void nxt_test_motor_battery_keepalive(struct kunit *test)
-{
-	static const u8 reset[] = { 0x00, 0x0a, 0x01, 0x01 };
-	static const u8 reset_ok[] = { 0x02, 0x0a, 0x00 };
-	static const u8 battery[] = { 0x00, 0x0b };
-	static const u8 battery_reply[] = { 0x02, 0x0b, 0x00, 0x28, 0x23 };
-	static const u8 keep[] = { 0x00, 0x0d };
-	static const u8 keep_reply[] = { 0x02, 0x0d, 0x00, 0x01, 0x02, 0x03, 0x04 };
-	struct nxt_motor_position mp = { .port = 1, .relative = 1 };
-	struct nxt_battery b = { };
-	struct nxt_keep_alive k = { };
-
-	expect_telegram(test, NXT_IOC_RESET_MOTOR_POSITION, &mp, reset, sizeof(reset));
-	KUNIT_EXPECT_EQ(test, decode_reply(test, NXT_IOC_RESET_MOTOR_POSITION, &mp,
-					   reset_ok, 3), 0);
-	expect_telegram(test, NXT_IOC_GET_BATTERY_LEVEL, &b, battery, sizeof(battery));
-	KUNIT_EXPECT_EQ(test, decode_reply(test, NXT_IOC_GET_BATTERY_LEVEL, &b,
-					   battery_reply, sizeof(battery_reply)), 0);
-	KUNIT_EXPECT_EQ(test, b.millivolts, 9000);
-	expect_telegram(test, NXT_IOC_KEEP_ALIVE, &k, keep, sizeof(keep));
-	KUNIT_EXPECT_EQ(test, decode_reply(test, NXT_IOC_KEEP_ALIVE, &k, keep_reply,
-					   sizeof(keep_reply)), 0);
-	KUNIT_EXPECT_EQ(test, k.sleep_limit, 0x04030201U);
-}
-
-static void nxt_test_low_speed(struct kunit *test)
-{
-	static const u8 status[] = { 0x00, 0x0e, 0x02 };
-	static const u8 status_reply[] = { 0x02, 0x0e, 0x00, 0x07 };
-	static const u8 write[] = {
-		0x00, 0x0f, 0x02, 0x07, 0x09, 0x21, 0x22, 0x23, 0x24, 0x25, 0x26, 0x27 };
-	static const u8 write_ok[] = { 0x02, 0x0f, 0x00 };
-	static const u8 read[] = { 0x00, 0x10, 0x02 };
-	u8 read_reply[20] = { 0x02, 0x10, 0x00, 0x07, 0x21, 0x22, 0x23, 0x24, 0x25, 0x26, 0x27 };
-	static const u8 payload[] = { 0x21, 0x22, 0x23, 0x24, 0x25, 0x26, 0x27 };
-	struct nxt_ls_status s = { .port = 2 };
-	struct nxt_ls_write w = { .port = 2, .tx_length = 7, .rx_length = 9 };
-	struct nxt_ls_read r = { .port = 2 };
-
-	expect_telegram(test, NXT_IOC_LS_GET_STATUS, &s, status, sizeof(status));
-	KUNIT_EXPECT_EQ(test, decode_reply(test, NXT_IOC_LS_GET_STATUS, &s, status_reply,
-					   sizeof(status_reply)), 0);
-	KUNIT_EXPECT_EQ(test, s.bytes_ready, 7);
-
-	memcpy(w.tx_data, payload, sizeof(payload));
-	expect_telegram(test, NXT_IOC_LS_WRITE, &w, write, sizeof(write));
-	KUNIT_EXPECT_EQ(test, decode_reply(test, NXT_IOC_LS_WRITE, &w, write_ok, 3), 0);
-
-	expect_telegram(test, NXT_IOC_LS_READ, &r, read, sizeof(read));
-	KUNIT_EXPECT_EQ(test, decode_reply(test, NXT_IOC_LS_READ, &r, read_reply,
-					   sizeof(read_reply)), 0);
-	KUNIT_EXPECT_EQ(test, r.length, 7);
-	KUNIT_EXPECT_MEMEQ(test, r.data, payload, sizeof(payload));
-	KUNIT_EXPECT_EQ(test, r.data[7], 0);
-}
-
-static void nxt_test_program_name(struct kunit *test)
-{
-	static const u8 get[] = { 0x00, 0x11 };
-	u8 reply[23] = { 0x02, 0x11, 0x00 };
-	u8 none[23] = { 0x02, 0x11, 0xec };
-	struct nxt_program p = { };
-
-	memcpy(reply + 3, test_rxe, sizeof(test_rxe));
-	expect_telegram(test, NXT_IOC_GET_CURRENT_PROGRAM_NAME, &p, get, sizeof(get));
-	KUNIT_EXPECT_EQ(test, decode_reply(test, NXT_IOC_GET_CURRENT_PROGRAM_NAME, &p, reply,
-					   sizeof(reply)), 0);
-	KUNIT_EXPECT_STREQ(test, p.name, "test.rxe");
-	KUNIT_EXPECT_EQ(test, decode_reply(test, NXT_IOC_GET_CURRENT_PROGRAM_NAME, &p, none,
-					   sizeof(none)), NXT_STATUS_NO_PROGRAM);
-	KUNIT_EXPECT_STREQ(test, p.name, "");
-}
-
-/* Every argument out of range is refused before anything is sent. */
-static void nxt_test_bad_arguments(struct kunit *test)
-{
-	const struct nxt_command *cmd;
-	struct nxt_program prog = { };
-	struct nxt_sound_file sf = { };
-	struct nxt_tone tone = { .frequency = 199 };
-	struct nxt_output_state o = { };
-	struct nxt_input_mode m = { .type = NXT_SENSOR_TYPES };
-	struct nxt_input_values v = { .port = NXT_INPUT_PORTS };
-	struct nxt_message msg = { .size = 4 };
-	struct nxt_motor_position mp = { .relative = 2 };
-	struct nxt_ls_write lw = { .tx_length = 17 };
-	struct nxt_ls_read lr = { .port = 4 };
-	struct nxt_status_only s = { .reserved = { 1 } };
-	u8 tg[NXT_TELEGRAM_MAX];
-
-#define EXPECT_EINVAL(ioctl, arg) do {					\
-	cmd = nxt_command_find(ioctl);					\
-	KUNIT_ASSERT_NOT_NULL(test, cmd);				\
-	KUNIT_EXPECT_EQ(test, nxt_command_encode(cmd, arg, tg), -EINVAL); \
-} while (0)
-
-	/* Names: empty, no NUL within 20 bytes, not printable. */
-	EXPECT_EINVAL(NXT_IOC_START_PROGRAM, &prog);
-	memset(prog.name, 'a', sizeof(prog.name));
-	EXPECT_EINVAL(NXT_IOC_START_PROGRAM, &prog);
-	memcpy(prog.name, "a\nb.rxe", 8);
-	EXPECT_EINVAL(NXT_IOC_START_PROGRAM, &prog);
-	memcpy(sf.name, "x.rso", 6);
-	sf.loop = 2;
-	EXPECT_EINVAL(NXT_IOC_PLAY_SOUND_FILE, &sf);
-	EXPECT_EINVAL(NXT_IOC_PLAY_TONE, &tone);
-	tone.frequency = 14001;
-	EXPECT_EINVAL(NXT_IOC_PLAY_TONE, &tone);
-
-	o.port = 3;
-	EXPECT_EINVAL(NXT_IOC_SET_OUTPUT_STATE, &o);
-	EXPECT_EINVAL(NXT_IOC_GET_OUTPUT_STATE, &o);
-	o.port = NXT_OUTPUT_ALL;
-	o.power = 101;
-	EXPECT_EINVAL(NXT_IOC_SET_OUTPUT_STATE, &o);
-	o.power = 0;
-	o.turn_ratio = -101;
-	EXPECT_EINVAL(NXT_IOC_SET_OUTPUT_STATE, &o);
-	o.turn_ratio = 0;
-	o.mode = 0x08;
-	EXPECT_EINVAL(NXT_IOC_SET_OUTPUT_STATE, &o);
-	o.mode = 0;
-	o.regulation_mode = 3;
-	EXPECT_EINVAL(NXT_IOC_SET_OUTPUT_STATE, &o);
-	o.regulation_mode = 0;
-	o.run_state = 0x30;
-	EXPECT_EINVAL(NXT_IOC_SET_OUTPUT_STATE, &o);
-
-	EXPECT_EINVAL(NXT_IOC_SET_INPUT_MODE, &m);
-	EXPECT_EINVAL(NXT_IOC_GET_INPUT_VALUES, &v);
-
-	/* Messages: no NUL at the end, empty, too long, bad inboxes. */
-	memcpy(msg.data, "abcd", 4);
-	EXPECT_EINVAL(NXT_IOC_MESSAGE_WRITE, &msg);
-	msg.size = 0;
-	EXPECT_EINVAL(NXT_IOC_MESSAGE_WRITE, &msg);
-	msg.size = NXT_MESSAGE_MAX + 1;
-	EXPECT_EINVAL(NXT_IOC_MESSAGE_WRITE, &msg);
-	msg.size = 5;
-	msg.inbox = NXT_INBOXES;
-	EXPECT_EINVAL(NXT_IOC_MESSAGE_WRITE, &msg);
-	msg.inbox = NXT_REMOTE_INBOXES;
-	EXPECT_EINVAL(NXT_IOC_MESSAGE_READ, &msg);
-	msg.inbox = 0;
-	msg.local_inbox = NXT_INBOXES;
-	EXPECT_EINVAL(NXT_IOC_MESSAGE_READ, &msg);
-
-	EXPECT_EINVAL(NXT_IOC_RESET_MOTOR_POSITION, &mp);
-	EXPECT_EINVAL(NXT_IOC_LS_WRITE, &lw);
-	lw.tx_length = 0;
-	EXPECT_EINVAL(NXT_IOC_LS_WRITE, &lw);
-	lw.tx_length = 1;
-	lw.rx_length = 17;
-	EXPECT_EINVAL(NXT_IOC_LS_WRITE, &lw);
-	EXPECT_EINVAL(NXT_IOC_LS_READ, &lr);
-	EXPECT_EINVAL(NXT_IOC_STOP_PROGRAM, &s);
-#undef EXPECT_EINVAL
-
-	/* Ioctl numbers with the wrong size are not typed commands. */
-	KUNIT_EXPECT_NULL(test, nxt_command_find(_IOWR(NXT_IOC_MAGIC, 0x10, u32)));
-	KUNIT_EXPECT_NULL(test, nxt_command_find(NXT_IOC_TRANSACT));
-}
 
 static void nxt_test_telegram_types(struct kunit *test)
 {
@@ -647,11 +307,9 @@ static void nxt_test_reply_echo(struct kunit *test)
 	static const u8 get_input2[] = { 0x00, 0x07, 0x02 };
 	u8 input[16] = { 0x02, 0x07, 0x00, 0x02 };
 	u8 output_error[25] = { 0x02, 0x06, 0xc0 };
-	const struct nxt_command *cmd = nxt_command_find(NXT_IOC_MESSAGE_READ);
-	struct nxt_message m = { .inbox = 12, .local_inbox = 3, .remove = 1 };
+	/* MessageRead: remote inbox 12, local inbox 3, remove. */
+	static const u8 read3[] = { 0x00, 0x13, 0x0c, 0x03, 0x01 };
 	u8 msg[64] = { 0x02, 0x13, 0x00, 0x03, 0x02, 'x', 0 };
-	u8 tg[NXT_TELEGRAM_MAX];
-	int len;
 
 	KUNIT_EXPECT_EQ(test, nxt_reply_check(get_output1, 3, output, sizeof(output)), 0);
 	output[3] = 0x02;
@@ -664,27 +322,12 @@ static void nxt_test_reply_echo(struct kunit *test)
 	input[3] = 0x00;
 	KUNIT_EXPECT_EQ(test, nxt_reply_check(get_input2, 3, input, sizeof(input)), -ENOMSG);
 
-	KUNIT_ASSERT_NOT_NULL(test, cmd);
-	len = nxt_command_encode(cmd, &m, tg);
-	KUNIT_ASSERT_EQ(test, len, 5);
-	KUNIT_EXPECT_EQ(test, nxt_reply_check(tg, len, msg, sizeof(msg)), 0);
-	/* The uapi says the local inbox is echoed: it is written back. */
-	m.local_inbox = 0xff;
-	KUNIT_EXPECT_EQ(test, nxt_command_decode(cmd, msg, sizeof(msg), &m), 0);
-	KUNIT_EXPECT_EQ(test, m.local_inbox, 3);
-	KUNIT_EXPECT_EQ(test, m.size, 2);
+	KUNIT_EXPECT_EQ(test, nxt_reply_check(read3, sizeof(read3), msg, sizeof(msg)), 0);
 	msg[3] = 0x04;
-	KUNIT_EXPECT_EQ(test, nxt_reply_check(tg, len, msg, sizeof(msg)), -ENOMSG);
-	/*
-	 * An error reply echoes nothing: the local inbox, an input too, stays
-	 * as the caller gave it (the whole-driver fuzzer saw 9 become 0).
-	 */
+	KUNIT_EXPECT_EQ(test, nxt_reply_check(read3, sizeof(read3), msg, sizeof(msg)), -ENOMSG);
+	/* Mailbox empty: the status comes back for the caller, whatever the inbox. */
 	msg[2] = 0x40;
-	m.local_inbox = 9;
-	KUNIT_EXPECT_EQ(test, nxt_command_decode(cmd, msg, sizeof(msg), &m), 0);
-	KUNIT_EXPECT_EQ(test, m.local_inbox, 9);
-	KUNIT_EXPECT_EQ(test, m.status, 0x40);
-	KUNIT_EXPECT_EQ(test, m.size, 0);
+	KUNIT_EXPECT_EQ(test, nxt_reply_check(read3, sizeof(read3), msg, sizeof(msg)), 0x40);
 }
 
 /* How long a lost reply is waited for: DeleteUserFlash takes seconds. */
@@ -746,38 +389,6 @@ static void nxt_test_stall_backoff(struct kunit *test)
 	KUNIT_EXPECT_EQ(test, nxt_stall_backoff_ms(U32_MAX), NXT_STALL_BACKOFF_MAX_MS);
 }
 
-/* Counts in replies that do not fit their fields are refused. */
-static void nxt_test_malformed_payloads(struct kunit *test)
-{
-	u8 ls_read[20] = { 0x02, 0x10, 0x00, 17 };
-	u8 ls_status[4] = { 0x02, 0x0e, 0x00, 17 };
-	u8 msg[64] = { 0x02, 0x13, 0x00, 0x00, 60 };
-	u8 name[23] = { 0x02, 0x11, 0x00 };
-	const struct nxt_command *cmd;
-	struct nxt_ls_read lr = { .port = 0 };
-	struct nxt_ls_status ls = { .port = 0 };
-	struct nxt_message m = { };
-	struct nxt_program p = { };
-
-	cmd = nxt_command_find(NXT_IOC_LS_READ);
-	KUNIT_EXPECT_EQ(test, nxt_command_decode(cmd, ls_read, sizeof(ls_read), &lr), -EPROTO);
-	cmd = nxt_command_find(NXT_IOC_LS_GET_STATUS);
-	KUNIT_EXPECT_EQ(test, nxt_command_decode(cmd, ls_status, sizeof(ls_status), &ls),
-			-EPROTO);
-	cmd = nxt_command_find(NXT_IOC_MESSAGE_READ);
-	KUNIT_EXPECT_EQ(test, nxt_command_decode(cmd, msg, sizeof(msg), &m), -EPROTO);
-	memset(name + 3, 'x', 20);
-	cmd = nxt_command_find(NXT_IOC_GET_CURRENT_PROGRAM_NAME);
-	KUNIT_EXPECT_EQ(test, nxt_command_decode(cmd, name, sizeof(name), &p), -EPROTO);
-
-	/* The same bytes behind an error status are not looked at. */
-	ls_read[2] = NXT_STATUS_CHANNEL_BUSY;
-	cmd = nxt_command_find(NXT_IOC_LS_READ);
-	KUNIT_EXPECT_EQ(test, nxt_command_decode(cmd, ls_read, sizeof(ls_read), &lr), 0);
-	KUNIT_EXPECT_EQ(test, lr.length, 0);
-	KUNIT_EXPECT_EQ(test, lr.status, NXT_STATUS_CHANNEL_BUSY);
-}
-
 static void nxt_test_versions_and_device_info(struct kunit *test)
 {
 	static const u8 v129[] = { 0x02, 0x88, 0x00, 0x7c, 0x01, 0x1d, 0x01 };
@@ -818,85 +429,7 @@ static void nxt_test_versions_and_device_info(struct kunit *test)
 	KUNIT_EXPECT_STREQ(test, di.name, "A?AAAAAAAAAAAAA");
 }
 
-struct nxt_status_case {
-	u8 status;
-	int err;
-};
-
-static const struct nxt_status_case nxt_status_cases[] = {
-	{ NXT_STATUS_SUCCESS, 0 },
-	/* Not -EAGAIN: that is "busy, nothing sent" under O_NONBLOCK. */
-	{ NXT_STATUS_PENDING, -EINPROGRESS },
-	{ NXT_STATUS_MAILBOX_EMPTY, -ENOMSG },
-	{ NXT_STATUS_NO_MORE_HANDLES, -EMFILE },
-	{ NXT_STATUS_NO_SPACE, -ENOSPC },
-	{ NXT_STATUS_NO_MORE_FILES, -ENOENT },
-	{ NXT_STATUS_EOF_EXPECTED, -EIO },
-	{ NXT_STATUS_END_OF_FILE, -ENODATA },
-	{ NXT_STATUS_NOT_LINEAR_FILE, -EINVAL },
-	{ NXT_STATUS_FILE_NOT_FOUND, -ENOENT },
-	{ NXT_STATUS_HANDLE_CLOSED, -EBADF },
-	{ NXT_STATUS_NO_LINEAR_SPACE, -ENOSPC },
-	{ NXT_STATUS_UNDEFINED_ERROR, -EIO },
-	{ NXT_STATUS_FILE_BUSY, -EBUSY },
-	{ NXT_STATUS_NO_WRITE_BUFFERS, -ENOBUFS },
-	{ NXT_STATUS_APPEND_NOT_POSSIBLE, -EINVAL },
-	{ NXT_STATUS_FILE_FULL, -EFBIG },
-	{ NXT_STATUS_FILE_EXISTS, -EEXIST },
-	{ NXT_STATUS_MODULE_NOT_FOUND, -ENOENT },
-	{ NXT_STATUS_OUT_OF_BOUNDS, -ERANGE },
-	{ NXT_STATUS_ILLEGAL_FILE_NAME, -EINVAL },
-	{ NXT_STATUS_ILLEGAL_HANDLE, -EBADF },
-	{ NXT_STATUS_BT_BUSY, -EBUSY },
-	{ NXT_STATUS_BT_CONNECT_FAIL, -ECONNREFUSED },
-	{ NXT_STATUS_BT_TIMEOUT, -ETIMEDOUT },
-	{ NXT_STATUS_FILE_TX_TIMEOUT, -ETIMEDOUT },
-	{ NXT_STATUS_FILE_TX_DST_EXISTS, -EEXIST },
-	{ NXT_STATUS_FILE_TX_SRC_MISSING, -ENOENT },
-	{ NXT_STATUS_FILE_TX_STREAM_ERROR, -EIO },
-	{ NXT_STATUS_FILE_TX_CLOSE_ERROR, -EIO },
-	{ NXT_STATUS_REQUEST_FAILED, -EIO },
-	{ NXT_STATUS_UNKNOWN_OPCODE, -EOPNOTSUPP },
-	{ NXT_STATUS_INSANE_PACKET, -EBADMSG },
-	{ NXT_STATUS_OUT_OF_RANGE, -ERANGE },
-	{ NXT_STATUS_BUS_ERROR, -EIO },
-	{ NXT_STATUS_BUFFER_FULL, -ENOBUFS },
-	{ NXT_STATUS_BAD_CHANNEL, -ENXIO },
-	{ NXT_STATUS_CHANNEL_BUSY, -EBUSY },
-	{ NXT_STATUS_NO_PROGRAM, -ESRCH },
-	{ NXT_STATUS_BAD_SIZE, -EMSGSIZE },
-	{ NXT_STATUS_BAD_MAILBOX, -EINVAL },
-	{ NXT_STATUS_BAD_FIELD, -EINVAL },
-	{ NXT_STATUS_BAD_PORT, -EINVAL },
-	{ NXT_STATUS_NO_MEMORY, -ENOMEM },
-	{ NXT_STATUS_BAD_ARGUMENTS, -EINVAL },
-	/* Not defined by the firmware: bad pointer, VM fatal errors, junk. */
-	{ 0xfa, -EIO },
-	{ 0xfe, -EIO },
-	{ 0x01, -EIO },
-	{ 0x77, -EIO },
-};
-
-static void nxt_test_status_codes(struct kunit *test)
-{
-	size_t i;
-
-	for (i = 0; i < ARRAY_SIZE(nxt_status_cases); i++)
-		KUNIT_EXPECT_EQ_MSG(test, nxt_status_to_errno(nxt_status_cases[i].status),
-				    nxt_status_cases[i].err, "status 0x%02x",
-				    nxt_status_cases[i].status);
-}
-
 static struct kunit_case nxt_proto_cases[] = {
-	KUNIT_CASE(nxt_test_start_stop_program),
-	KUNIT_CASE(nxt_test_sound),
-	KUNIT_CASE(nxt_test_output_state),
-	KUNIT_CASE(nxt_test_inputs),
-	KUNIT_CASE(nxt_test_messages),
-	KUNIT_CASE(nxt_test_motor_battery_keepalive),
-	KUNIT_CASE(nxt_test_low_speed),
-	KUNIT_CASE(nxt_test_program_name),
-	KUNIT_CASE(nxt_test_bad_arguments),
 	KUNIT_CASE(nxt_test_telegram_types),
 	KUNIT_CASE(nxt_test_telegram_lengths),
 	KUNIT_CASE(nxt_test_request_lengths),
@@ -908,9 +441,7 @@ static struct kunit_case nxt_proto_cases[] = {
 	KUNIT_CASE(nxt_test_late_replies),
 	KUNIT_CASE(nxt_test_time),
 	KUNIT_CASE(nxt_test_stall_backoff),
-	KUNIT_CASE(nxt_test_malformed_payloads),
 	KUNIT_CASE(nxt_test_versions_and_device_info),
-	KUNIT_CASE(nxt_test_status_codes),
 	{}
 };
 

@@ -8,7 +8,9 @@ One emulated brick (tests/emulator/nxt_brick.py, in its own process, on
 dummy_udc.0) answers GetBatteryLevel (00 0B), through
 
   dev        lego_nxt_usb's /dev/nxtN: the C client, one open file per
-             thread, the typed ioctl NXT_IOC_GET_BATTERY_LEVEL;
+             thread, as a C program on the telegram ABI: liblegonxt builds
+             the telegram, NXT_IOC_TRANSACT sends it and returns the reply,
+             liblegonxt checks and parses it;
   libusb     (driver unbound) the C client over libusb-1.0, one claimed
              interface shared by the threads under a mutex (write + read);
   nxt-python (driver unbound) nxt-python 3.5.1's stock usb backend
@@ -277,7 +279,7 @@ MODEL_TEXT = {'fast': 'emulated brick as fast as it goes',
               'tick': 'emulated brick with the 1 ms firmware tick'}
 
 LABELS = {
-    'dev': '/dev/nxtN (typed ioctl, C)',
+    'dev': '/dev/nxtN (liblegonxt + NXT_IOC_TRANSACT, C)',
     'libusb': 'C libusb-1.0 client',
     'nxt-python': 'nxt-python 3.5.1 (pyusb/libusb)',
 }
@@ -491,8 +493,11 @@ def main():
             '1000 transactions/s. aNXT waits 6 ms per direct command on a real brick. The '
             'rates are the emulated bus, the emulator and each host stack, under QEMU TCG '
             'with %s.' % guest_cpus(),
-            '/dev/nxtN: the C client, one open file per client thread, the typed ioctl '
-            'NXT_IOC_GET_BATTERY_LEVEL (the driver serialises the brick).',
+            '/dev/nxtN: the C client, one open file per client thread, as a C program on '
+            'the telegram ABI: liblegonxt builds GetBatteryLevel (lnxt_get_battery_level()), '
+            'NXT_IOC_TRANSACT sends it and returns the reply, liblegonxt checks that it '
+            'answers the telegram and reads the millivolts (lnxt_reply_check(), '
+            'lnxt_parse_battery_level()); the driver serialises the brick.',
             'libusb: lego_nxt_usb unbound through sysfs; the C client claims interface 0 once '
             'and its threads share the handle, each taking a mutex around bulk OUT 0x01 + '
             'bulk IN 0x82 (NXT replies carry no transaction id).',

@@ -5,18 +5,23 @@
  *   nxt_bench_client dev NODE THREADS SECONDS EXPECT_MV
  *   nxt_bench_client libusb VID:PID THREADS SECONDS EXPECT_MV
  *
- * dev:    every thread opens NODE (/dev/nxtN) itself and issues the typed
- *         ioctl NXT_IOC_GET_BATTERY_LEVEL; the driver serialises the brick.
+ * dev:    every thread opens NODE (/dev/nxtN) itself and does what a C
+ *         program on the telegram ABI does: liblegonxt builds the telegram
+ *         (lnxt_get_battery_level()), NXT_IOC_TRANSACT sends it and returns
+ *         the reply, liblegonxt checks that the reply answers it
+ *         (lnxt_reply_check()) and reads the millivolts
+ *         (lnxt_parse_battery_level()); the driver serialises the brick.
  * libusb: one libusb-1.0 handle with interface 0 claimed (the kernel driver
  *         must be unbound first); the threads share it and take a mutex
  *         around each bulk OUT 0x01 (00 0B) + bulk IN 0x82, since the NXT
  *         protocol has no transaction ids and a reply belongs to whoever
  *         reads next: this is what a libusb program has to do.
  *
- * Every reply is checked (libusb: length 5, 02 0B, status 0; both: the
- * millivolts equal EXPECT_MV); a failed or mismatched transaction counts as
- * an error. Runs for SECONDS, then prints one JSON object on stdout:
- * clients, ok, errors, seconds, tps, p50_us, p99_us, max_us, first_error.
+ * Every reply is checked (dev: by liblegonxt; libusb: length 5, 02 0B,
+ * status 0 by hand; both: the millivolts equal EXPECT_MV); a failed or
+ * mismatched transaction counts as an error. Runs for SECONDS, then prints
+ * one JSON object on stdout: clients, ok, errors, seconds, tps, p50_us,
+ * p99_us, max_us, first_error.
  * Exit status: 0 when it ran (errors are reported, not fatal), 1 on a setup
  * failure, 2 on a usage error.
  */
@@ -32,6 +37,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include <legonxt.h>
 #include <libusb.h>
 #include <linux/lego_nxt.h>
 #include <linux/types.h>
@@ -79,18 +85,43 @@ static void fail(struct worker *w, const char *fmt, ...)
 	va_end(ap);
 }
 
-/* One GetBatteryLevel through /dev/nxtN: 0 when the reply checks out. */
+/*
+ * One GetBatteryLevel through /dev/nxtN, built, checked and parsed by
+ * liblegonxt around NXT_IOC_TRANSACT: 0 when the reply checks out.
+ */
 static int dev_transaction(struct worker *w, int fd)
 {
-	struct nxt_battery b;
+	struct nxt_transaction t;
+	struct lnxt_msg m;
+	const char *why;
+	uint16_t mv;
+	int status;
 
-	memset(&b, 0, sizeof(b));
-	if (ioctl(fd, NXT_IOC_GET_BATTERY_LEVEL, &b) < 0) {
-		fail(w, "ioctl: %s (status 0x%02x)", strerror(errno), b.status);
+	lnxt_get_battery_level(&m);
+	memset(&t, 0, sizeof(t));
+	memcpy(t.telegram, m.buf, m.len);
+	t.length = m.len;
+	if (ioctl(fd, NXT_IOC_TRANSACT, &t) < 0) {
+		fail(w, "NXT_IOC_TRANSACT: %s", strerror(errno));
 		return -1;
 	}
-	if (b.status != 0 || b.millivolts != expect_mv) {
-		fail(w, "reply status 0x%02x, %u mV", b.status, b.millivolts);
+	status = lnxt_reply_check(&m, t.reply, t.reply_length);
+	if (status < 0) {
+		fail(w, "reply does not answer GetBatteryLevel: %u bytes %02x %02x", t.reply_length,
+		     t.reply[0], t.reply[1]);
+		return -1;
+	}
+	if (status) {
+		why = lnxt_status_name(status);
+		fail(w, "brick status 0x%02x (%s)", status, why ? why : "unknown");
+		return -1;
+	}
+	if (lnxt_parse_battery_level(t.reply, t.reply_length, &mv)) {
+		fail(w, "GetBatteryLevel reply of %u bytes", t.reply_length);
+		return -1;
+	}
+	if (mv != expect_mv) {
+		fail(w, "reply status 0, %u mV", mv);
 		return -1;
 	}
 	return 0;

@@ -48,7 +48,8 @@ seeds = importlib.util.module_from_spec(spec)
 spec.loader.exec_module(seeds)
 sensors = seeds.ev3
 
-# Typed ioctls by their number in tests/fuzz/nxt_ioctls.h (1 + index).
+# The records' kind byte, which bench_nxt.c reads and ignores (it once named
+# the typed ioctl of the record; kept so that the record format stays).
 SET_OUTPUT_STATE, SET_INPUT_MODE, GET_OUTPUT_STATE, GET_INPUT_VALUES = 5, 6, 7, 8
 BATTERY, KEEP_ALIVE, LS_GET_STATUS, LS_WRITE, LS_READ, MESSAGE_READ = 12, 14, 15, 16, 17, 19
 RAW = 0

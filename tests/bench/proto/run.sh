@@ -2,15 +2,17 @@
 # SPDX-License-Identifier: GPL-2.0
 #
 # Benchmark figure 4, protocol-core cost: instructions per received byte of
-# the EV3 parser (drivers/lego/ev3/ev3_uart_proto.c) and of the NXT reply
-# decoder (drivers/lego/nxt/nxt_proto.c), built in userspace with -O2 and no
-# sanitizers (as tests/fuzz builds them, with tests/fuzz/shim), over recorded
-# streams (make-streams.py), counted with callgrind: deterministic for a
-# given compiler and source. Then the EV3 parser on issue 19's three stream
-# shapes (a gyro's GYRO-ANG DATA, the colour sensor's RGB-RAW DATA with the
-# firmware's bad checksums, the old gyro's handshake) in batches of 1 to 16
-# bytes from a fixed seed, each beside ev3dev's figure from the issue and
-# the issue's goal, and the gyro stream in 1-byte batches.
+# the EV3 parser (drivers/lego/ev3/ev3_uart_proto.c) and of the NXT driver's
+# reply path (drivers/lego/nxt/nxt_proto.c), built in userspace with -O2 and
+# no sanitizers (as tests/fuzz builds them, with tests/fuzz/shim), over
+# recorded streams (make-streams.py), counted with callgrind: deterministic
+# for a given compiler and source; beside the NXT driver's, what liblegonxt
+# (tools/liblegonxt) then does with the same replies in a C program. Then the
+# EV3 parser on issue 19's three stream shapes (a gyro's GYRO-ANG DATA, the
+# colour sensor's RGB-RAW DATA with the firmware's bad checksums, the old
+# gyro's handshake) in batches of 1 to 16 bytes from a fixed seed, each
+# beside ev3dev's figure from the issue and the issue's goal, and the gyro
+# stream in 1-byte batches.
 #
 #   tests/bench/proto/run.sh OUTDIR [--quick]
 #
@@ -23,7 +25,7 @@ set -euo pipefail
 top=$(cd "$(dirname "$0")/../../.." && pwd)
 
 usage() {
-	sed -n '4,22p' "$0" | sed 's/^# \{0,1\}//'
+	sed -n '4,23p' "$0" | sed 's/^# \{0,1\}//'
 	exit 2
 }
 outdir=
@@ -55,8 +57,12 @@ cflags=(-O2 -gdwarf-4 -std=gnu11 -D_GNU_SOURCE -funsigned-char -fno-strict-alias
 # time it calls them (about 1500 instructions; the kernel has no such thing).
 "$CC" "${cflags[@]}" -Wl,-z,now -I"$top/drivers/lego/ev3" "$top/tests/bench/proto/bench_ev3.c" \
 	"$top/drivers/lego/ev3/ev3_uart_proto.c" -o "$work/bench_ev3"
-"$CC" "${cflags[@]}" -I"$top/drivers/lego/nxt" "$top/tests/bench/proto/bench_nxt.c" \
-	"$top/drivers/lego/nxt/nxt_proto.c" -o "$work/bench_nxt"
+# liblegonxt as its own Makefile builds it (userspace, -O2), not with the
+# kernel's flags and shim.
+"$CC" -O2 -gdwarf-4 -Wall -Wextra -Werror -c "$top/tools/liblegonxt/legonxt.c" -o "$work/legonxt.o"
+"$CC" "${cflags[@]}" -Wl,-z,now -I"$top/drivers/lego/nxt" -I"$top/tools/liblegonxt" \
+	"$top/tests/bench/proto/bench_nxt.c" "$top/drivers/lego/nxt/nxt_proto.c" "$work/legonxt.o" \
+	-o "$work/bench_nxt"
 python3 "$top/tests/bench/proto/make-streams.py" "$work" $quick
 
 # callgrind counts only inside the entry points the drivers call per
@@ -79,8 +85,12 @@ callgrind() {
 }
 ev3_ir=$(callgrind ev3 --toggle-collect=ev3_uart_parser_feed \
 	"$work/bench_ev3" "$work/ev3.stream" "$work/ev3.unplug")
-nxt_ir=$(callgrind nxt --toggle-collect=nxt_reply_check --toggle-collect=nxt_command_decode \
-	--toggle-collect=nxt_decode_versions --toggle-collect=nxt_decode_device_info \
+# The NXT records twice: the driver's entry points per reply (what nxt_usb.c
+# calls), then liblegonxt's (what a C program calls after NXT_IOC_TRANSACT).
+# A toggled function must not call another: callgrind would toggle it off.
+nxt_ir=$(callgrind nxt --toggle-collect=nxt_reply_check --toggle-collect=nxt_info_note_reply \
+	"$work/bench_nxt" "$work/nxt.records")
+lnxt_ir=$(callgrind nxt-lib --toggle-collect=lnxt_reply_check --toggle-collect='lnxt_parse_*' \
 	"$work/bench_nxt" "$work/nxt.records")
 # Issue 19's stream shapes, in batches of 1 to 16 bytes drawn from a fixed
 # seed (-r 16). For the DATA streams only the data phase counts: callgrind
@@ -102,13 +112,13 @@ lump_ir=$(i19 boost-rgb-i boost-rgb-i --zero-before=bench_data_phase "$work/benc
 	-r 16 -z -m 6)
 
 python3 - "$outdir/proto.json" "$work" "$ev3_ir" "$nxt_ir" "$("$CC" --version | head -n 1)" \
-	"$(uname -m)" "$gyro_ir" "$color_ir" "$hs_ir" "$gyro1_ir" "$lump_ir" <<'PYEOF'
+	"$(uname -m)" "$gyro_ir" "$color_ir" "$hs_ir" "$gyro1_ir" "$lump_ir" "$lnxt_ir" <<'PYEOF'
 import json
 import sys
 
 out, work, ev3_ir, nxt_ir, cc, arch = sys.argv[1:7]
 ev3_ir, nxt_ir = int(ev3_ir), int(nxt_ir)
-gyro_ir, color_ir, hs_ir, gyro1_ir, lump_ir = (int(a) for a in sys.argv[7:12])
+gyro_ir, color_ir, hs_ir, gyro1_ir, lump_ir, lnxt_ir = (int(a) for a in sys.argv[7:13])
 
 
 def counts(name):
@@ -131,6 +141,7 @@ budget_ev3 = 300e6 / 46080
 ev3_per_byte = ev3_ir / e['bytes']
 nxt_per_byte = nxt_ir / n['bytes']
 nxt_per_reply = nxt_ir / n['replies']
+lnxt_per_reply = lnxt_ir / n['replies']
 # The NXT answers one command at a time, at most about 1000 a second over
 # USB; the same 300 MHz core then has 300000 instructions per reply.
 budget_nxt = 300e6 / 1000
@@ -215,21 +226,37 @@ res = {
                    'LEGO sensors\' 57600 baud)'
                    % (ev3_ir, e['bytes'], e['handshakes'], e['data'], e['errors'],
                       100 * ev3_per_byte / budget_ev3, 100 * ev3_per_byte / (300e6 / 5760))},
-        {'name': 'NXT reply decoder: instructions per received byte',
+        {'name': 'NXT driver, reply path: instructions per received byte',
          'value': round(nxt_per_byte, 1), 'unit': 'instructions/byte',
          'reference': 'deterministic count, lower is better', 'reference_value': None,
          'target': None, 'met': None,
-         'detail': '%d instructions in nxt_reply_check() and the decoders over %d replies '
-                   '(%d bytes): a polling loop of GetInputValues, GetOutputState, '
-                   'SetOutputState, LSWrite/LSGetStatus/LSRead, MessageRead, battery, '
-                   'keep-alive and sysfs GetVersions/GetDeviceInfo'
+         'detail': '%d instructions in nxt_reply_check() (is it the reply to the telegram) '
+                   'and nxt_info_note_reply() (the sysfs values: GetVersions, GetDeviceInfo, '
+                   'GetBatteryLevel decoded), inclusive, as nxt_usb.c calls them for every '
+                   'reply, over %d replies (%d bytes): a polling loop of GetInputValues, '
+                   'GetOutputState, SetOutputState, LSWrite/LSGetStatus/LSRead, MessageRead, '
+                   'battery, keep-alive and GetVersions/GetDeviceInfo. The driver decodes no '
+                   'other reply: the program does, next row'
                    % (nxt_ir, n['replies'], n['bytes'])},
-        {'name': 'NXT reply decoder: instructions per reply',
+        {'name': 'NXT driver, reply path: instructions per reply',
          'value': round(nxt_per_reply, 1), 'unit': 'instructions/reply',
          'reference': 'budget per reply of a 300 MHz core at the brick\'s ~1000 replies/s',
          'reference_value': round(budget_nxt),
          'target': None, 'met': None,
          'detail': '%.3f%% of that budget' % (100 * nxt_per_reply / budget_nxt)},
+        {'name': 'NXT replies in a C program, liblegonxt check and parse: instructions '
+                 'per reply',
+         'value': round(lnxt_per_reply, 1), 'unit': 'instructions/reply',
+         'reference': 'budget per reply of a 300 MHz core at the brick\'s ~1000 replies/s',
+         'reference_value': round(budget_nxt),
+         'target': None, 'met': None,
+         'detail': '%d instructions in lnxt_reply_check() and the lnxt_parse_*() of each '
+                   'reply with status 0, inclusive, over the same %d replies (%d bytes, '
+                   '%.1f instructions/byte): what a program does in userspace with the reply '
+                   'NXT_IOC_TRANSACT returns; liblegonxt built as its Makefile builds it '
+                   '(-O2, not the kernel\'s flags); %.3f%% of that budget'
+                   % (lnxt_ir, n['replies'], n['bytes'], lnxt_ir / n['bytes'],
+                      100 * lnxt_per_reply / budget_nxt)},
     ] + i19_figures() + lump_figure(),
     'notes': [
         'callgrind instruction counts of %s code (%s, -O2, the kernel\'s -funsigned-char '
