@@ -1,21 +1,20 @@
 """USB runtime power management of the emulated brick and lego_nxt_usb.
 
-lego_nxt_usb does not set supports_autosuspend in its struct usb_driver
-and takes no runtime PM reference (usb_autopm_get_interface()): the USB
-core keeps the interface of a bound brick runtime-active, with runtime PM
-disabled, so that its device is never autosuspended, whatever userspace
-allows in power/control (drivers/usb/core/driver.c, usb_probe_interface()
-and autosuspend_check(): such interfaces are "permanently active"). The
-driver's suspend(), resume() and reset_resume() run only in a system
-sleep, which this VM cannot do (Documentation/lego/testing.rst).
+lego_nxt_usb supports autosuspend: it takes a runtime PM reference
+(usb_autopm_get_interface()) when the first file is opened and drops it
+when the last is closed, when it also stops collecting replies. With
+power/control "auto", a bound brick with no file open is suspended after
+its autosuspend delay, and opening it resumes it (the firmware clears its
+"configured" state on suspend and sets it again on resume, and has no
+remote wakeup: research nxt.md). The driver's system-sleep callbacks are
+not run here: this VM cannot sleep (Documentation/lego/testing.rst).
 
 What the tests show, with power/control "auto" and an autosuspend delay
-of 0 on the brick's USB device: a bound brick stays active, with no file
-open and with one, and keeps answering; and the same device with the
-driver unbound is suspended (dummy_hcd suspends its port, the emulated
-brick gets raw-gadget's suspend event), so that "stays active" is not
-something this VM shows of every device. Binding the driver to the
-suspended brick resumes it for the probe, and the brick answers through
+of 0 on the brick's USB device: an idle bound brick is suspended (dummy_hcd
+suspends its port, the emulated brick gets raw-gadget's suspend event);
+open() resumes it and it stays active, answering, while a file is open;
+the last close lets it suspend again. Unbinding and binding the driver of
+a suspended brick resumes it for the probe, and the brick answers through
 its new node.
 """
 import os
@@ -74,27 +73,37 @@ def stays_active(dev, seconds):
     return 'active'
 
 
-def test_bound_brick_is_never_autosuspended(brick, autosuspend):
+def suspended(dev, timeout=5):
+    return wait_for(lambda: power(dev, 'runtime_status') == 'suspended', timeout)
+
+
+def test_open_file_keeps_the_brick_awake_and_idle_lets_it_sleep(brick, autosuspend):
     dev = autosuspend
     t0 = time.monotonic()
-    # No file open.
-    assert stays_active(dev, WATCH_S) == 'active', \
-        'the bound brick was autosuspended with no file open: if lego_nxt_usb ' \
-        'now supports autosuspend, test_nxt_pm.py should test its suspend() ' \
-        'and resume() through runtime PM'
+    assert suspended(dev), 'the idle bound brick was not autosuspended: runtime status %s' % \
+        power(dev, 'runtime_status')
+    assert wait_for(lambda: 'suspended' in emulator_events(brick, t0), 5), \
+        'the emulated brick saw no suspend: %s' % emulator_events(brick, t0)
+    t1 = time.monotonic()
     fd = brick.open()
     try:
+        # open() returns with the brick resumed and its replies collected.
+        assert power(dev, 'runtime_status') == 'active'
+        assert 'resumed' in emulator_events(brick, t1), emulator_events(brick, t1)
         assert nxt.transact(fd, b'\x01\x88') == (0, VERSIONS_REPLY)
         # A file open and idle.
         assert stays_active(dev, WATCH_S) == 'active', \
-            'the bound brick was autosuspended with a file open'
+            'the brick was autosuspended with a file open'
         assert nxt.transact(fd, b'\x01\x88') == (0, VERSIONS_REPLY)
+        # A second file, closed: the first still holds the brick awake.
+        os.close(brick.open())
+        assert stays_active(dev, WATCH_S) == 'active', \
+            'the brick was autosuspended when one of two files was closed'
     finally:
         os.close(fd)
-    assert stays_active(dev, WATCH_S) == 'active', \
-        'the bound brick was autosuspended after its file was closed'
-    events = emulator_events(brick, t0)
-    assert 'suspended' not in events, events
+    t2 = time.monotonic()
+    assert suspended(dev), 'the brick was not autosuspended after its last file was closed'
+    assert wait_for(lambda: 'suspended' in emulator_events(brick, t2), 5)
 
 
 def test_unbound_brick_suspends_and_binding_resumes_it(brick, autosuspend):
@@ -118,7 +127,6 @@ def test_unbound_brick_suspends_and_binding_resumes_it(brick, autosuspend):
             f.write(name)
     brick.node = nxt.node_of(brick.serial)
     assert brick.node, 'no /dev/nxtN after binding the suspended brick'
-    assert power(dev, 'runtime_status') == 'active'
     assert wait_for(lambda: 'resumed' in emulator_events(brick, t1), 5), \
         'the emulated brick saw no resume: %s' % emulator_events(brick, t1)
     fd = brick.open()
@@ -126,5 +134,4 @@ def test_unbound_brick_suspends_and_binding_resumes_it(brick, autosuspend):
         assert nxt.transact(fd, b'\x01\x88') == (0, VERSIONS_REPLY)
     finally:
         os.close(fd)
-    assert stays_active(dev, WATCH_S) == 'active', \
-        'the brick was autosuspended once the driver was bound again'
+    assert suspended(dev), 'the brick was not autosuspended once idle again'

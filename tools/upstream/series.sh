@@ -168,7 +168,8 @@ commit() {
 	# -f: Debian's .gitignore ignores everything at the top level.
 	up_git add -A -f .
 	ev3=$(grep -c '^[[:space:]]*KUNIT_CASE' "$top/drivers/lego/ev3/ev3_uart_proto_test.c")
-	nxt=$(grep -c '^[[:space:]]*KUNIT_CASE' "$top/drivers/lego/nxt/nxt_proto_test.c")
+	nxt=$(cat "$top/drivers/lego/nxt/nxt_proto_test.c" "$top/drivers/lego/nxt/nxt_core_test.c" |
+		grep -c '^[[:space:]]*KUNIT_CASE')
 	sed -e "s/@EV3_CASES@/$ev3/g" -e "s/@NXT_CASES@/$nxt/g" "$here/msg/$1" |
 		up_git commit -q -s --no-verify -F -
 }
@@ -229,9 +230,11 @@ piece_ev3_ldisc() {
 	commit 4-ev3-ldisc.txt
 }
 
-# 5. The NXT telegram core and its KUnit suite (built from 6 on).
+# 5. The NXT telegram core, the transaction engine and their KUnit suites
+# (built from 6 on).
 piece_nxt_proto() {
-	put_dir drivers/lego/nxt "$NXT" nxt_proto.h nxt_proto.c nxt_proto_test.c
+	put_dir drivers/lego/nxt "$NXT" nxt_proto.h nxt_proto.c nxt_proto_test.c \
+		nxt_core.h nxt_core.c nxt_core_test.c
 	commit 5-nxt-proto.txt
 }
 

@@ -22,6 +22,7 @@
 #include <linux/usb.h>
 
 #include "lego_compat.h"
+#include "nxt_core.h"
 #include "nxt_proto.h"
 #include "nxt_usb.h"
 
@@ -30,7 +31,7 @@
 
 /**
  * struct nxt_file - an open /dev/nxtN
- * @nxt: the brick, referenced while the file is open
+ * @brick: the brick, referenced while the file is open
  * @lock: one operation of this file at a time; protects the members below
  * @timeout_ms: reply timeout of this file's transactions; written with
  *	WRITE_ONCE() under @lock, read under @lock or with READ_ONCE()
@@ -41,7 +42,7 @@
  * @xfer: this file's transaction
  */
 struct nxt_file {
-	struct nxt_usb *nxt;
+	struct nxt_brick *brick;
 	struct mutex lock;	/* see above */
 	unsigned int timeout_ms;
 	bool pending;
@@ -51,30 +52,30 @@ struct nxt_file {
 static int nxt_open(struct inode *inode, struct file *file)
 {
 	struct usb_interface *intf;
+	struct nxt_brick *b;
 	struct nxt_file *f;
-	struct nxt_usb *nxt;
 	int ret;
 
 	/* usb_open() holds off usb_deregister_dev() while this runs. */
 	intf = usb_find_interface(&nxt_usb_driver, iminor(inode));
 	if (!intf)
 		return -ENODEV;
-	nxt = usb_get_intfdata(intf);
-	if (!nxt)
+	b = usb_get_intfdata(intf);
+	if (!b)
 		return -ENODEV;
 
 	f = kzalloc_obj(*f, GFP_KERNEL);
 	if (!f)
 		return -ENOMEM;
-	f->nxt = nxt;
+	f->brick = b;
 	mutex_init(&f->lock);
 	f->timeout_ms = NXT_TIMEOUT_DEFAULT_MS;
-	nxt_usb_get(nxt);
+	nxt_brick_get(b);
 
 	/* Start collecting replies; stale ones are drained. */
-	ret = nxt_reader_ensure(nxt);
+	ret = nxt_brick_open(b);
 	if (ret) {
-		nxt_usb_put(nxt);
+		nxt_brick_put(b);
 		kfree(f);
 		return ret;
 	}
@@ -88,9 +89,10 @@ static int nxt_release(struct inode *inode, struct file *file)
 
 	mutex_lock(&f->lock);
 	if (f->pending)
-		nxt_xfer_cancel(f->nxt, &f->xfer);
+		nxt_xfer_cancel(f->brick, &f->xfer);
 	mutex_unlock(&f->lock);
-	nxt_usb_put(f->nxt);
+	nxt_brick_close(f->brick);
+	nxt_brick_put(f->brick);
 	kfree(f);
 	return 0;
 }
@@ -109,7 +111,7 @@ static int nxt_file_settle(struct nxt_file *f, bool nonblock)
 
 	if (!f->pending)
 		return 0;
-	ret = nxt_xfer_wait(f->nxt, &f->xfer, nonblock);
+	ret = nxt_xfer_wait(f->brick, &f->xfer, nonblock);
 	if (ret == -EAGAIN || ret == -ERESTARTSYS)
 		return ret;
 	WRITE_ONCE(f->pending, false);
@@ -141,7 +143,7 @@ static ssize_t nxt_write(struct file *file, const char __user *buf,
 	ret = nxt_file_settle(f, nonblock);
 	if (ret)
 		goto out;
-	ret = nxt_xfer_start(f->nxt, &f->xfer, tg, count, f->timeout_ms, nonblock);
+	ret = nxt_xfer_start(f->brick, &f->xfer, tg, count, f->timeout_ms, nonblock);
 	if (ret)
 		goto out;
 	WRITE_ONCE(f->pending, f->xfer.want_reply);
@@ -163,10 +165,10 @@ static ssize_t nxt_read(struct file *file, char __user *buf, size_t count,
 		return ret;
 	if (!f->pending) {
 		/* Nothing was asked that has a reply. */
-		ret = nxt_gone(f->nxt) ? -ENODEV : -ENODATA;
+		ret = nxt_gone(f->brick) ? -ENODEV : -ENODATA;
 		goto out;
 	}
-	ret = nxt_xfer_wait(f->nxt, &f->xfer, nonblock);
+	ret = nxt_xfer_wait(f->brick, &f->xfer, nonblock);
 	if (ret == -EAGAIN || ret == -ERESTARTSYS)
 		goto out;
 	if (ret) {
@@ -190,12 +192,12 @@ out:
 static __poll_t nxt_poll(struct file *file, poll_table *wait)
 {
 	struct nxt_file *f = file->private_data;
-	struct nxt_usb *nxt = f->nxt;
+	struct nxt_brick *b = f->brick;
 	__poll_t mask = 0;
 	bool pending, done;
 
-	poll_wait(file, &nxt->wait, wait);
-	if (nxt_gone(nxt))
+	poll_wait(file, &b->wait, wait);
+	if (nxt_gone(b))
 		return EPOLLERR | EPOLLHUP;
 
 	/*
@@ -204,10 +206,10 @@ static __poll_t nxt_poll(struct file *file, poll_table *wait)
 	 * it is always written (even when the transaction is set up).
 	 */
 	pending = READ_ONCE(f->pending);
-	done = nxt_xfer_done(nxt, &f->xfer);
+	done = nxt_xfer_done(b, &f->xfer);
 	if (pending && done)
 		mask |= EPOLLIN | EPOLLRDNORM;
-	if ((!pending || done) && nxt_slot_free(nxt))
+	if ((!pending || done) && nxt_slot_free(b))
 		mask |= EPOLLOUT | EPOLLWRNORM;
 	return mask;
 }
@@ -225,7 +227,7 @@ static int nxt_file_transact(struct nxt_file *f, const u8 *tg, size_t len,
 	ret = nxt_file_settle(f, nonblock);
 	if (ret)
 		return ret;
-	return nxt_transact(f->nxt, &f->xfer, tg, len, f->timeout_ms, nonblock);
+	return nxt_transact(f->brick, &f->xfer, tg, len, f->timeout_ms, nonblock);
 }
 
 static long nxt_ioctl_transact(struct nxt_file *f, void __user *argp,
@@ -268,7 +270,7 @@ static bool nxt_may_send(struct file *file, unsigned int cmd)
 
 	if (file->f_mode & FMODE_WRITE)
 		return true;
-	dev_dbg_ratelimited(&f->nxt->udev->dev,
+	dev_dbg_ratelimited(f->brick->dev,
 			    "ioctl 0x%08x needs a file opened for writing\n", cmd);
 	return false;
 }

@@ -18,6 +18,7 @@
 #include <linux/usb.h>
 
 #include "lego_compat.h"
+#include "nxt_core.h"
 #include "nxt_proto.h"
 #include "nxt_usb.h"
 
@@ -32,14 +33,12 @@ enum nxt_attr {
 
 static ssize_t nxt_attr_show(struct device *dev, char *buf, enum nxt_attr which)
 {
-	struct nxt_usb *nxt = usb_get_intfdata(to_usb_interface(dev));
+	struct nxt_brick *b = usb_get_intfdata(to_usb_interface(dev));
 	struct nxt_brick_info info;
 
-	if (!nxt)
+	if (!b)
 		return -ENODEV;
-	spin_lock_irq(&nxt->lock);
-	info = nxt->info;
-	spin_unlock_irq(&nxt->lock);
+	nxt_brick_info(b, &info);
 
 	switch (which) {
 	case NXT_ATTR_BATTERY:
