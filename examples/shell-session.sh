@@ -44,7 +44,7 @@ for n in /dev/nxt[0-9]*; do
 	set -x
 	ls -l /dev/nxt*
 	nxtctl -d "$n" info >/dev/null
-	cd /sys/class/usbmisc/"${n#/dev/}"/device
+	cd /sys/class/lego-nxt/"${n#/dev/}"
 	cat brick_name bt_address firmware_version battery_mv
 	set +x
 	break

@@ -339,11 +339,19 @@ def node_of(serial, timeout=10.0):
     while time.monotonic() < deadline:
         intf = interface_of(serial)
         if intf:
-            names = glob.glob(os.path.join(intf, 'usbmisc', 'nxt*'))
+            names = glob.glob(os.path.join(intf, 'lego-nxt', 'nxt*'))
             if names and os.path.exists('/dev/' + os.path.basename(names[0])):
                 return '/dev/' + os.path.basename(names[0])
         time.sleep(0.05)
     return None
+
+
+def node_dir(intf):
+    """The sysfs directory of a bound interface's node, /sys/class/lego-nxt/nxtN,
+    where the driver's attributes are."""
+    names = glob.glob(os.path.join(intf, 'lego-nxt', 'nxt*'))
+    assert len(names) == 1, names
+    return os.path.realpath(names[0])
 
 
 def attr(intf, name):

@@ -136,7 +136,7 @@ def test_shell_session_nxt_part(brick):
     name = os.path.basename(brick.node)
     assert lines[-8:] == [
         '$ nxtctl -d %s info' % brick.node,
-        '$ cd /sys/class/usbmisc/%s/device' % name,
+        '$ cd /sys/class/lego-nxt/%s' % name,
         '$ cat brick_name bt_address firmware_version battery_mv',
         'NXT', HOST.lower(), '1.29', str(brick.fw.battery_mv),   # bt_address: lower case
         '$ set +x',

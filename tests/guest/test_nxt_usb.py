@@ -26,7 +26,7 @@ from conftest import module_path
 SERIAL = '001653A0B1C2'
 SERIAL2 = '0016530D0E0F'
 STALL_ROUNDS = 30
-# The driver's attributes (Documentation/ABI/testing/sysfs-driver-lego-nxt-usb).
+# The driver's attributes (Documentation/ABI/testing/sysfs-class-lego-nxt).
 SYSFS_ATTRS = ('battery_mv', 'firmware_version', 'protocol_version', 'brick_name',
                'bt_address', 'free_flash')
 VERSIONS_REPLY = b'\x02\x88\x00\x7c\x01\x1d\x01'     # firmware 1.29
@@ -64,7 +64,14 @@ def test_binds_interface_0_with_node_and_serial(brick):
     assert nxt.attr(intf + '/..', 'serial') == SERIAL
     assert os.path.basename(brick.node).startswith('nxt')
     st = os.stat(brick.node)
-    assert os.major(st.st_rdev) == 180       # the USB major
+    # The driver's own char device and class, whatever the link.
+    node = nxt.node_dir(intf)
+    assert node == os.path.realpath('/sys/class/lego-nxt/' + os.path.basename(brick.node))
+    assert nxt.attr(node, 'dev') == '%d:%d' % (os.major(st.st_rdev), os.minor(st.st_rdev))
+    assert os.path.realpath(os.path.join(node, 'device')) == intf
+    # Nothing of the driver's is left on the USB interface.
+    assert not os.path.exists(os.path.join(intf, 'battery_mv'))
+    assert not os.path.exists(os.path.join(intf, 'usbmisc'))
 
 
 def ask_brick_info(fd):
@@ -77,22 +84,22 @@ def ask_brick_info(fd):
 def test_sysfs_attributes(brick, fd):
     intf = brick.interface()
     ask_brick_info(fd)
-    assert nxt.attr(intf, 'firmware_version') == '1.29'
-    assert nxt.attr(intf, 'protocol_version') == '1.124'
-    assert nxt.attr(intf, 'brick_name') == 'NXT'
-    assert nxt.attr(intf, 'bt_address') == '00:16:53:a0:b1:c2'
-    assert int(nxt.attr(intf, 'battery_mv')) == brick.fw.battery_mv
-    assert int(nxt.attr(intf, 'free_flash')) == brick.fw.free_flash
+    assert nxt.attr(nxt.node_dir(intf), 'firmware_version') == '1.29'
+    assert nxt.attr(nxt.node_dir(intf), 'protocol_version') == '1.124'
+    assert nxt.attr(nxt.node_dir(intf), 'brick_name') == 'NXT'
+    assert nxt.attr(nxt.node_dir(intf), 'bt_address') == '00:16:53:a0:b1:c2'
+    assert int(nxt.attr(nxt.node_dir(intf), 'battery_mv')) == brick.fw.battery_mv
+    assert int(nxt.attr(nxt.node_dir(intf), 'free_flash')) == brick.fw.free_flash
     # The last reading a user got, however old: a new one shows once a
     # user asks again, by any way (here write() and read()).
     old = brick.fw.battery_mv
     brick.fw.battery_mv = old - 100
     try:
         time.sleep(1.1)
-        assert int(nxt.attr(intf, 'battery_mv')) == old
+        assert int(nxt.attr(nxt.node_dir(intf), 'battery_mv')) == old
         os.write(fd, b'\x00\x0b')
         assert os.read(fd, 64)[:3] == b'\x02\x0b\x00'
-        assert int(nxt.attr(intf, 'battery_mv')) == old - 100
+        assert int(nxt.attr(nxt.node_dir(intf), 'battery_mv')) == old - 100
     finally:
         brick.fw.battery_mv = old
 
@@ -100,22 +107,22 @@ def test_sysfs_attributes(brick, fd):
 def test_sysfs_name_follows_set_brick_name(brick, fd):
     intf = brick.interface()
     ask_brick_info(fd)
-    assert nxt.attr(intf, 'brick_name') == 'NXT'
+    assert nxt.attr(nxt.node_dir(intf), 'brick_name') == 'NXT'
     err, reply = nxt.transact(fd, b'\x01\x98' + b'Robby'.ljust(16, b'\0'))
     assert (err, reply) == (0, b'\x02\x98\x00')
     try:
         # Renamed: unknown until a user asks the brick again.
         for name in ('brick_name', 'bt_address', 'free_flash'):
             with pytest.raises(OSError) as e:
-                nxt.attr(intf, name)
+                nxt.attr(nxt.node_dir(intf), name)
             assert e.value.errno == errno.ENODATA, name
-        assert nxt.attr(intf, 'firmware_version') == '1.29'
+        assert nxt.attr(nxt.node_dir(intf), 'firmware_version') == '1.29'
         assert nxt.transact(fd, b'\x01\x9b')[0] == 0
-        assert nxt.attr(intf, 'brick_name') == 'Robby'
+        assert nxt.attr(nxt.node_dir(intf), 'brick_name') == 'Robby'
     finally:
         nxt.transact(fd, b'\x01\x98' + b'NXT'.ljust(16, b'\0'))
     assert nxt.transact(fd, b'\x01\x9b')[0] == 0
-    assert nxt.attr(intf, 'brick_name') == 'NXT'
+    assert nxt.attr(nxt.node_dir(intf), 'brick_name') == 'NXT'
 
 
 def test_raw_write_read(fd):
@@ -666,8 +673,8 @@ def test_two_bricks_at_once(brick):
         a, b = brick.open(), other.open()
         try:
             assert nxt.transact(b, b'\x01\x9b')[0] == 0
-            assert nxt.attr(other.interface(), 'bt_address') == '00:16:53:0d:0e:0f'
-            assert nxt.attr(other.interface(), 'brick_name') == 'Second'
+            assert nxt.attr(nxt.node_dir(other.interface()), 'bt_address') == '00:16:53:0d:0e:0f'
+            assert nxt.attr(nxt.node_dir(other.interface()), 'brick_name') == 'Second'
             for _ in range(50):
                 assert nxt.ok(a, 'GET_BATTERY_LEVEL')['millivolts'] == brick.fw.battery_mv
                 nxt.ok(b, 'SET_OUTPUT_STATE', port=2, power=20, mode=1, run_state=0x20)
@@ -761,7 +768,7 @@ def test_sysfs_never_waits_for_a_silent_brick():
             t = time.monotonic()
             for name in SYSFS_ATTRS:
                 with pytest.raises(OSError) as e:
-                    nxt.attr(intf, name)
+                    nxt.attr(nxt.node_dir(intf), name)
                 assert e.value.errno == errno.ENODATA, name
             assert time.monotonic() - t < 0.5, 'a read waited'
         assert b.emu.commands == before
@@ -947,17 +954,17 @@ def read_all(paths):
 
 def test_reading_world_readable_attributes_sends_nothing():
     """Every world-readable file of the brick's interface, its USB device
-    and its usbmisc node, read again and again (and udevadm info -a): no
+    and its lego-nxt node, read again and again (and udevadm info -a): no
     telegram reaches the brick. The driver's attributes show ENODATA until
     a user of /dev/nxtN got a reply with their value, then that value."""
     b = nxt.Brick('dummy_udc.1', SERIAL2, name='Reader')
     b.plug()
     try:
         intf = b.interface()
-        misc = glob.glob(os.path.join(intf, 'usbmisc', 'nxt*'))[0]
+        misc = nxt.node_dir(intf)
         paths = readable_files([intf, os.path.dirname(intf), misc])
         for name in SYSFS_ATTRS:
-            assert os.path.join(intf, name) in paths, name
+            assert os.path.join(misc, name) in paths, name
         before = b.emu.commands
         for _ in range(5):
             got = read_all(paths)
@@ -968,7 +975,7 @@ def test_reading_world_readable_attributes_sends_nothing():
         assert b.emu.commands == before, 'reading sysfs sent %d telegrams' % (
             b.emu.commands - before)
         for name in SYSFS_ATTRS:
-            assert got[os.path.join(intf, name)] == errno.ENODATA, name
+            assert got[os.path.join(misc, name)] == errno.ENODATA, name
 
         f = b.open()
         try:
@@ -983,7 +990,7 @@ def test_reading_world_readable_attributes_sends_nothing():
         want = {'battery_mv': str(b.fw.battery_mv), 'firmware_version': '1.29',
                 'protocol_version': '1.124', 'brick_name': 'Reader',
                 'bt_address': '00:16:53:0d:0e:0f', 'free_flash': str(b.fw.free_flash)}
-        assert {n: got[os.path.join(intf, n)].decode().strip() for n in SYSFS_ATTRS} == want
+        assert {n: got[os.path.join(misc, n)].decode().strip() for n in SYSFS_ATTRS} == want
     finally:
         b.unplug()
         assert b.wait_gone()
@@ -999,6 +1006,7 @@ def test_unplug_and_unbind_do_not_wait_for_the_brick(how):
     b.plug()
     intf = b.interface()
     name = os.path.basename(intf)
+    node = nxt.node_dir(intf)
     f, g = b.open(), b.open()
     results = {}
     stop = threading.Event()
@@ -1012,7 +1020,7 @@ def test_unplug_and_unbind_do_not_wait_for_the_brick(how):
     def reader():
         reads = 0
         while not stop.is_set():
-            read_all([os.path.join(intf, a) for a in SYSFS_ATTRS])
+            read_all([os.path.join(node, a) for a in SYSFS_ATTRS])
             reads += 1
         results['reads'] = reads
 

@@ -1,17 +1,18 @@
 #!/usr/bin/env python3
 """The drivers' layering, read from what was compiled and written.
 
-  tests/layering/check.py BUILD_DIR [--report]
+  tests/layering/check.py BUILD_DIR [--driver ev3|nxt]... [--report]
 
 For each driver (drivers/lego/ev3, drivers/lego/nxt), the objects of its
 module in BUILD_DIR (tests/build-modules.sh's output): object A uses object
 B when A refers to a global symbol B defines (nm). A circle among them (A
 uses B and B, directly or not, uses A) fails, as does a function of the
 drivers' C sources longer than MAX_LINES lines from its opening brace to its
-closing one (kernel style: both alone at the start of a line), and a view
-(the sysfs class, IIO, the char device, sysfs attributes) that includes its
-transport's header. KUnit test objects are left out. --report prints the
-graph and the long functions and exits 0.
+closing one (kernel style: both alone at the start of a line), a view (the
+sysfs class, IIO, the char device, sysfs attributes) that uses its
+transport's object or includes its transport's header. KUnit test objects
+are left out. --driver checks only the drivers named (all by default).
+--report prints the graph and the long functions and exits 0.
 """
 import argparse
 import glob
@@ -23,8 +24,10 @@ import sys
 TOP = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
 MAX_LINES = 60
 DRIVERS = {
-    'ev3': {'views': ['ev3_uart_class.c', 'ev3_uart_iio.c'], 'transport': ['ev3_uart_ldisc.h']},
-    'nxt': {'views': ['nxt_cdev.c', 'nxt_sysfs.c'], 'transport': ['nxt_usb.h']},
+    'ev3': {'views': ['ev3_uart_class.c', 'ev3_uart_iio.c'], 'transport': ['ev3_uart_ldisc.h'],
+            'transport_objs': ['ev3_uart_ldisc.o']},
+    'nxt': {'views': ['nxt_cdev.c', 'nxt_sysfs.c'], 'transport': ['nxt_usb.h'],
+            'transport_objs': ['nxt_usb.o']},
 }
 
 
@@ -108,10 +111,12 @@ def long_functions(path, limit=MAX_LINES):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     ap.add_argument('build')
+    ap.add_argument('--driver', action='append', choices=sorted(DRIVERS))
     ap.add_argument('--report', action='store_true')
     args = ap.parse_args()
     bad = []
-    for drv, conf in DRIVERS.items():
+    for drv in args.driver or sorted(DRIVERS):
+        conf = DRIVERS[drv]
         src = os.path.join(TOP, 'drivers/lego', drv)
         objs = [o for o in glob.glob(os.path.join(args.build, 'drivers/lego', drv, '*.o'))
                 if not re.search(r'(_test|\.mod|lego_\w+)\.o$', o)]
@@ -126,6 +131,12 @@ def main():
                                           or '-'))
         for c in circles(graph):
             bad.append('%s: a circle: %s' % (drv, ' <-> '.join(name[o] for o in c)))
+        for o in sorted(graph):
+            if name[o].replace('.o', '.c') in conf['views']:
+                for t in sorted(graph[o]):
+                    if name[t] in conf['transport_objs']:
+                        bad.append('%s: the view %s uses its transport %s' % (drv, name[o],
+                                                                            name[t]))
         for c in sorted(glob.glob(os.path.join(src, '*.c'))):
             if c.endswith('_test.c'):
                 continue

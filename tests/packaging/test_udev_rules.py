@@ -93,7 +93,7 @@ def test_nxt_node_and_usb_device_get_both():
     """Each device the group lego gets also has the seat's access: the same
     match once with GROUP= and MODE=, once with the tag."""
     text = [line for r in RULES for line in rule_lines(r)]
-    for subsystem in ('usbmisc', 'usb'):
+    for subsystem in ('lego-nxt', 'usb'):
         mine = [line for line in text if 'SUBSYSTEM=="%s"' % subsystem in line
                 and '0694' in line and 'idProduct' in line]
         assert any('TAG+="uaccess"' in line for line in mine), subsystem

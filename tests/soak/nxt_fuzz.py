@@ -933,7 +933,7 @@ class Fuzzer:
             if not node:
                 self.fail(eseed, 'no /dev/nxtN within 20 s of the plug (did it come back?)')
                 return
-            sysfs = '/sys/class/usbmisc/%s/device' % os.path.basename(node)
+            sysfs = '/sys/class/lego-nxt/%s' % os.path.basename(node)
             if self.tamper:
                 self.tamper(brick)
             probe = os.open(node, os.O_RDWR)

@@ -450,7 +450,7 @@ step_htmldocs() {
 		userspace-api/lego.html NXT_IOC_TRANSACT
 		iio/lego_ev3_uart.html ldattach $(sed -n 's/^#define N_LEGOEV3[[:space:]]*\([0-9]*\).*/\1/p' "$work/include/uapi/linux/tty.h")
 		iio/lego_ev3_uart.html intensity_red
-		usb/lego_nxt.html ECONNREFUSED
+		usb/lego_nxt.html no active program
 		trace/events-lego.html ev3_uart_handshake
 		trace/events-lego.html nxt_usb_drain
 	EOF

@@ -427,7 +427,7 @@ static int read_attr(const char *node, const char *attr, char *buf, size_t size)
 	FILE *f;
 	size_t n;
 
-	snprintf(path, sizeof(path), "/sys/class/usbmisc/%s/device/%s", node, attr);
+	snprintf(path, sizeof(path), "/sys/class/lego-nxt/%s/%s", node, attr);
 	f = fopen(path, "r");
 	if (!f)
 		goto fail;

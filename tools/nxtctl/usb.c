@@ -97,7 +97,7 @@ static int brick_of_node(const char *cmd, const char *path, struct usb_brick *b)
 		goto not_nxt;
 	if (!brick_at(real, b))
 		return EXIT_OK;
-	/* /dev/nxtN: .../1-1/1-1:1.0/usbmisc/nxt0, its device the interface. */
+	/* /dev/nxtN: .../1-1/1-1:1.0/lego-nxt/nxt0, its device the interface. */
 	snprintf(link + strlen(link), sizeof(link) - strlen(link), "/device");
 	if (!realpath(link, real))
 		goto not_nxt;
@@ -147,14 +147,14 @@ static int open_usb(const char *cmd, const struct usb_brick *b)
 	return fd;
 }
 
-/* /dev/nxtN of a bound brick, from its interface's usbmisc directory. */
+/* /dev/nxtN of a bound brick, from its interface's lego-nxt directory. */
 static int node_of(const struct usb_brick *b, char *node, size_t size)
 {
 	char pattern[PATH_MAX + 32];
 	glob_t g;
 	int ret = -1;
 
-	snprintf(pattern, sizeof(pattern), "%s/*:1.0/usbmisc/nxt*", b->dir);
+	snprintf(pattern, sizeof(pattern), "%s/*:1.0/lego-nxt/nxt*", b->dir);
 	if (glob(pattern, 0, NULL, &g))
 		return -1;
 	snprintf(node, size, "/dev/%s", strrchr(g.gl_pathv[0], '/') + 1);

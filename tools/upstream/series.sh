@@ -240,10 +240,10 @@ piece_nxt_proto() {
 
 # 6. The USB driver; Kconfig, Makefile, the ABI it adds.
 piece_nxt_usb() {
-	put_dir drivers/lego/nxt "$NXT" nxt_usb.h nxt_usb.c nxt_cdev.c nxt_sysfs.c \
+	put_dir drivers/lego/nxt "$NXT" nxt_views.h nxt_usb.c nxt_cdev.c nxt_sysfs.c \
 		nxt_usb_trace.h nxt_usb_trace.c Kconfig Makefile .kunitconfig
-	put Documentation/ABI/testing/sysfs-driver-lego-nxt-usb \
-		Documentation/ABI/testing/sysfs-driver-lego-nxt-usb
+	put Documentation/ABI/testing/sysfs-class-lego-nxt \
+		Documentation/ABI/testing/sysfs-class-lego-nxt
 	# Beside the LEGO USB tower's entries.
 	insert_before drivers/usb/misc/Kconfig "config USB_LCD" "source \"$NXT/Kconfig\"
 "

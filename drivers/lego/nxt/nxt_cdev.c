@@ -13,21 +13,42 @@
  * @lock makes its operations take turns: a write() waits for the reply to
  * the file's previous telegram to arrive (and drops it if it was not read),
  * so the transaction is never reused while it is in flight.
+ *
+ * The nodes are the driver's own, whatever the brick's link: a char device
+ * region of NXT_MINORS minors and the class "lego-nxt", whose devices carry
+ * the sysfs attributes (nxt_sysfs.c). A transport adds a node for each
+ * brick (nxt_node_add()) under its own device and removes it first thing
+ * when the brick goes (nxt_node_remove()), which waits for an open() in
+ * progress: an open() finds its brick in @nxt_nodes under @nxt_nodes_rwsem.
  */
+#include <linux/cdev.h>
+#include <linux/device.h>
 #include <linux/fs.h>
 #include <linux/module.h>
 #include <linux/poll.h>
+#include <linux/rwsem.h>
 #include <linux/slab.h>
 #include <linux/uaccess.h>
-#include <linux/usb.h>
+#include <linux/xarray.h>
 
 #include "lego_compat.h"
 #include "nxt_core.h"
 #include "nxt_proto.h"
-#include "nxt_usb.h"
+#include "nxt_views.h"
 
-/* Minors used when the kernel has no dynamic USB minors. */
-#define NXT_USB_MINOR_BASE	240
+/* Bricks at once: /dev/nxt0 to /dev/nxt255. */
+#define NXT_MINORS	256
+
+static dev_t nxt_devt;
+static struct cdev nxt_cdev;
+/* Minor -> brick, for open(); written under @nxt_nodes_rwsem held for writing. */
+static DEFINE_XARRAY_ALLOC(nxt_nodes);
+static DECLARE_RWSEM(nxt_nodes_rwsem);
+
+static LEGO_CLASS_CONST struct class nxt_class = {
+	.name		= "lego-nxt",
+	.dev_groups	= nxt_groups,
+};
 
 /**
  * struct nxt_file - an open /dev/nxtN
@@ -51,31 +72,35 @@ struct nxt_file {
 
 static int nxt_open(struct inode *inode, struct file *file)
 {
-	struct usb_interface *intf;
 	struct nxt_brick *b;
 	struct nxt_file *f;
 	int ret;
 
-	/* usb_open() holds off usb_deregister_dev() while this runs. */
-	intf = usb_find_interface(&nxt_usb_driver, iminor(inode));
-	if (!intf)
-		return -ENODEV;
-	b = usb_get_intfdata(intf);
-	if (!b)
-		return -ENODEV;
-
 	f = kzalloc_obj(*f, GFP_KERNEL);
 	if (!f)
 		return -ENOMEM;
-	f->brick = b;
 	mutex_init(&f->lock);
 	f->timeout_ms = NXT_TIMEOUT_DEFAULT_MS;
-	nxt_brick_get(b);
 
+	/* nxt_node_remove() waits for this: the transport is still there. */
+	if (down_read_killable(&nxt_nodes_rwsem)) {
+		kfree(f);
+		return -ERESTARTSYS;
+	}
+	b = xa_load(&nxt_nodes, iminor(inode));
+	if (!b) {
+		ret = -ENODEV;
+		goto out;
+	}
 	/* Start collecting replies; stale ones are drained. */
 	ret = nxt_brick_open(b);
+	if (!ret) {
+		nxt_brick_get(b);
+		f->brick = b;
+	}
+out:
+	up_read(&nxt_nodes_rwsem);
 	if (ret) {
-		nxt_brick_put(b);
 		kfree(f);
 		return ret;
 	}
@@ -316,8 +341,90 @@ static const struct file_operations nxt_fops = {
 	.compat_ioctl	= compat_ptr_ioctl,
 };
 
-struct usb_class_driver nxt_usb_class = {
-	.name		= "nxt%d",
-	.fops		= &nxt_fops,
-	.minor_base	= NXT_USB_MINOR_BASE,
-};
+/**
+ * nxt_node_add() - give a brick its /dev/nxtN
+ * @b: the brick
+ * @parent: the transport's device, the node's parent in sysfs
+ *
+ * Return: 0, -%EBUSY when NXT_MINORS bricks have a node, or another
+ * negative errno.
+ */
+int nxt_node_add(struct nxt_brick *b, struct device *parent)
+{
+	struct device *dev;
+	u32 minor;
+	int ret;
+
+	down_write(&nxt_nodes_rwsem);
+	ret = xa_alloc(&nxt_nodes, &minor, b, XA_LIMIT(0, NXT_MINORS - 1), GFP_KERNEL);
+	up_write(&nxt_nodes_rwsem);
+	if (ret)
+		return ret;
+
+	dev = device_create(&nxt_class, parent, MKDEV(MAJOR(nxt_devt), minor), b,
+			    "nxt%d", minor);
+	if (IS_ERR(dev)) {
+		down_write(&nxt_nodes_rwsem);
+		xa_erase(&nxt_nodes, minor);
+		up_write(&nxt_nodes_rwsem);
+		return PTR_ERR(dev);
+	}
+	b->minor = minor;
+	b->node = dev;
+	return 0;
+}
+
+/**
+ * nxt_node_remove() - take a brick's /dev/nxtN away
+ * @b: the brick, whose node nxt_node_add() added
+ *
+ * No open() finds the brick once this returns, and none is running; the
+ * files already open keep the brick until they are closed. A sysfs read
+ * in progress is waited for.
+ */
+void nxt_node_remove(struct nxt_brick *b)
+{
+	down_write(&nxt_nodes_rwsem);
+	xa_erase(&nxt_nodes, b->minor);
+	up_write(&nxt_nodes_rwsem);
+	device_destroy(&nxt_class, MKDEV(MAJOR(nxt_devt), b->minor));
+	b->node = NULL;
+}
+
+/**
+ * nxt_cdev_init() - register the char device region and the class
+ *
+ * Return: 0 or a negative errno.
+ */
+int nxt_cdev_init(void)
+{
+	int ret;
+
+	ret = alloc_chrdev_region(&nxt_devt, 0, NXT_MINORS, "nxt");
+	if (ret)
+		return ret;
+	cdev_init(&nxt_cdev, &nxt_fops);
+	nxt_cdev.owner = THIS_MODULE;
+	ret = cdev_add(&nxt_cdev, nxt_devt, NXT_MINORS);
+	if (ret)
+		goto err_region;
+	ret = class_register(&nxt_class);
+	if (ret)
+		goto err_cdev;
+	return 0;
+
+err_cdev:
+	cdev_del(&nxt_cdev);
+err_region:
+	unregister_chrdev_region(nxt_devt, NXT_MINORS);
+	return ret;
+}
+
+/** nxt_cdev_exit() - undo nxt_cdev_init(), once every node is removed */
+void nxt_cdev_exit(void)
+{
+	class_unregister(&nxt_class);
+	cdev_del(&nxt_cdev);
+	unregister_chrdev_region(nxt_devt, NXT_MINORS);
+	xa_destroy(&nxt_nodes);
+}

@@ -191,6 +191,9 @@ struct nxt_transport_ops {
  *	passed (@lock): what the sysfs attributes show
  * @stats: counters (@lock)
  * @debugfs: the brick's directory in debugfs, or NULL
+ * @minor: the minor of its /dev/nxtN (nxt_cdev.c)
+ * @node: the device of its /dev/nxtN, with the sysfs attributes
+ *	(nxt_cdev.c); NULL when it has none
  */
 struct nxt_brick {
 	struct kref kref;
@@ -218,6 +221,8 @@ struct nxt_brick {
 	struct nxt_brick_info info;
 	struct nxt_stats stats;
 	struct dentry *debugfs;
+	int minor;
+	struct device *node;
 };
 
 /**

@@ -15,11 +15,10 @@
 /* A reply is at least its type byte, the echoed opcode and a status byte. */
 #define NXT_REPLY_MIN		3
 
-/**
- * enum nxt_opcode - the direct commands the driver checks by name
- *
- * The commands of LEGO's firmware 1.05; the driver also knows the shapes of
- * 1.28's and of the system commands, by number (nxt_proto.c).
+/*
+ * The direct commands the driver checks by name: those of LEGO's firmware
+ * 1.05. The driver also knows the shapes of 1.28's and of the system
+ * commands, by number (nxt_proto.c).
  */
 enum nxt_opcode {
 	NXT_START_PROGRAM		= 0x00,

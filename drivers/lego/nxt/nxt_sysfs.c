@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: GPL-2.0
 /*
- * LEGO MINDSTORMS NXT brick: sysfs attributes of the bound interface
- * (Documentation/ABI/testing/sysfs-driver-lego-nxt-usb).
+ * LEGO MINDSTORMS NXT brick: sysfs attributes of /sys/class/lego-nxt/nxtN
+ * (Documentation/ABI/testing/sysfs-class-lego-nxt), whatever the link.
  *
  * The attributes are world-readable, /dev/nxtN is not: reading them sends
  * nothing to the brick. Each shows what the brick said in its last reply to
@@ -15,12 +15,11 @@
 #include <linux/device.h>
 #include <linux/spinlock.h>
 #include <linux/sysfs.h>
-#include <linux/usb.h>
 
 #include "lego_compat.h"
 #include "nxt_core.h"
 #include "nxt_proto.h"
-#include "nxt_usb.h"
+#include "nxt_views.h"
 
 enum nxt_attr {
 	NXT_ATTR_BATTERY,
@@ -33,11 +32,9 @@ enum nxt_attr {
 
 static ssize_t nxt_attr_show(struct device *dev, char *buf, enum nxt_attr which)
 {
-	struct nxt_brick *b = usb_get_intfdata(to_usb_interface(dev));
+	struct nxt_brick *b = dev_get_drvdata(dev);
 	struct nxt_brick_info info;
 
-	if (!b)
-		return -ENODEV;
 	nxt_brick_info(b, &info);
 
 	switch (which) {

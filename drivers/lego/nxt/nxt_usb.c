@@ -32,7 +32,7 @@
 #include "lego_compat.h"
 #include "nxt_core.h"
 #include "nxt_proto.h"
-#include "nxt_usb.h"
+#include "nxt_views.h"
 #include "nxt_usb_trace.h"
 
 #define NXT_USB_VENDOR		0x0694
@@ -312,7 +312,11 @@ static int nxt_usb_open(struct nxt_brick *b)
 	ret = usb_autopm_get_interface(nxt->intf);
 	if (ret)
 		return ret;
-	mutex_lock(&b->tx_lock);
+	/* Interrupted (a reset holds the lock): nothing done, open restarts. */
+	if (mutex_lock_interruptible(&b->tx_lock)) {
+		usb_autopm_put_interface(nxt->intf);
+		return -ERESTARTSYS;
+	}
 	nxt->reader_wanted = true;
 	ret = nxt_reader_start_locked(nxt);
 	if (ret)
@@ -464,10 +468,9 @@ static int nxt_usb_probe(struct usb_interface *intf,
 	ret = nxt_usb_setup(nxt, intf);
 	if (ret)
 		goto err_put;
-	/* The views find the brick there. */
-	usb_set_intfdata(intf, &nxt->brick);
+	usb_set_intfdata(intf, nxt);
 
-	ret = usb_register_dev(intf, &nxt_usb_class);
+	ret = nxt_node_add(&nxt->brick, &intf->dev);
 	if (ret) {
 		dev_err(&intf->dev, "cannot get a minor: %d\n", ret);
 		usb_set_intfdata(intf, NULL);
@@ -480,7 +483,7 @@ static int nxt_usb_probe(struct usb_interface *intf,
 	 * writing sends a telegram: not at probe, not from sysfs.
 	 */
 	dev_info(&intf->dev, "LEGO NXT brick %s now at %s\n",
-		 nxt->udev->serial ?: "(no serial)", dev_name(intf->usb_dev));
+		 nxt->udev->serial ?: "(no serial)", dev_name(nxt->brick.node));
 	return 0;
 
 err_put:
@@ -497,11 +500,11 @@ static void nxt_usb_stop_io(struct nxt_usb *nxt)
 
 static void nxt_usb_disconnect(struct usb_interface *intf)
 {
-	struct nxt_usb *nxt = to_nxt_usb(usb_get_intfdata(intf));
+	struct nxt_usb *nxt = usb_get_intfdata(intf);
 
 	trace_nxt_usb_reset(nxt->brick.name, NXT_USB_TRACE_DISCONNECT);
 	/* No new opens; then no new transfers; then none in flight. */
-	usb_deregister_dev(intf, &nxt_usb_class);
+	nxt_node_remove(&nxt->brick);
 
 	mutex_lock(&nxt->brick.tx_lock);
 	nxt->intf = NULL;
@@ -538,7 +541,7 @@ static void nxt_forget_halts(struct nxt_usb *nxt)
  */
 static int nxt_usb_pre_reset(struct usb_interface *intf)
 {
-	struct nxt_usb *nxt = to_nxt_usb(usb_get_intfdata(intf));
+	struct nxt_usb *nxt = usb_get_intfdata(intf);
 
 	trace_nxt_usb_reset(nxt->brick.name, NXT_USB_TRACE_PRE_RESET);
 	/* Held until post_reset(). */
@@ -551,7 +554,7 @@ static int nxt_usb_pre_reset(struct usb_interface *intf)
 
 static int nxt_usb_post_reset(struct usb_interface *intf)
 {
-	struct nxt_usb *nxt = to_nxt_usb(usb_get_intfdata(intf));
+	struct nxt_usb *nxt = usb_get_intfdata(intf);
 
 	trace_nxt_usb_reset(nxt->brick.name, NXT_USB_TRACE_POST_RESET);
 	spin_lock_irq(&nxt->brick.lock);
@@ -572,7 +575,7 @@ static int nxt_usb_post_reset(struct usb_interface *intf)
  */
 static int nxt_usb_suspend(struct usb_interface *intf, pm_message_t message)
 {
-	struct nxt_usb *nxt = to_nxt_usb(usb_get_intfdata(intf));
+	struct nxt_usb *nxt = usb_get_intfdata(intf);
 
 	trace_nxt_usb_reset(nxt->brick.name, NXT_USB_TRACE_SUSPEND);
 	mutex_lock(&nxt->brick.tx_lock);
@@ -593,7 +596,7 @@ static int nxt_usb_suspend(struct usb_interface *intf, pm_message_t message)
 
 static int nxt_usb_resume(struct usb_interface *intf)
 {
-	struct nxt_usb *nxt = to_nxt_usb(usb_get_intfdata(intf));
+	struct nxt_usb *nxt = usb_get_intfdata(intf);
 	int ret;
 
 	trace_nxt_usb_reset(nxt->brick.name, NXT_USB_TRACE_RESUME);
@@ -606,7 +609,7 @@ static int nxt_usb_resume(struct usb_interface *intf)
 
 static int nxt_usb_reset_resume(struct usb_interface *intf)
 {
-	struct nxt_usb *nxt = to_nxt_usb(usb_get_intfdata(intf));
+	struct nxt_usb *nxt = usb_get_intfdata(intf);
 
 	/* The brick was reset: its endpoints are no longer halted. */
 	trace_nxt_usb_reset(nxt->brick.name, NXT_USB_TRACE_RESET_RESUME);
@@ -627,7 +630,7 @@ static const struct usb_device_id nxt_usb_ids[] = {
 };
 MODULE_DEVICE_TABLE(usb, nxt_usb_ids);
 
-struct usb_driver nxt_usb_driver = {
+static struct usb_driver nxt_usb_driver = {
 	.name		= "lego_nxt_usb",
 	.probe		= nxt_usb_probe,
 	.disconnect	= nxt_usb_disconnect,
@@ -637,7 +640,6 @@ struct usb_driver nxt_usb_driver = {
 	.resume		= nxt_usb_resume,
 	.reset_resume	= nxt_usb_reset_resume,
 	.id_table	= nxt_usb_ids,
-	.dev_groups	= nxt_groups,
 	.supports_autosuspend = 1,
 };
 
@@ -645,10 +647,15 @@ static int __init nxt_usb_init(void)
 {
 	int ret;
 
+	ret = nxt_cdev_init();
+	if (ret)
+		return ret;
 	nxt_debugfs_root = debugfs_create_dir(KBUILD_MODNAME, NULL);
 	ret = usb_register(&nxt_usb_driver);
-	if (ret)
+	if (ret) {
 		debugfs_remove_recursive(nxt_debugfs_root);
+		nxt_cdev_exit();
+	}
 	return ret;
 }
 module_init(nxt_usb_init);
@@ -657,6 +664,7 @@ static void __exit nxt_usb_exit(void)
 {
 	usb_deregister(&nxt_usb_driver);
 	debugfs_remove_recursive(nxt_debugfs_root);
+	nxt_cdev_exit();
 }
 module_exit(nxt_usb_exit);
 

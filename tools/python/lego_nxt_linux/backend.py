@@ -36,7 +36,7 @@ __all__ = ["Backend", "DevNodeSock", "get_backend", "list_devices"]
 logger = logging.getLogger(__name__)
 
 DEV_DIR = "/dev"
-SYSFS_CLASS = "/sys/class/usbmisc"
+SYSFS_CLASS = "/sys/class/lego-nxt"
 DRIVER = "lego_nxt_usb"
 
 #: Longest telegram and reply: one full-speed bulk packet.
@@ -52,19 +52,20 @@ _NODE_RE = re.compile(r"^nxt([0-9]+)$")
 
 
 def _sysfs_dir(path):
-    """The sysfs interface directory of a node, or None if it is not ours.
+    """The sysfs directory of a node (/sys/class/lego-nxt/nxtN, where the
+    driver's attributes are), or None if it is not ours.
 
     `path` may be a symbolic link such as /dev/nxt/by-serial/001653XXXXXX.
     """
     base = os.path.basename(os.path.realpath(path))
     if not _NODE_RE.match(base):
         return None
-    intf = os.path.join(SYSFS_CLASS, base, "device")
+    node = os.path.join(SYSFS_CLASS, base)
     try:
-        driver = os.path.basename(os.readlink(os.path.join(intf, "driver")))
+        driver = os.path.basename(os.readlink(os.path.join(node, "device", "driver")))
     except OSError:
         return None
-    return intf if driver == DRIVER else None
+    return node if driver == DRIVER else None
 
 
 def _check_node(fd, filename):
@@ -134,16 +135,17 @@ def _may_match(node, name, host):
     Unreadable attributes do not exclude a brick: the locator checks both
     filters again with GetDeviceInfo on the bricks this backend returns.
     """
-    intf = _sysfs_dir(node)
-    if intf is None:
+    sysfs = _sysfs_dir(node)
+    if sysfs is None:
         return True
     if host is not None:
-        serial = _read_attr(os.path.join(intf, ".."), "serial")
+        # The USB device's serial: the parent of the node's interface.
+        serial = _read_attr(os.path.join(sysfs, "device", ".."), "serial")
         if serial is not None and _normal_address(serial) != _normal_address(host):
             logger.debug("%s: address %s is not %s", node, serial, host)
             return False
     if name is not None:
-        bname = _read_attr(intf, "brick_name")
+        bname = _read_attr(sysfs, "brick_name")
         if bname is not None and bname != name:
             logger.debug("%s: name %r is not %r", node, bname, name)
             return False
