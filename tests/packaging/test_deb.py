@@ -207,7 +207,7 @@ def test_headers_compile_with_pkg_config(root):
     with open(os.path.join(root.path, 'tmp/p.c'), 'w') as f:
         f.write('#include <stdio.h>\n#include <linux/lego_nxt.h>\n'
                 '#include <linux/lego_ev3_uart.h>\n'
-                'int main(void) { printf("%lu\\n", (unsigned long)sizeof(struct nxt_tone)); '
+                'int main(void) { printf("%lu\\n", (unsigned long)sizeof(struct nxt_transaction)); '
                 'return 0; }\n')
     root.chroot(['cc', '-Wall', '-Werror'] + cflags + ['-o', '/tmp/p', '/tmp/p.c'])
     assert int(root.chroot(['/tmp/p'])) > 0
