@@ -375,7 +375,22 @@ class Runner:
                                 os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
             self.address = 'ttyNM%d' % (2 * self.pair)
             self.far = '/dev/ttyNM%d' % (2 * self.pair + 1)
+            self._flush_line()
         fcntl.ioctl(self.host, termios.TIOCSETD, struct.pack('i', N_LEGOEV3))
+
+    def _flush_line(self):
+        """Nothing of an earlier case is left on the null-modem line: the
+        null modem sends at the line's speed, so a handshake the last
+        case's sensor sent again just before it stopped can still be on
+        its way, and the next case's driver would sync on it (a sensor of
+        the wrong type registered). Both ends are flushed before the
+        discipline is attached."""
+        far = os.open(self.far, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+        try:
+            termios.tcflush(far, termios.TCIOFLUSH)
+        finally:
+            os.close(far)
+        termios.tcflush(self.host, termios.TCIOFLUSH)
 
     def _detach(self, rng):
         """Detach in one of the ways a user can; returns how."""
@@ -513,6 +528,10 @@ class Runner:
             self._close_line()
             if emu:
                 emu.join(5)
+                if emu.is_alive():
+                    # It would go on writing into the next case's line.
+                    emu.join(30)
+                    self.check(not emu.is_alive(), 'the emulated sensor did not stop in 35 s')
 
     # -- registration --
 
