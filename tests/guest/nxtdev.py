@@ -120,6 +120,22 @@ def request_complete(tg):
     return len(tg) >= need
 
 
+# The typed ioctls of the releases before the driver went into the kernel,
+# retired by issue 30 (they must stay unknown: ENOTTY): _IOWR(MAGIC,
+# 0x10 + opcode, its structure), opcode -> the structure's size (the same on
+# i386 and x86_64).
+RETIRED_TYPED = {
+    0x00: 24, 0x01: 4, 0x02: 24, 0x03: 8, 0x04: 24, 0x05: 4, 0x06: 24, 0x07: 16, 0x08: 4,
+    0x09: 64, 0x0a: 4, 0x0b: 4, 0x0c: 4, 0x0d: 8, 0x0e: 4, 0x0f: 20, 0x10: 20, 0x11: 24,
+    0x13: 64,
+}
+
+
+def retired_number(opcode):
+    """The number the typed ioctl of a direct command had."""
+    return iowr(0x10 + opcode, RETIRED_TYPED[opcode])
+
+
 def struct_size(name):
     return struct.calcsize(STRUCTS[name][0])
 

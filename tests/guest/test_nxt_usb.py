@@ -866,9 +866,11 @@ ACTING_TELEGRAMS = [b'\x01\xa0', b'\x81\xa0', nxt.telegram('SET_OUTPUT_STATE', *
 
 def retired_ioctl_numbers():
     """The numbers of the typed ioctls of earlier releases (0x10 + opcode,
-    _IOWR, their argument sizes), which must stay unknown: ENOTTY."""
+    _IOWR, their argument sizes), and every number of their range with
+    sizes like theirs, which must stay unknown: ENOTTY."""
     sizes = (4, 8, 20, 24, 28, 64)
-    return [nxt.iowr(nr, size) for nr in range(0x10, 0x34) for size in sizes]
+    numbers = {nxt.iowr(nr, size) for nr in range(0x10, 0x34) for size in sizes}
+    return sorted(numbers | {nxt.retired_number(op) for op in nxt.RETIRED_TYPED})
 
 
 def test_retired_typed_ioctls_are_enotty(brick, fd):

@@ -270,14 +270,7 @@ def telegram_errno(tg):
 KNOWN_IOCTLS = {nxt.ioctl_number(n) for n in ('TRANSACT', 'SET_TIMEOUT', 'GET_TIMEOUT')}
 _IOC_SIZEMASK = 0x3FFF
 
-# The typed ioctls of the releases before the driver went into the kernel,
-# retired by issue 30: _IOWR(MAGIC, 0x10 + opcode, its structure), opcode ->
-# the structure's size (the same on i386 and x86_64).
-RETIRED_TYPED = {
-    0x00: 24, 0x01: 4, 0x02: 24, 0x03: 8, 0x04: 24, 0x05: 4, 0x06: 24, 0x07: 16, 0x08: 4,
-    0x09: 64, 0x0a: 4, 0x0b: 4, 0x0c: 4, 0x0d: 8, 0x0e: 4, 0x0f: 20, 0x10: 20, 0x11: 24,
-    0x13: 64,
-}
+RETIRED_TYPED = nxt.RETIRED_TYPED
 RETIRED_NR = range(0x10, 0x34)      # the numbers the typed ioctls had room for
 
 
@@ -304,7 +297,7 @@ def gen_retired(rng):
     k = r.random()
     if k < 0.6:
         op = r.choice(sorted(RETIRED_TYPED))
-        num = nxt.iowr(0x10 + op, RETIRED_TYPED[op])
+        num = nxt.retired_number(op)
     else:
         while True:
             if k < 0.85:
@@ -1111,7 +1104,7 @@ class Fuzzer:
             if err != E.ENODEV:
                 self.fail(eseed, '%s after the unplug gave %s, not ENODEV' % (what, ename(err)))
         # A number the driver does not know stays unknown.
-        num = nxt.iowr(0x10 + 0x0b, RETIRED_TYPED[0x0b])
+        num = nxt.retired_number(0x0b)
         err, _ = ioctl_buf(probe, num, bytes(RETIRED_TYPED[0x0b]))
         if err != E.ENOTTY:
             self.fail(eseed, 'ioctl 0x%08x after the unplug gave %s, not ENOTTY'

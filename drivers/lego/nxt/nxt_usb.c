@@ -579,8 +579,8 @@ static int nxt_usb_suspend(struct usb_interface *intf, pm_message_t message)
 
 	trace_nxt_usb_reset(nxt->brick.name, NXT_USB_TRACE_SUSPEND);
 	mutex_lock(&nxt->brick.tx_lock);
-	if (PMSG_IS_AUTO(message) &&
-	    (nxt_brick_in_flight(&nxt->brick) || !nxt_slot_free(&nxt->brick))) {
+	/* A transaction in flight holds the slot: the slot is not free then. */
+	if (PMSG_IS_AUTO(message) && !nxt_slot_free(&nxt->brick)) {
 		mutex_unlock(&nxt->brick.tx_lock);
 		return -EBUSY;
 	}
