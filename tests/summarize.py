@@ -34,6 +34,15 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 KTAP_SKIP = re.compile(r'^\s*(ok|not ok) ([0-9]+) ?(:?- )?(.*) # SKIP ?(.*)$')
 
 
+FAILURES = []
+
+
+def fail(line, file=None):
+    """Print LINE and keep it for RESULTS/failures."""
+    FAILURES.append(line)
+    print(line, file=file or sys.stdout)
+
+
 def kunit_cases(node):
     """Yield (name, status) of every leaf test case in kunit.py's JSON."""
     for case in node.get('test_cases', []):
@@ -66,14 +75,14 @@ def count_kunit(results, tree, skips):
         text = proc.stdout
         start = text.find('{')
         if start < 0:
-            print(f'kunit: {f}: kunit.py parse gave no JSON', file=sys.stderr)
+            fail(f'kunit: {f}: kunit.py parse gave no JSON', file=sys.stderr)
             print(proc.stdout, proc.stderr, file=sys.stderr)
             failed += 1
             continue
         data = json.loads(text[start:])
         cases = list(kunit_cases(data))
         if not cases:
-            print(f'kunit: {f}: no test case parsed', file=sys.stderr)
+            fail(f'kunit: {f}: no test case parsed', file=sys.stderr)
             failed += 1
         reasons = ktap_skip_reasons(path)
         for name, status in cases:
@@ -83,12 +92,12 @@ def count_kunit(results, tree, skips):
                 skips.append((f'kunit.{f[:-5]}.{name}', reasons.get(name, '')))
             else:
                 failed += 1
-                print(f'kunit: FAILED {f[:-5]}.{name}: {status}')
+                fail(f'kunit: FAILED {f[:-5]}.{name}: {status}')
     bad = os.path.join(kdir, 'failed-modules')
     if os.path.exists(bad):
         with open(bad) as fh:
             for line in fh:
-                print(f'kunit: FAILED module {line.strip()}')
+                fail(f'kunit: FAILED module {line.strip()}')
                 failed += 1
     return passed, failed, len(files)
 
@@ -106,7 +115,7 @@ def count_junit(label, path, skips, times, props):
         times.append((float(case.get('time') or 0), name))
         if 'failure' in children or 'error' in children:
             failed += 1
-            print(f'{label}: FAILED {name}')
+            fail(f'{label}: FAILED {name}')
         elif 'skipped' in children:
             skip = children['skipped']
             skips.append((name, skip.get('message') or skip.text or ''))
@@ -144,6 +153,7 @@ def main(argv=None):
     args = ap.parse_args(argv)
     results = args.results
     skips, times, props = [], [], []
+    FAILURES.clear()
     passed, failed, nsuites = count_kunit(results, args.tree, skips)
     nkunit = len(skips)
     print(f'kunit: {nsuites} suites, {passed} passed, {failed} failed, {nkunit} skipped')
@@ -153,7 +163,7 @@ def main(argv=None):
         sources.append(('host ' + os.path.basename(path)[5:-4], path))
     for label, path in sources:
         if not os.path.exists(path):
-            print(f'{label}: no pytest results ({os.path.basename(path)} missing)', file=sys.stderr)
+            fail(f'{label}: no pytest results ({os.path.basename(path)} missing)', file=sys.stderr)
             failed += 1
             continue
         before = len(skips)
@@ -161,7 +171,7 @@ def main(argv=None):
             p, f = count_junit(label, path, skips, times, props)
         except (OSError, ET.ParseError) as e:
             # Cut short: its pytest was killed, or the disk was full.
-            print(f'{label}: FAILED, {os.path.basename(path)} unreadable: {e}', file=sys.stderr)
+            fail(f'{label}: FAILED, {os.path.basename(path)} unreadable: {e}', file=sys.stderr)
             failed += 1
             continue
         print(f'{label}: {p} passed, {f} failed, {len(skips) - before} skipped')
@@ -171,7 +181,7 @@ def main(argv=None):
     try:
         entries = load_expected(args.expected_skips)
     except (OSError, ValueError) as e:
-        print(f'expected skips: {e}', file=sys.stderr)
+        fail(f'expected skips: {e}', file=sys.stderr)
         entries = []
         failed += 1
     skipped = unexpected = 0
@@ -182,7 +192,7 @@ def main(argv=None):
             print(f'skipped (expected): {test_id}: {reason}')
         else:
             unexpected += 1
-            print(f'FAILED, skipped and not in {name}: {test_id}: {reason or "(no reason given)"}')
+            fail(f'FAILED, skipped and not in {name}: {test_id}: {reason or "(no reason given)"}')
     failed += unexpected
 
     if times:
@@ -194,6 +204,10 @@ def main(argv=None):
 
     with open(os.path.join(results, 'totals'), 'w') as fh:
         fh.write(f'{passed} {failed} {skipped}\n')
+    # Printed again after the phase times (tests/lib/phases.sh): CI shows
+    # only the end of the log.
+    with open(os.path.join(results, 'failures'), 'w') as fh:
+        fh.writelines(line + '\n' for line in FAILURES)
     return 1 if failed else 0
 
 

@@ -330,11 +330,20 @@ def test_only_a_stall_of_the_guest_excuses_a_late_keep_alive():
     errs, conns = wire.check(dropped + [stall(gap_from + 150 * MS, 110)], 0, end)
     assert errs == [] and conns[0].excused, (errs, conns)
     assert 'period 230.0 ms' in conns[0].excused[0], conns[0].excused
+    # A probe work item that waited as long (the guest's CPUs ran other
+    # things) excuses it the same way.
+    late_work = stall(gap_from + 150 * MS, 110)[:4] + ('q', 0)
+    errs, conns = wire.check(dropped + [late_work], 0, end)
+    assert errs == [] and 'period 230.0 ms' in conns[0].excused[0], (errs, conns)
     for what, extra in {'stall too short': stall(gap_from + 150 * MS, 25),
                         'stall elsewhere': stall(gap_to + 450 * MS, 110),
+                        'late work too short': late_work[:3] + (25000,) + late_work[4:],
                         'no stall': None}.items():
         errs = wire.check(dropped + ([extra] if extra else []), 0, end)[0]
         assert any('periods out of' in e for e in errs), (what, errs)
+    # The report says when the gap began and how much of it was a stall.
+    errs = wire.check(dropped + [stall(gap_from + 150 * MS, 25)], 0, end)[0]
+    assert any('230.0 at %.3f s (25.0 ms stalled)' % (gap_from / 1e9) in e for e in errs), errs
     # An early keep-alive is not excused by a stall; a late ACK only by one
     # that covers the lateness.
     early = [r[:1] + (r[1] - 15 * MS,) + r[2:] if r[1] == c.nacks[6] and r[4] == 'b' else r

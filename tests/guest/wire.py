@@ -34,14 +34,20 @@ late timers in kernel time too (with four test VMs on two cores the
 discipline's keep-alive periods were measured up to 1084 ms and its ACKs up
 to 535 ms late). The null modem measures that: a pinned hard-interrupt
 timer on each CPU logs a stall record ('s', port 255) whenever it fires 10
-ms late or more, which only a CPU that did not run makes it. A keep-alive
-gap, a late first or last keep-alive or a late ACK is the discipline's
-only for the time no CPU was stalled: the time a stall record covers in
-that interval (stalled_ms()) is taken off before the upper bound is
-applied, and the excuse is noted on the connection. Nothing else is
-excused: a keep-alive the discipline skipped, or one late while the
-guest's CPUs ran, still fails; the lower bounds are never adjusted, and
-the median's upper bound only by taking each period's stalled time off.
+ms late or more, which only a CPU that did not run makes it; and a probe
+work item, queued every 5 ms on a workqueue of the keep-alive's kind, logs
+one ('q') whenever it ran 10 ms late or more: CPUs that ran other things
+than the guest's high-priority work (an emulated CPU slowed by its host, a
+long section without preemption elsewhere) delay the keep-alive as much,
+and a CPU's heartbeat does not see it. A keep-alive gap, a late first or
+last keep-alive or a late ACK is the discipline's only for the time the
+guest was not stalled: the time the records of either kind cover in that
+interval (stalled_ms()) is taken off before the upper bound is applied,
+and the excuse is noted on the connection. Nothing else is excused: a
+keep-alive the discipline skipped, or one late while the guest's CPUs ran
+and the probe ran on time (the discipline's lock held, its work not
+queued), still fails; the lower bounds are never adjusted, and the
+median's upper bound only by taking each period's stalled time off.
 """
 import os
 import statistics
@@ -119,10 +125,12 @@ def host_messages(recs, port, which='b'):
 
 
 def stalls(recs):
-    """The guest's CPU stalls in recs: [(start ns, end ns)] (a stall record's
-    baud field is how many microseconds late its timer fired)."""
+    """The guest's stalls in recs: [(start ns, end ns)], from the records of
+    a CPU that did not run ('s': how many microseconds late its heartbeat
+    fired, in the baud field) and of a probe work item that waited ('q': how
+    many microseconds after it was queued it ran)."""
     return [(ns - baud * 1000, ns) for _, ns, port, baud, kind, _ in recs
-            if port == STALL_PORT and kind == 's']
+            if port == STALL_PORT and kind in ('s', 'q')]
 
 
 def stalled_ms(spans, a, b):
@@ -231,8 +239,8 @@ def late(c, spans, a, b, limit, what):
         return False
     stalled = stalled_ms(spans, a, b)
     if ms - stalled < limit:
-        c.excused.append('%s %.1f ms, %.1f ms of it a stall of the guest\'s CPUs'
-                         % (what, ms, stalled))
+        c.excused.append('%s %.1f ms, %.1f ms of it a stall of the guest (its CPUs or '
+                         'its work queues)' % (what, ms, stalled))
         return False
     return True
 
@@ -262,11 +270,16 @@ def check_connection(c, end_ns=None, spans=()):
                     % (name, first, hi, c))
     t = [c.ack_ns] + c.nacks
     periods = c.periods_ms()
-    bad = [p for p, a, b in zip(periods, t[1:], t[2:])
+    bad = [(p, a) for p, a, b in zip(periods, t[1:], t[2:])
            if p < lo or late(c, spans, a, b, hi, 'period')]
     if bad:
+        # When, and how much of it the guest was seen stalled: a failure
+        # report tells what the wire log knew.
         errs.append('%s: keep-alive periods out of %d..<%d ms: %s (%s): %r'
-                    % (name, lo, hi, ', '.join('%.1f' % p for p in bad[:10]),
+                    % (name, lo, hi,
+                       ', '.join('%.1f at %.3f s (%.1f ms stalled)'
+                                 % (p, a / 1e9, stalled_ms(spans, a, a + p * 1e6))
+                                 for p, a in bad[:10]),
                        summary(periods), c))
     if len(periods) >= 5:
         med = statistics.median(periods)

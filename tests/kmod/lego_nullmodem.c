@@ -51,7 +51,17 @@
  *    is the host's: a host that does not run the guest's CPUs makes every
  *    timer of the guest late, the discipline's keep-alive too, and these
  *    records let wire.py tell such a stall from the discipline's own
- *    lateness.
+ *    lateness;
+ *  - and a record 'q' (port 255, the CPU it ran on in the byte) each time
+ *    a probe work item, queued every NM_BEAT_NS on a workqueue of the
+ *    discipline's keep-alive kind (unbound, high priority) from a hard
+ *    hrtimer, ran NM_STALL_MIN_NS late or more (the baud field: how many
+ *    microseconds): CPUs that run but run other things (a long section
+ *    without preemption, an emulated CPU slowed by its host) delay every
+ *    such work item, the discipline's keep-alive as much as the probe,
+ *    and the heartbeat above does not see it. A delay of the
+ *    discipline's own making (its lock held, its work not queued) leaves
+ *    the probe on time.
  *
  * And a sensor stream generator for the sample-delivery benchmark
  * (tests/bench/guest/ev3_bench.py), so that the sender's rate is exact and
@@ -79,6 +89,7 @@
  *
  * Not meant for anything but tests.
  */
+#include <linux/atomic.h>
 #include <linux/cpu.h>
 #include <linux/debugfs.h>
 #include <linux/hrtimer.h>
@@ -93,6 +104,7 @@
 #include <linux/tty.h>
 #include <linux/tty_driver.h>
 #include <linux/tty_flip.h>
+#include <linux/workqueue.h>
 
 #include "lego_compat.h"
 
@@ -258,7 +270,8 @@ static void nm_log(struct nm_port *p, char kind, const u8 *buf, unsigned int n)
  * one a line, oldest first: "seq ns port baud kind byte", kind 'b' for a
  * byte of an even port on the wire, 'w' for one written to it (taken by
  * nm_write()), and 'a' for the end of an odd port's burst that ended in
- * 0x04 (byte is then 04); seq counts every record since the module
+ * 0x04 (byte is then 04), 's' and 'q' (port 255) for a stalled CPU and a
+ * late probe work item (see the top of the file); seq counts every record since the module
  * was loaded (or the log was cleared: write anything to the file), so that
  * a reader can take only what is new and see what was overwritten.
  */
@@ -372,6 +385,70 @@ static void nm_beat_stop(void)
 
 	for_each_online_cpu(cpu)
 		hrtimer_cancel(per_cpu_ptr(&nm_beat, cpu));
+}
+
+/*
+ * The work-queue probe: @timer queues @work every NM_BEAT_NS unless it is
+ * still waiting (then its lateness keeps growing from @queued_ns, the time
+ * it was queued), and @work logs a 'q' record when it ran late.
+ */
+static struct {
+	struct workqueue_struct *wq;
+	struct hrtimer timer;
+	struct work_struct work;
+	u64 queued_ns;
+	atomic_t waiting;
+	bool stop;
+} nm_probe;
+
+static void nm_probe_work(struct work_struct *work)
+{
+	u64 now = ktime_get_ns();
+	u64 late = now - READ_ONCE(nm_probe.queued_ns);
+	struct nm_wire_rec *r;
+	unsigned long flags;
+
+	atomic_set(&nm_probe.waiting, 0);
+	if (late < NM_STALL_MIN_NS)
+		return;
+	raw_spin_lock_irqsave(&nm_wire_lock, flags);
+	r = &nm_wire[nm_wire_head++ % NM_WIRE_LOG];
+	r->ns = now;
+	r->baud = min_t(u64, div_u64(late, NSEC_PER_USEC), U32_MAX);
+	r->port = NM_WIRE_STALL;
+	r->byte = raw_smp_processor_id();
+	r->kind = 'q';
+	raw_spin_unlock_irqrestore(&nm_wire_lock, flags);
+}
+
+static enum hrtimer_restart nm_probe_fn(struct hrtimer *timer)
+{
+	if (READ_ONCE(nm_probe.stop))
+		return HRTIMER_NORESTART;
+	if (!atomic_xchg(&nm_probe.waiting, 1)) {
+		WRITE_ONCE(nm_probe.queued_ns, ktime_get_ns());
+		queue_work(nm_probe.wq, &nm_probe.work);
+	}
+	hrtimer_forward_now(timer, ns_to_ktime(NM_BEAT_NS));
+	return HRTIMER_RESTART;
+}
+
+static int nm_probe_start(void)
+{
+	nm_probe.wq = alloc_workqueue("lego_nullmodem_probe", WQ_UNBOUND | WQ_HIGHPRI, 0);
+	if (!nm_probe.wq)
+		return -ENOMEM;
+	INIT_WORK(&nm_probe.work, nm_probe_work);
+	hrtimer_setup(&nm_probe.timer, nm_probe_fn, CLOCK_MONOTONIC, HRTIMER_MODE_REL_HARD);
+	hrtimer_start(&nm_probe.timer, ns_to_ktime(NM_BEAT_NS), HRTIMER_MODE_REL_HARD);
+	return 0;
+}
+
+static void nm_probe_stop(void)
+{
+	WRITE_ONCE(nm_probe.stop, true);
+	hrtimer_cancel(&nm_probe.timer);
+	destroy_workqueue(nm_probe.wq);	/* drains the work */
 }
 
 static void *nm_wire_start(struct seq_file *m, loff_t *pos)
@@ -923,6 +1000,9 @@ static int __init nm_init(void)
 	ret = tty_register_driver(nm_driver);
 	if (ret)
 		goto put_driver;
+	ret = nm_probe_start();
+	if (ret)
+		goto unregister;
 	/* Tests without debugfs only lose the wire logs. */
 	debugfs_create_file("wire", 0600, nm_debugfs, NULL, &nm_wire_fops);
 	/* The test VM has no CPU hotplug: the CPUs online now are all. */
@@ -931,6 +1011,8 @@ static int __init nm_init(void)
 	cpus_read_unlock();
 	return 0;
 
+unregister:
+	tty_unregister_driver(nm_driver);
 put_driver:
 	debugfs_remove_recursive(nm_debugfs);
 	for (i = 0; i < n; i++)
@@ -951,6 +1033,7 @@ static void __exit nm_exit(void)
 
 	debugfs_remove_recursive(nm_debugfs);
 	nm_beat_stop();
+	nm_probe_stop();
 	hrtimer_cancel(&nm_gen.timer);
 	tty_unregister_driver(nm_driver);
 	for (i = 0; i < 2 * pairs; i++) {

@@ -26,6 +26,7 @@
 phase_names=()
 phase_times=()
 phase_fail=0
+phase_failed=()
 
 phase() {
 	local name=$1
@@ -38,7 +39,10 @@ phase() {
 	phase_times+=("$((SECONDS - t0))")
 	if [ $rc -ne 0 ]; then
 		echo "==> $name FAILED (exit $rc)"
-		[ -n "${PHASE_NOCOUNT:-}" ] || phase_fail=$((phase_fail + 1))
+		[ -n "${PHASE_NOCOUNT:-}" ] || {
+			phase_fail=$((phase_fail + 1))
+			phase_failed+=("phase: $name (exit $rc)")
+		}
 	fi
 	return $rc
 }
@@ -51,6 +55,7 @@ pytest_phase() {
 	rc=$?
 	if [ $rc -ne 0 ] && ! grep -qs -e '<failure' -e '<error' "$xml"; then
 		phase_fail=$((phase_fail + 1))
+		phase_failed+=("phase: $name (exit $rc, no test failed)")
 	fi
 	return $rc
 }
@@ -64,6 +69,14 @@ summary() {
 	done
 	printf '  %-34s %5s s\n' "total" "$SECONDS"
 	[ -z "${PHASE_FOOTER:-}" ] || echo "$PHASE_FOOTER"
+	# What failed, again at the end: CI keeps only the log's tail.
+	if [ ${#phase_failed[@]} -gt 0 ] || [ -s "${PHASE_FAILURES:-/nonexistent}" ]; then
+		echo "Failed:"
+		for i in "${phase_failed[@]}"; do
+			echo "  $i"
+		done
+		[ -z "${PHASE_FAILURES:-}" ] || sed 's/^/  /' "$PHASE_FAILURES" 2>/dev/null
+	fi
 	failed=$((failed + phase_fail))
 	echo "$passed passed, $failed failed, $skipped skipped"
 	[ "$failed" -eq 0 ]
@@ -72,7 +85,7 @@ summary() {
 
 beside_start() {
 	beside_log=$1
-	rm -f "$beside_log" "$beside_log.phases" "$beside_log.failed"
+	rm -f "$beside_log" "$beside_log.phases" "$beside_log.failed" "$beside_log.names"
 	(
 		renice -n 19 -p "$BASHPID" >/dev/null
 		ionice -c 3 -p "$BASHPID" 2>/dev/null
@@ -84,6 +97,9 @@ beside_start() {
 			printf '%s (beside)\t%s\n' "${phase_names[$i]}" "${phase_times[$i]}"
 		done > "$beside_log.phases"
 		echo "$phase_fail" > "$beside_log.failed"
+		for i in "${phase_failed[@]}"; do
+			echo "$i"
+		done > "$beside_log.names"
 	) > "$beside_log" 2>&1 &
 	beside_pid=$!
 }
@@ -99,8 +115,16 @@ beside_wait() {
 			phase_times+=("$t")
 		done < "$beside_log.phases"
 	fi
-	read -r n < "$beside_log.failed" 2>/dev/null || n=1
+	read -r n < "$beside_log.failed" 2>/dev/null || {
+		n=1
+		phase_failed+=("phase: the phases beside the VM (no result)")
+	}
 	phase_fail=$((phase_fail + n))
+	if [ -f "$beside_log.names" ]; then
+		while IFS= read -r name; do
+			phase_failed+=("$name (beside)")
+		done < "$beside_log.names"
+	fi
 }
 
 # Test failures in the VM are counted from its results; only a VM that
@@ -108,9 +132,12 @@ beside_wait() {
 # An unexpected skip counts as a failure (summarize.py).
 vm_totals() {
 	local results=$1 tree=$2 vm_rc=$3 passed failed skipped
-	rm -f "$results/totals"
+	rm -f "$results/totals" "$results/failures"
 	python3 tests/summarize.py "$results" "$tree"
 	read -r passed failed skipped < "$results/totals" 2>/dev/null || { passed=0; failed=1; skipped=0; }
-	[ "$vm_rc" -ne 0 ] && [ "$failed" -eq 0 ] && phase_fail=$((phase_fail + 1))
-	summary "$passed" "$failed" "$skipped"
+	if [ "$vm_rc" -ne 0 ] && [ "$failed" -eq 0 ]; then
+		phase_fail=$((phase_fail + 1))
+		phase_failed+=("VM exited $vm_rc with no failed test (crash or timeout: see the console log)")
+	fi
+	PHASE_FAILURES="$results/failures" summary "$passed" "$failed" "$skipped"
 }

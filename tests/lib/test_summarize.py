@@ -190,6 +190,32 @@ def test_closing_line_passes_with_expected_skips(tmp_path):
     assert (rc, last) == (1, '2 passed, 1 failed, 1 skipped'), out
 
 
+def test_failures_are_listed_again_before_the_closing_line(tmp_path):
+    """CI keeps the log's tail: the failed tests and phases are named there,
+    after the phase times, not only where they happened."""
+    res = tmp_path / 'results'
+    res.mkdir()
+    junit(res / 'guest.xml', [
+        ('tests.guest.test_a', 'test_one', 1.0, 'pass', ''),
+        ('tests.guest.test_c', 'test_breaks', 2.0, 'fail', 'boom'),
+    ])
+    script = ('. tests/lib/phases.sh; phase "a phase" true; phase "a broken phase" false; '
+              'vm_totals "$1" /nonexistent 1')
+    env = dict(os.environ, LEGO_EXPECTED_SKIPS=str(expected_file(tmp_path)))
+    r = subprocess.run(['bash', '-c', script, 'x', str(res)], capture_output=True, text=True,
+                       cwd=TOP, env=env)
+    lines = r.stdout.splitlines()
+    assert r.returncode == 1 and lines[-1] == '1 passed, 2 failed, 0 skipped', r.stdout
+    tail = lines[lines.index('Failed:'):-1]
+    assert tail == ['Failed:', '  phase: a broken phase (exit 1)',
+                    '  guest: FAILED tests.guest.test_c.test_breaks'], r.stdout
+    assert lines.index('Failed:') > max(i for i, line in enumerate(lines) if 'total' in line)
+    (tmp_path / 'ok').mkdir()
+    res2 = guest_results(tmp_path / 'ok')
+    rc, last, out = closing(res2, expected_file(tmp_path, 'tests.guest.test_b.* inside the test VM'))
+    assert rc == 0 and 'Failed:' not in out, out
+
+
 def test_the_expected_skips_file_reads():
     """tests/expected-skips itself: every entry has its reason."""
     sys.path.insert(0, os.path.join(TOP, 'tests'))
