@@ -85,10 +85,25 @@ read -r kver _ < <(tests/kernel/fetch-source.sh "$kver")
 phase "test kernel $kver" tests/kernel/build-kernel.sh "$kver" >/dev/null || summary
 tree=$(tests/kernel/build-kernel.sh --tree-only "$kver")
 phase "modules for $kver (W=1, sparse)" tests/build-modules.sh --sparse "$tree" "$build/modules-$kver" || summary
-# One-way layering, read from the objects: no circle, no view using its
-# transport, no function over 60 lines. The NXT driver only, until the EV3
-# one is split (issue 30, item 1: tests/layering/check.py names what is left).
-phase "layering: NXT objects (nm)" tests/layering/check.py "$build/modules-$kver" --driver nxt
+# The EV3 driver without its lego-sensor class (LEGO_EV3_CLASS=n, the
+# in-tree series' LEGO_EV3_UART_CLASS=n): it builds, links, and still
+# keeps its layering; tests/guest/test_ev3_no_class.py runs it.
+modules_no_class() {
+	local out="$build/modules-$kver-no-class"
+	rm -rf "$out"
+	LEGO_EV3_CLASS=n tests/build-modules.sh --sparse "$tree" "$out" || return
+	if [ -e "$out/drivers/lego/ev3/ev3_uart_class.o" ]; then
+		echo "modules_no_class: ev3_uart_class.o was built" >&2
+		return 1
+	fi
+	tests/layering/check.py "$out" --driver ev3
+}
+
+# One-way layering, read from the objects of both drivers: no circle, no
+# view using its transport, no function over 60 lines.
+phase "layering: EV3 and NXT objects (nm)" tests/layering/check.py "$build/modules-$kver"
+# Before the VM: tests/guest/test_ev3_no_class.py loads it.
+phase "modules for $kver, no lego-sensor class (W=1, sparse)" modules_no_class
 # The host's own phases, which the VM does not need: they run beside it
 # (beside_start, at nice 19), in the time the emulated guest leaves idle
 # waiting on its 2400-baud handshakes and its timers.
@@ -105,7 +120,7 @@ host_phases() {
 		pytest_phase "make install, dkms-source, deb (host)" \
 		"$results/host-packaging.xml" tests/packaging
 	LEGO_KERNEL_TREE="$tree" pytest_phase "emulators, harness (host)" \
-		"$results/host-emulator.xml" tests/emulator tests/lib
+		"$results/host-emulator.xml" tests/emulator tests/lib tests/layering
 	pytest_phase "upstream series: in-tree rules (host)" "$results/host-upstream.xml" tests/upstream
 	# The in-tree series' quick checks (about 2 minutes cold, 1 warm); the
 	# kernel builds and kunit.py runs are `make upstream-check`'s.

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: GPL-2.0
 /*
  * libFuzzer target: the EV3 UART protocol core (ev3_uart_proto.c), driven
- * the way the line discipline (ev3_uart_ldisc.c) drives it.
+ * the way the sensor core (ev3_uart_core.c) drives it.
  *
  * Input: a 4-byte little-endian "host" seed, then the bytes the sensor
  * sends. Seed 0 is a quiet host: the stream is received in one batch, the

@@ -719,8 +719,8 @@ def test_ev3_sensor_registration(fault_setup, kmsg, record_property):
     ev3_uart_sensor_create() failing. It runs in the discipline's ack_work,
     a kernel worker, which fail-nth does not reach: failslab (Counter), its
     stack filter set to ev3_uart_sensor_create(), which every allocation of
-    the registration has on its stack (the class device, then the IIO
-    device), and nothing else. The sensor does not appear and
+    the registration has on its stack (the sensor, its class device, then
+    its IIO device), and nothing else. The sensor does not appear and
     the driver logs why, or it appears without its IIO device (logged too);
     detached, nothing of it is left.
 

@@ -33,7 +33,8 @@ def run_intree(tmp_path, name, text, *args):
 
 
 def test_places():
-    assert places.place('drivers/lego/ev3/ev3_uart.h') == 'drivers/iio/common/lego_ev3_uart/ev3_uart.h'
+    assert places.place('drivers/lego/ev3/ev3_uart_core.h') == \
+        'drivers/iio/common/lego_ev3_uart/ev3_uart_core.h'
     assert places.place('drivers/lego/nxt') == 'drivers/usb/misc/lego_nxt'
     assert places.place('Documentation/lego/tracing.rst') == 'Documentation/trace/events-lego.rst'
     assert places.place('Documentation/lego/testing.rst') is None

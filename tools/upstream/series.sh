@@ -217,28 +217,43 @@ piece_ev3_proto() {
 	commit 3-ev3-proto.txt
 }
 
-# 4. The line discipline, the lego-sensor class and IIO; Kconfig, Makefile,
-# the ABI they add.
+# 4. The sensor core, the line discipline and IIO; Kconfig and Makefile
+# without the lego-sensor class (5), the ABI of the IIO channels.
 piece_ev3_ldisc() {
-	put_dir drivers/lego/ev3 "$EV3" ev3_uart.h ev3_uart_ldisc.c ev3_uart_class.c \
-		ev3_uart_iio.c ev3_uart_trace.h ev3_uart_trace.c Kconfig Makefile .kunitconfig
-	put_dir Documentation/ABI/testing Documentation/ABI/testing \
-		sysfs-class-lego-sensor sysfs-bus-iio-lego-ev3-uart
+	put_dir drivers/lego/ev3 "$EV3" ev3_uart_core.h ev3_uart_core.c ev3_uart_views.h \
+		ev3_uart_ldisc.c ev3_uart_iio.c ev3_uart_trace.h ev3_uart_trace.c Kconfig \
+		Makefile .kunitconfig
+	# The class's option and object come with the class.
+	awk '/^config LEGO_EV3_UART_CLASS$/ { skip = 1; next }
+	     skip && /^config / { skip = 0 }
+	     !skip' "$tree/$EV3/Kconfig" >"$tree/$EV3/Kconfig.new"
+	mv "$tree/$EV3/Kconfig.new" "$tree/$EV3/Kconfig"
+	sed -i '/ev3_uart_class\.o/d' "$tree/$EV3/Makefile"
+	! grep -q -e LEGO_EV3_UART_CLASS -e ev3_uart_class "$tree/$EV3/Kconfig" "$tree/$EV3/Makefile" ||
+		die "$EV3: the class is left in Kconfig or Makefile"
+	put_dir Documentation/ABI/testing Documentation/ABI/testing sysfs-bus-iio-lego-ev3-uart
 	insert_sorted drivers/iio/common/Kconfig '^source "drivers/iio/common/' \
 		"source \"$EV3/Kconfig\""
 	insert_sorted drivers/iio/common/Makefile '^obj-y \+= ' 'obj-y += lego_ev3_uart/'
 	commit 4-ev3-ldisc.txt
 }
 
-# 5. The NXT telegram core, the transaction engine and their KUnit suites
-# (built from 6 on).
+# 5. The lego-sensor class of ev3dev, its option, its ABI.
+piece_ev3_class() {
+	put_dir drivers/lego/ev3 "$EV3" ev3_uart_class.c Kconfig Makefile
+	put_dir Documentation/ABI/testing Documentation/ABI/testing sysfs-class-lego-sensor
+	commit 5-ev3-class.txt
+}
+
+# 6. The NXT telegram core, the transaction engine and their KUnit suites
+# (built from 7 on).
 piece_nxt_proto() {
 	put_dir drivers/lego/nxt "$NXT" nxt_proto.h nxt_proto.c nxt_proto_test.c \
 		nxt_core.h nxt_core.c nxt_core_test.c
-	commit 5-nxt-proto.txt
+	commit 6-nxt-proto.txt
 }
 
-# 6. The USB driver; Kconfig, Makefile, the ABI it adds.
+# 7. The USB driver; Kconfig, Makefile, the ABI it adds.
 piece_nxt_usb() {
 	put_dir drivers/lego/nxt "$NXT" nxt_views.h nxt_usb.c nxt_cdev.c nxt_sysfs.c \
 		nxt_usb_trace.h nxt_usb_trace.c Kconfig Makefile .kunitconfig
@@ -253,10 +268,10 @@ piece_nxt_usb() {
 	# shellcheck disable=SC2016
 	sed -i '/^obj-$(CONFIG_USB_LEGOTOWER)/a obj-$(CONFIG_USB_LEGO_NXT)\t\t+= lego_nxt/' \
 		"$tree/drivers/usb/misc/Makefile"
-	commit 6-nxt-usb.txt
+	commit 7-nxt-usb.txt
 }
 
-# 7. The documentation: each driver's page in its subsystem's guide, the
+# 8. The documentation: each driver's page in its subsystem's guide, the
 # trace events' page, and the userspace API guide's page with the uapi
 # headers' kernel-doc. Each page goes into its directory's index, sorted
 # among the pages there.
@@ -271,7 +286,7 @@ piece_docs() {
 	put tools/upstream/doc/lego.rst Documentation/userspace-api/lego.rst
 	# Last in the toctree of media/index ("Devices and I/O" since 6.8).
 	toctree_append Documentation/userspace-api/index.rst media/index lego
-	commit 7-docs.txt
+	commit 8-docs.txt
 }
 
 # index_add PAGE: PAGE's entry in the toctree of its directory's index.rst,
@@ -302,6 +317,7 @@ piece_ldisc
 piece_uapi
 piece_ev3_proto
 piece_ev3_ldisc
+piece_ev3_class
 piece_nxt_proto
 piece_nxt_usb
 piece_docs

@@ -15,16 +15,31 @@
 #include <linux/sysfs.h>
 
 #include "lego_compat.h"
-#include "ev3_uart.h"
+#include "ev3_uart_core.h"
 #include "ev3_uart_chan.h"
+#include "ev3_uart_views.h"
 
 #define EV3_UART_NUM_VALUES	8
+
+/**
+ * struct ev3_uart_class_dev - a sensor in the lego-sensor class
+ * @dev: its class device, sensorN
+ * @sd: the sensor (a reference, dropped when @dev is released)
+ * @id: N
+ * @mode_work: sends the uevent for a mode change (uevents may sleep)
+ */
+struct ev3_uart_class_dev {
+	struct device dev;
+	struct ev3_uart_sensor_dev *sd;
+	int id;
+	struct work_struct mode_work;
+};
 
 static DEFINE_IDA(ev3_uart_sensor_ida);
 
 static struct ev3_uart_sensor_dev *to_sensor(struct device *dev)
 {
-	return container_of(dev, struct ev3_uart_sensor_dev, dev);
+	return container_of(dev, struct ev3_uart_class_dev, dev)->sd;
 }
 
 static const struct ev3_uart_mode *current_mode(struct ev3_uart_sensor_dev *sd,
@@ -321,7 +336,7 @@ static int ev3_uart_sensor_uevent(LEGO_UEVENT_CONST struct device *dev,
 				  struct kobj_uevent_env *env)
 {
 	const struct ev3_uart_sensor_dev *sd =
-		container_of(dev, struct ev3_uart_sensor_dev, dev);
+		container_of(dev, struct ev3_uart_class_dev, dev)->sd;
 	int ret;
 
 	ret = add_uevent_var(env, "LEGO_DRIVER_NAME=%s", sd->driver_name);
@@ -336,113 +351,106 @@ static LEGO_CLASS_CONST struct class lego_sensor_class = {
 	.dev_uevent = ev3_uart_sensor_uevent,
 };
 
-static void ev3_uart_sensor_release(struct device *dev)
+static void ev3_uart_class_release(struct device *dev)
 {
-	struct ev3_uart_sensor_dev *sd = to_sensor(dev);
+	struct ev3_uart_class_dev *cd = container_of(dev, struct ev3_uart_class_dev, dev);
 
-	ida_free(&ev3_uart_sensor_ida, sd->id);
-	kfree(sd);
+	ida_free(&ev3_uart_sensor_ida, cd->id);
+	ev3_uart_sensor_put(cd->sd);
+	kfree(cd);
 }
 
-static void ev3_uart_sensor_mode_work(struct work_struct *work)
+static void ev3_uart_class_mode_work(struct work_struct *work)
 {
-	struct ev3_uart_sensor_dev *sd = container_of(work, struct ev3_uart_sensor_dev,
-						      mode_work);
+	struct ev3_uart_class_dev *cd = container_of(work, struct ev3_uart_class_dev,
+						     mode_work);
 
-	kobject_uevent(&sd->dev.kobj, KOBJ_CHANGE);
+	kobject_uevent(&cd->dev.kobj, KOBJ_CHANGE);
 }
 
-/**
- * ev3_uart_sensor_create() - register a sensor after its handshake
- * @port: the line it is on
- * @desc: what it said about itself (copied)
- *
- * Return: the sensor, or an ERR_PTR().
- */
-struct ev3_uart_sensor_dev *ev3_uart_sensor_create(struct ev3_uart_port *port,
-						   const struct ev3_uart_sensor *desc)
+/* A sensor completed its handshake: sensorN in the class. */
+static int ev3_uart_class_add(struct ev3_uart_sensor_dev *sd)
 {
-	const char *name = desc->lump ? ev3_uart_lump_driver_name(desc->type) :
-					ev3_uart_driver_name(desc->type);
-	struct ev3_uart_sensor_dev *sd;
+	struct ev3_uart_class_dev *cd;
 	int ret;
 
-	sd = kzalloc_obj(*sd, GFP_KERNEL);
-	if (!sd)
-		return ERR_PTR(-ENOMEM);
-
-	sd->id = ida_alloc(&ev3_uart_sensor_ida, GFP_KERNEL);
-	if (sd->id < 0) {
-		ret = sd->id;
-		kfree(sd);
-		return ERR_PTR(ret);
+	cd = kzalloc_obj(*cd, GFP_KERNEL);
+	if (!cd)
+		return -ENOMEM;
+	cd->id = ida_alloc(&ev3_uart_sensor_ida, GFP_KERNEL);
+	if (cd->id < 0) {
+		ret = cd->id;
+		kfree(cd);
+		return ret;
 	}
+	ev3_uart_sensor_get(sd);
+	cd->sd = sd;
+	INIT_WORK(&cd->mode_work, ev3_uart_class_mode_work);
 
-	sd->port = port;
-	sd->desc = *desc;
-	if (name)
-		strscpy(sd->driver_name, name, sizeof(sd->driver_name));
-	else
-		snprintf(sd->driver_name, sizeof(sd->driver_name), "%s-uart-%u",
-			 desc->lump ? "lump" : "ev3", desc->type);
-	spin_lock(&port->lock);
-	if (port->label[0])
-		snprintf(sd->address, sizeof(sd->address), "%s:%s",
-			 port->tty->name, port->label);
-	else
-		strscpy(sd->address, port->tty->name, sizeof(sd->address));
-	spin_unlock(&port->lock);
-	INIT_WORK(&sd->mode_work, ev3_uart_sensor_mode_work);
-	sd->settle_until = jiffies;
-
-	device_initialize(&sd->dev);
-	sd->dev.class = &lego_sensor_class;
-	sd->dev.parent = port->tty->dev;
-	sd->dev.release = ev3_uart_sensor_release;
-	ret = dev_set_name(&sd->dev, "sensor%d", sd->id);
+	device_initialize(&cd->dev);
+	cd->dev.class = &lego_sensor_class;
+	cd->dev.parent = sd->port->parent;
+	cd->dev.release = ev3_uart_class_release;
+	ret = dev_set_name(&cd->dev, "sensor%d", cd->id);
 	if (!ret)
-		ret = device_add(&sd->dev);
+		ret = device_add(&cd->dev);
 	if (ret) {
-		put_device(&sd->dev);
-		return ERR_PTR(ret);
+		put_device(&cd->dev);
+		return ret;
 	}
-
-	/* IIO is a second view of the same sensor: carry on without it. */
-	ret = ev3_uart_iio_register(sd);
-	if (ret)
-		dev_warn(&sd->dev, "no IIO device: %d\n", ret);
-	return sd;
+	strscpy(sd->name, dev_name(&cd->dev), sizeof(sd->name));
+	sd->cls = cd;
+	return 0;
 }
 
-/**
- * ev3_uart_sensor_destroy() - unregister a sensor that is gone
- * @sd: the sensor, already marked gone
- *
- * Waits for sysfs callbacks in flight; the memory goes with the last
- * reference to the device.
- */
-void ev3_uart_sensor_destroy(struct ev3_uart_sensor_dev *sd)
+/* Under the port lock: the uevent goes from a work item. */
+static void ev3_uart_class_mode_changed(struct ev3_uart_sensor_dev *sd)
 {
-	ev3_uart_iio_unregister(sd);
-	cancel_work_sync(&sd->mode_work);
-	device_unregister(&sd->dev);
+	schedule_work(&sd->cls->mode_work);
 }
 
+/*
+ * The sensor is gone: no mode change can queue the uevent any more. Waits
+ * for sysfs callbacks in flight; the memory goes with the last reference
+ * to the device.
+ */
+static void ev3_uart_class_remove(struct ev3_uart_sensor_dev *sd)
+{
+	struct ev3_uart_class_dev *cd = sd->cls;
+
+	cancel_work_sync(&cd->mode_work);
+	device_unregister(&cd->dev);
+}
+
+static const struct ev3_uart_view_ops ev3_uart_class_view = {
+	.add		= ev3_uart_class_add,
+	.remove		= ev3_uart_class_remove,
+	.mode_changed	= ev3_uart_class_mode_changed,
+};
+
 /**
- * ev3_uart_class_init() - register the lego-sensor class
+ * ev3_uart_class_init() - register the lego-sensor class and its view
  *
  * Return: 0 or the class registration error (-%EEXIST if another driver,
  * such as ev3dev's own, registered it first).
  */
 int ev3_uart_class_init(void)
 {
-	return class_register(&lego_sensor_class);
+	int ret = class_register(&lego_sensor_class);
+
+	if (ret)
+		return ret;
+	ret = ev3_uart_view_register(&ev3_uart_class_view);
+	if (ret)
+		class_unregister(&lego_sensor_class);
+	return ret;
 }
 
 /**
- * ev3_uart_class_exit() - unregister the lego-sensor class
+ * ev3_uart_class_exit() - unregister the view and the class
  */
 void ev3_uart_class_exit(void)
 {
+	ev3_uart_view_unregister(&ev3_uart_class_view);
 	class_unregister(&lego_sensor_class);
 }

@@ -27,8 +27,9 @@
 #include <linux/string.h>
 
 #include "lego_compat.h"
-#include "ev3_uart.h"
+#include "ev3_uart_core.h"
 #include "ev3_uart_chan.h"
+#include "ev3_uart_views.h"
 
 /**
  * struct ev3_uart_iio - the IIO side of one sensor
@@ -39,8 +40,6 @@
  * @buffer: its kfifo
  * @chans: the channels as ev3_uart_chans_build() made them, by scan index
  * @num_chans: their number, at least 1
- * @buffer_mode: mode whose DATA messages are pushed, or %EV3_UART_NO_MODE
- *	(under the port lock)
  * @last_ts: timestamp of the last message pushed, 0 for none yet (under the
  *	port lock)
  * @scan: one scan: a value per channel, then the timestamp (under the port
@@ -56,7 +55,6 @@ struct ev3_uart_iio {
 	struct iio_buffer *buffer;
 	struct ev3_uart_chan *chans;
 	unsigned int num_chans;
-	u8 buffer_mode;
 	s64 last_ts;
 	s32 *scan;
 	size_t scan_size;
@@ -180,32 +178,20 @@ static int ev3_iio_postenable(struct iio_dev *indio)
 	if (ch >= iio->num_chans)
 		return -EINVAL;
 	mode = iio->chans[ch].mode;
-	/* The buffer holds the mode before a mode write can take it away. */
-	return ev3_uart_set_buffer_mode(iio->sd, iio, mode);
-}
-
-/**
- * ev3_uart_iio_buffer_on() - the buffer captures @mode from now on
- * @iio: the IIO front end
- * @mode: the sensor's mode, just set
- *
- * Called under the port lock by ev3_uart_set_buffer_mode(), with the
- * sensor's select_mutex held.
- */
-void ev3_uart_iio_buffer_on(struct ev3_uart_iio *iio, u8 mode)
-{
-	lockdep_assert_held(&iio->sd->port->lock);
-	iio->buffer_mode = mode;
+	/*
+	 * Nothing is pushed until the sensor is held to the mode, which is
+	 * before a mode write can take it away: the first timestamp then
+	 * has no predecessor.
+	 */
 	iio->last_ts = 0;
+	return ev3_uart_hold_mode(iio->sd, mode);
 }
 
 static int ev3_iio_predisable(struct iio_dev *indio)
 {
 	struct ev3_uart_iio *iio = iio_priv(indio);
 
-	spin_lock(&iio->sd->port->lock);
-	iio->buffer_mode = EV3_UART_NO_MODE;
-	spin_unlock(&iio->sd->port->lock);
+	ev3_uart_release_mode(iio->sd);
 	return 0;
 }
 
@@ -214,23 +200,6 @@ static const struct iio_buffer_setup_ops ev3_iio_buffer_ops = {
 	.predisable = ev3_iio_predisable,
 	.validate_scan_mask = ev3_iio_validate_scan_mask,
 };
-
-/**
- * ev3_uart_iio_mode_busy() - whether a buffer holds the sensor to its mode
- * @sd: the sensor
- * @mode: the mode a user asks for
- *
- * A buffer captures the values of one mode: switching away while it is
- * enabled would leave it silently empty. Called under the port lock.
- *
- * Return: true if a buffer is enabled on another mode than @mode.
- */
-bool ev3_uart_iio_mode_busy(struct ev3_uart_sensor_dev *sd, u8 mode)
-{
-	lockdep_assert_held(&sd->port->lock);
-	return sd->iio && sd->iio->buffer_mode != EV3_UART_NO_MODE &&
-	       sd->iio->buffer_mode != mode;
-}
 
 /*
  * When the last byte of a DATA message of @len payload bytes arrived, @rest
@@ -246,25 +215,19 @@ static s64 ev3_iio_timestamp(struct ev3_uart_iio *iio, unsigned int len,
 	return iio->last_ts;
 }
 
-/**
- * ev3_uart_iio_push() - push one DATA message to the buffer
- * @sd: the sensor
- * @mode: the mode of the message
- * @data: its payload
- * @len: its length
- * @rest: bytes received after the message in the same batch
- *
- * Called from the receive path under the port lock; never sleeps.
+/*
+ * Push one DATA message of @mode, @len bytes, @rest bytes before the end
+ * of its batch, to the buffer if it captures @mode (&ev3_uart_view_ops.data:
+ * from the receive path, under the port lock; never sleeps).
  */
-void ev3_uart_iio_push(struct ev3_uart_sensor_dev *sd, u8 mode,
-		       const u8 *data, unsigned int len, size_t rest)
+static void ev3_uart_iio_data(struct ev3_uart_sensor_dev *sd, u8 mode,
+			      const u8 *data, unsigned int len, size_t rest)
 {
 	struct ev3_uart_iio *iio = sd->iio;
 	unsigned int ch, i = 0;
 
 	lockdep_assert_held(&sd->port->lock);
-	if (!iio || iio->buffer_mode != mode ||
-	    time_before(jiffies, sd->settle_until))
+	if (!iio || sd->held_mode != mode)
 		return;
 	iio_for_each_active_channel(iio->indio, ch) {
 		/* The timestamp, last of the scan, is no channel of ours. */
@@ -323,7 +286,6 @@ static int ev3_uart_iio_setup(struct iio_dev *indio, struct ev3_uart_sensor_dev 
 
 	iio->sd = sd;
 	iio->indio = indio;
-	iio->buffer_mode = EV3_UART_NO_MODE;
 	iio->num_chans = n;
 	strscpy(iio->name, sd->driver_name, sizeof(iio->name));
 	strscpy(iio->label, sd->address, sizeof(iio->label));
@@ -349,31 +311,14 @@ static int ev3_uart_iio_setup(struct iio_dev *indio, struct ev3_uart_sensor_dev 
 	return 0;
 }
 
-/**
- * ev3_uart_iio_register() - create and register a sensor's IIO device
- * @sd: the sensor, registered in the lego-sensor class
- *
- * A sensor none of whose values has an IIO channel type (or a scale IIO
- * can show) gets no IIO device.
- *
- * Return: 0 or a negative errno.
- */
-int ev3_uart_iio_register(struct ev3_uart_sensor_dev *sd)
+/* Create and register a sensor's IIO device: -ENOMEM, or 0. */
+static int ev3_uart_iio_register(struct ev3_uart_sensor_dev *sd, unsigned int n)
 {
 	struct ev3_uart_iio *iio;
 	struct iio_dev *indio;
-	unsigned int n;
 	int ret;
 
-	n = ev3_uart_chans_build(&sd->desc, NULL, 0);
-	if (!n) {
-		/* Once a connection: limited like the port's other lines. */
-		if (__ratelimit(&sd->port->log_rs))
-			dev_info(&sd->dev, "no value has an IIO type and scale: no IIO device\n");
-		return 0;
-	}
-
-	indio = iio_device_alloc(sd->port->tty->dev, sizeof(*iio));
+	indio = iio_device_alloc(sd->port->parent, sizeof(*iio));
 	if (!indio)
 		return -ENOMEM;
 	iio = iio_priv(indio);
@@ -393,11 +338,8 @@ int ev3_uart_iio_register(struct ev3_uart_sensor_dev *sd)
 	ret = iio_device_register(indio);
 	if (ret)
 		goto free_buffer;
-
-	/* From now on the receive path may push (under the port lock). */
-	spin_lock(&sd->port->lock);
+	/* Not published to the receive path yet: no lock needed. */
 	sd->iio = iio;
-	spin_unlock(&sd->port->lock);
 	return 0;
 
 free_buffer:
@@ -407,25 +349,70 @@ free:
 	return ret;
 }
 
-/**
- * ev3_uart_iio_unregister() - remove a sensor's IIO device
- * @sd: the sensor, no longer reachable from the receive path
- *
- * After this, no IIO callback runs for @sd, even if /dev/iio:deviceN is
- * still open: the IIO core refuses every call on an unregistered device.
- * The IIO device's memory goes with its last reference.
+/*
+ * A sensor completed its handshake: its IIO device (&ev3_uart_view_ops.add).
+ * A sensor none of whose values has an IIO channel type (or a scale IIO can
+ * show) gets none; one whose device cannot be registered carries on
+ * without it, as a sensor of the class: both are said in the log.
  */
-void ev3_uart_iio_unregister(struct ev3_uart_sensor_dev *sd)
+static int ev3_uart_iio_add(struct ev3_uart_sensor_dev *sd)
 {
-	struct ev3_uart_iio *iio;
+	unsigned int n = ev3_uart_chans_build(&sd->desc, NULL, 0);
+	int ret;
 
-	spin_lock(&sd->port->lock);
-	iio = sd->iio;
-	sd->iio = NULL;
-	spin_unlock(&sd->port->lock);
+	if (!n) {
+		/* Once a connection: limited like the port's other lines. */
+		if (ev3_uart_sensor_log_ok(sd))
+			pr_info("%s: %s: no value has an IIO type and scale: no IIO device\n",
+				sd->address, ev3_uart_sensor_name(sd));
+		return 0;
+	}
+	ret = ev3_uart_iio_register(sd, n);
+	if (ret)
+		pr_warn("%s: %s: no IIO device: %d\n", sd->address,
+			ev3_uart_sensor_name(sd), ret);
+	return 0;
+}
+
+/*
+ * The sensor is gone and out of the receive path's reach: remove its IIO
+ * device (&ev3_uart_view_ops.remove). After this, no IIO callback runs for
+ * @sd, even if /dev/iio:deviceN is still open: the IIO core refuses every
+ * call on an unregistered device. The IIO device's memory goes with its
+ * last reference.
+ */
+static void ev3_uart_iio_remove(struct ev3_uart_sensor_dev *sd)
+{
+	struct ev3_uart_iio *iio = sd->iio;
+
 	if (!iio)
 		return;
+	sd->iio = NULL;
 	iio_device_unregister(iio->indio);
 	iio_kfifo_free(iio->buffer);
 	iio_device_free(iio->indio);
+}
+
+static const struct ev3_uart_view_ops ev3_uart_iio_view = {
+	.add	= ev3_uart_iio_add,
+	.remove	= ev3_uart_iio_remove,
+	.data	= ev3_uart_iio_data,
+};
+
+/**
+ * ev3_uart_iio_init() - register the IIO view with the core
+ *
+ * Return: 0 or the core's error.
+ */
+int ev3_uart_iio_init(void)
+{
+	return ev3_uart_view_register(&ev3_uart_iio_view);
+}
+
+/**
+ * ev3_uart_iio_exit() - unregister the IIO view
+ */
+void ev3_uart_iio_exit(void)
+{
+	ev3_uart_view_unregister(&ev3_uart_iio_view);
 }
