@@ -348,25 +348,31 @@ static void nm_wire_log_write(unsigned int port, const u8 *buf, unsigned int n,
 #define NM_BEAT_NS	(5 * NSEC_PER_MSEC)
 #define NM_STALL_MIN_NS	(10 * NSEC_PER_MSEC)
 
+/* A stall record of @kind: @late ns late at @now, on this CPU. */
+static void nm_wire_stall(char kind, u64 now, u64 late)
+{
+	struct nm_wire_rec *r;
+	unsigned long flags;
+
+	raw_spin_lock_irqsave(&nm_wire_lock, flags);
+	r = &nm_wire[nm_wire_head++ % NM_WIRE_LOG];
+	r->ns = now;
+	r->baud = min_t(u64, div_u64(late, NSEC_PER_USEC), U32_MAX);
+	r->port = NM_WIRE_STALL;
+	r->byte = raw_smp_processor_id();
+	r->kind = kind;
+	raw_spin_unlock_irqrestore(&nm_wire_lock, flags);
+}
+
 static DEFINE_PER_CPU(struct hrtimer, nm_beat);
 
 static enum hrtimer_restart nm_beat_fn(struct hrtimer *timer)
 {
 	u64 now = ktime_get_ns();
 	s64 late = now - ktime_to_ns(hrtimer_get_expires(timer));
-	struct nm_wire_rec *r;
-	unsigned long flags;
 
-	if (late >= NM_STALL_MIN_NS) {
-		raw_spin_lock_irqsave(&nm_wire_lock, flags);
-		r = &nm_wire[nm_wire_head++ % NM_WIRE_LOG];
-		r->ns = now;
-		r->baud = min_t(u64, div_u64(late, NSEC_PER_USEC), U32_MAX);
-		r->port = NM_WIRE_STALL;
-		r->byte = smp_processor_id();
-		r->kind = 's';
-		raw_spin_unlock_irqrestore(&nm_wire_lock, flags);
-	}
+	if (late >= NM_STALL_MIN_NS)
+		nm_wire_stall('s', now, late);
 	hrtimer_forward_now(timer, ns_to_ktime(NM_BEAT_NS));
 	return HRTIMER_RESTART;
 }
@@ -405,20 +411,10 @@ static void nm_probe_work(struct work_struct *work)
 {
 	u64 now = ktime_get_ns();
 	u64 late = now - READ_ONCE(nm_probe.queued_ns);
-	struct nm_wire_rec *r;
-	unsigned long flags;
 
 	atomic_set(&nm_probe.waiting, 0);
-	if (late < NM_STALL_MIN_NS)
-		return;
-	raw_spin_lock_irqsave(&nm_wire_lock, flags);
-	r = &nm_wire[nm_wire_head++ % NM_WIRE_LOG];
-	r->ns = now;
-	r->baud = min_t(u64, div_u64(late, NSEC_PER_USEC), U32_MAX);
-	r->port = NM_WIRE_STALL;
-	r->byte = raw_smp_processor_id();
-	r->kind = 'q';
-	raw_spin_unlock_irqrestore(&nm_wire_lock, flags);
+	if (late >= NM_STALL_MIN_NS)
+		nm_wire_stall('q', now, late);
 }
 
 static enum hrtimer_restart nm_probe_fn(struct hrtimer *timer)
