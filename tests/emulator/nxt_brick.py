@@ -89,7 +89,9 @@ The `hostile` option makes a misbehaving brick: `short` (truncated replies),
 `noreply` (never replies), `garbage` (random bytes not starting with 0x02),
 `stall` (halts the IN endpoint instead of replying), `disconnect` (unplugs
 after receiving a command, before replying), `mislength` (sends a reply to
-the same opcode but of the wrong length before each real reply).
+the same opcode but of the wrong length before each real reply), `deaf`
+(configured, but never reads its OUT endpoint: no telegram is taken, as
+when the firmware is stuck in a long command).
 
 Usage: python3 tests/emulator/nxt_brick.py [--udc dummy_udc.0]
     [--serial 001653A0B1C2] [--name NXT] [--hostile MODE] [--tick-ms MS]
@@ -1124,7 +1126,7 @@ GET_CONFIGURATION, SET_CONFIGURATION = 0x08, 0x09
 DT_DEVICE, DT_CONFIG, DT_STRING = 1, 2, 3
 
 HOSTILE_MODES = ('short', 'long', 'opcode', 'noreply', 'garbage', 'stall', 'disconnect',
-                 'mislength')
+                 'mislength', 'deaf')
 
 # Blocking raw-gadget ioctls are woken by this signal (its handler does
 # nothing, so the ioctl returns EINTR and the thread sees it should stop).
@@ -1426,6 +1428,9 @@ class RawGadgetBrick:
 
     def _command_loop(self):
         while not self._stopping.is_set():
+            if self.hostile == 'deaf':
+                self._stopping.wait(0.1)
+                continue
             packet = self._next_command()
             if packet is None:
                 continue

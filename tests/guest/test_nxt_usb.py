@@ -844,6 +844,42 @@ def test_hostile_brick(mode, want):
         assert b.wait_gone()
 
 
+class Interrupted(Exception):
+    """Raised by a signal handler: Python then does not retry the call the
+    signal interrupted (PEP 475)."""
+
+
+def test_signal_while_the_brick_takes_nothing():
+    """A brick that takes no telegram (its firmware stuck): a signal ends
+    the wait for the send at once; without one, the send times out."""
+    b = nxt.Brick('dummy_udc.1', SERIAL2, hostile='deaf')
+    b.plug()
+    f = b.open()
+
+    def handler(signum, frame):
+        raise Interrupted()
+    old = signal.signal(signal.SIGUSR1, handler)
+    try:
+        assert nxt.set_timeout(f, 3000) == 0
+        timer = threading.Timer(0.3, signal.pthread_kill,
+                                (threading.get_ident(), signal.SIGUSR1))
+        timer.start()
+        t0 = time.monotonic()
+        with pytest.raises(Interrupted):
+            os.write(f, b'\x00\x0b')
+        assert 0.3 <= time.monotonic() - t0 < 2.5
+        timer.join()
+        # Not taken: the telegram is unlinked when the timeout ends.
+        assert nxt.set_timeout(f, 300) == 0
+        err, _ = nxt.transact(f, b'\x00\x0b')
+        assert err == errno.ETIMEDOUT, errno.errorcode.get(err, err)
+    finally:
+        signal.signal(signal.SIGUSR1, old)
+        os.close(f)
+        b.unplug()
+        assert b.wait_gone()
+
+
 # ---- issue 28: who may make the brick act, and what waits for it ----
 
 def header_ioctls():
