@@ -343,6 +343,12 @@ def test_hostile_brick(no_nxt_driver, mode):
         assert brick.wait_configured(60), brick.events
         usb = Usbfs(SERIAL1)
         try:
+            if mode == 'deaf':
+                # Configured, but the command is never taken.
+                with pytest.raises(OSError) as e:
+                    usb.send(bytes.fromhex('01 9B'), timeout_ms=1500)
+                assert e.value.errno == errno.ETIMEDOUT, e.value
+                return
             usb.send(bytes.fromhex('01 9B'))
             if mode in ('noreply', 'stall', 'disconnect'):
                 with pytest.raises(OSError) as e:
