@@ -392,7 +392,7 @@ class Runner:
             os.close(far)
         termios.tcflush(self.host, termios.TCIOFLUSH)
 
-    def _detach(self, rng):
+    def _detach(self, rng, emu):
         """Detach in one of the ways a user can; returns how."""
         how = rng.choice(['close', 'setd', 'hangup'] if self.transport == 'pty'
                          else ['close', 'setd'])
@@ -403,6 +403,14 @@ class Runner:
         if how == 'close':
             os.close(self.host)
             self.host = None
+            if self.master is not None:
+                # A pty is released (its discipline closed) only once both
+                # its ends are: the far end goes too, the emulated sensor's
+                # copy of it first.
+                emu.stopping.set()
+                emu.join(5)
+                os.close(self.master)
+                self.master = None
         return how
 
     def _check_wire(self, c):
@@ -454,7 +462,9 @@ class Runner:
                                 retry_delay=1.0, rude=c.rude)
         if c.rude:
             self.bump('rude_sensors')
-        for i, vals in c.values.items():
+        # The values belong to the described modes; a case without a
+        # description (the driver must refuse it) sends the stand-in's zeros.
+        for i, vals in (c.values.items() if d else ()):
             emu.values[i] = list(vals)
         return emu
 
@@ -511,7 +521,7 @@ class Runner:
                 self.excuses.add('lost')
             self.step = 'detach'
             self.detached_ns = time.monotonic_ns()
-            how = self._detach(rng)
+            how = self._detach(rng, emu)
             self.bump('detach_' + how)
             self.check(sd.wait_gone(GONE_TIMEOUT),
                        'the sensor is still there %.0f s after the detach (%s)'

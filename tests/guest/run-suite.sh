@@ -55,7 +55,10 @@ echo "=== guest tests"
 # No pytest plugin is installed for the guest tests: without the search for
 # plugins among every installed distribution's metadata (hundreds of small
 # files over 9p), pytest starts ten seconds sooner under emulation.
-PYTEST_DISABLE_PLUGIN_AUTOLOAD=1 python3 -m pytest -p no:cacheprovider --color=no -v --junitxml="$out/guest.xml" "$@" || rc=1
+# An exception that ends an emulator's thread fails the test it came in.
+PYTEST_DISABLE_PLUGIN_AUTOLOAD=1 python3 -m pytest -p no:cacheprovider --color=no -v \
+	-W error::pytest.PytestUnhandledThreadExceptionWarning \
+	--junitxml="$out/guest.xml" "$@" || rc=1
 
 echo "=== coverage"
 # The kernel's gcov (CONFIG_GCOV_KERNEL) has a .gcda file for each object

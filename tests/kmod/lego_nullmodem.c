@@ -271,9 +271,10 @@ static void nm_log(struct nm_port *p, char kind, const u8 *buf, unsigned int n)
  * byte of an even port on the wire, 'w' for one written to it (taken by
  * nm_write()), and 'a' for the end of an odd port's burst that ended in
  * 0x04 (byte is then 04), 's' and 'q' (port 255) for a stalled CPU and a
- * late probe work item (see the top of the file); seq counts every record since the module
- * was loaded (or the log was cleared: write anything to the file), so that
- * a reader can take only what is new and see what was overwritten.
+ * late probe work item (see the top of the file); seq counts every record
+ * since the module was loaded (or the log was cleared: write anything to
+ * the file), so that a reader can take only what is new and see what was
+ * overwritten.
  */
 #define NM_WIRE_LOG	16384
 
@@ -404,7 +405,6 @@ static struct {
 	struct work_struct work;
 	u64 queued_ns;
 	atomic_t waiting;
-	bool stop;
 } nm_probe;
 
 static void nm_probe_work(struct work_struct *work)
@@ -419,8 +419,6 @@ static void nm_probe_work(struct work_struct *work)
 
 static enum hrtimer_restart nm_probe_fn(struct hrtimer *timer)
 {
-	if (READ_ONCE(nm_probe.stop))
-		return HRTIMER_NORESTART;
 	if (!atomic_xchg(&nm_probe.waiting, 1)) {
 		WRITE_ONCE(nm_probe.queued_ns, ktime_get_ns());
 		queue_work(nm_probe.wq, &nm_probe.work);
@@ -442,8 +440,7 @@ static int nm_probe_start(void)
 
 static void nm_probe_stop(void)
 {
-	WRITE_ONCE(nm_probe.stop, true);
-	hrtimer_cancel(&nm_probe.timer);
+	hrtimer_cancel(&nm_probe.timer);	/* as nm_beat_stop(): restarts too */
 	destroy_workqueue(nm_probe.wq);	/* drains the work */
 }
 

@@ -51,7 +51,8 @@ pytest_phase() {
 	local name=$1 xml=$2 rc
 	shift 2
 	rm -f "$xml"
-	PHASE_NOCOUNT=1 phase "$name" python3 -m pytest -q -p no:cacheprovider --junitxml="$xml" "$@"
+	PHASE_NOCOUNT=1 phase "$name" python3 -m pytest -q -p no:cacheprovider \
+		-W error::pytest.PytestUnhandledThreadExceptionWarning --junitxml="$xml" "$@"
 	rc=$?
 	if [ $rc -ne 0 ] && ! grep -qs -e '<failure' -e '<error' "$xml"; then
 		phase_fail=$((phase_fail + 1))

@@ -10,7 +10,7 @@
  *
  * Exit codes are listed in print_help() and in Documentation/lego/ev3-attach.rst.
  */
-#define _GNU_SOURCE	/* fopencookie() */
+#define _GNU_SOURCE	/* fopencookie(), mkostemp() */
 #include <dirent.h>
 #include <errno.h>
 #include <fcntl.h>
@@ -290,20 +290,39 @@ static int detach(const char *path, int num)
 	return EXIT_OK;
 }
 
+/*
+ * Written whole or not at all: a reader that sees the file sees the pid
+ * (a temporary file beside it, renamed over it), never an empty file.
+ */
 static int write_pidfile(const char *pidfile)
 {
-	char buf[32];
+	char buf[32], tmp[PATH_MAX];
 	int fd, n;
 
-	fd = open(pidfile, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+	if (snprintf(tmp, sizeof(tmp), "%s.XXXXXX", pidfile) >= (int)sizeof(tmp)) {
+		errno = ENAMETOOLONG;
+		return -1;
+	}
+	fd = mkostemp(tmp, O_CLOEXEC);
 	if (fd < 0)
 		return -1;
 	n = snprintf(buf, sizeof(buf), "%ld\n", (long)getpid());
-	if (write(fd, buf, n) != n) {
+	if (fchmod(fd, 0644) || write(fd, buf, n) != n) {
+		int err = errno;
+
 		close(fd);
+		unlink(tmp);
+		errno = err;
 		return -1;
 	}
-	return close(fd);
+	if (close(fd) || rename(tmp, pidfile)) {
+		int err = errno;
+
+		unlink(tmp);
+		errno = err;
+		return -1;
+	}
+	return 0;
 }
 
 static double now_s(void)

@@ -1103,13 +1103,13 @@ static int ev3_uart_select_start(struct ev3_uart_sensor_dev *sd, u8 mode)
 
 /*
  * Send SELECT until the first DATA message of @mode confirms it, up to
- * EV3_UART_SELECT_TRIES times. Return: 0 (confirmed, @settle: until when
- * its values may be stale), or an error. select_mutex held.
+ * EV3_UART_SELECT_TRIES times, @wait jiffies each. Return: 0 (confirmed,
+ * @settle: until when its values may be stale), or an error. select_mutex
+ * held.
  */
 static int ev3_uart_select_send(struct ev3_uart_sensor_dev *sd, u8 mode,
-				unsigned long *settle)
+				unsigned long wait, unsigned long *settle)
 {
-	unsigned long wait = msecs_to_jiffies(EV3_UART_SELECT_WAIT_MS);
 	struct ev3_uart_port *port = sd->port;
 	long left = 0;
 	int ret, i;
@@ -1170,7 +1170,7 @@ static int ev3_uart_select(struct ev3_uart_sensor_dev *sd, u8 mode, bool hold)
 
 	ret = ev3_uart_select_start(sd, mode);
 	if (!ret)
-		ret = ev3_uart_select_send(sd, mode, &settle);
+		ret = ev3_uart_select_send(sd, mode, wait, &settle);
 	if (ret == -ETIMEDOUT)
 		pr_warn_ratelimited("%s: %s: mode %s not confirmed by the sensor\n",
 				    sd->address, ev3_uart_sensor_name(sd),
