@@ -280,7 +280,7 @@ static void start_data(struct host *h)
 }
 
 /*
- * A sensor lost (the ldisc's reset_work): the back-off of a device that
+ * A sensor lost (ev3_uart_reset()): the back-off of a device that
  * keeps failing (ev3_uart_backoff_lost()), with the time since its
  * handshake.
  */

@@ -88,7 +88,7 @@ class SensorLost(Exception):
     detach checks."""
 
 
-# The driver's lines for a lost sensor (ev3_uart_event(), reset_work): the
+# The driver's lines for a lost sensor (ev3_uart_event(), ev3_uart_reset()): the
 # reason, then the loss; only a loss for want of data is the emulator's.
 LOST_REASON = 'no data from the sensor'
 

@@ -47,8 +47,8 @@ def iio_attrs(dev):
 
 def test_huge_scale_is_left_out_not_divided(line):
     """Issue 17: RAW 0..1 and SI 0..2e7 in C (a scale of 2e10 m°C per raw
-    unit) made ev3_iio_scale() raise a divide error in ack_work, and the
-    kernel panicked. The sensor must register; its channel, whose scale IIO
+    unit) made ev3_iio_scale() raise a divide error in the work that registers
+    the sensor, and the kernel panicked. The sensor must register; its channel, whose scale IIO
     cannot show, is left out, and with no channel left there is no IIO
     device."""
     sdef = SensorDef(90, 'ev3-uart-90', 1, [
@@ -274,7 +274,7 @@ def test_write_errors_are_logged_once(line):
 
 def test_close_wakes_a_mode_write_on_a_sensor_published_meanwhile(ev3_module):
     """Issue 28: close() wakes the mode changes waiting on the port's
-    sensor, but a sensor that ack_work registered while close() waited for
+    sensor, but a sensor that the port's work registered while close() waited for
     it got no wake-up: a mode write on it waited out its 250 ms, holding up
     the unregistering. A sensor of 256 channels takes seconds to register
     on the test kernel: the line is closed meanwhile, while mode writes on
@@ -602,7 +602,7 @@ def test_probe_message_does_not_outlive_its_speed(ev3_module):
 
 
 def test_ack_does_not_go_out_at_the_sensor_speed(line):
-    """Issue 28: an ACK still queued when ack_work switches to the sensor's
+    """Issue 28: an ACK still queued when ev3_uart_ack() switches to the sensor's
     speed went out at that speed, where the sensor (listening at 2400)
     reads garbage. The transmitter is held from before the handshake's
     end; released once the line is at 57600, it may send the keep-alives

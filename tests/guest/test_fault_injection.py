@@ -27,7 +27,7 @@ How the Nth call is made to fail:
   /proc/thread-self/fail-nth, which honours failslab's stack filter. The
   probe runs in the writer of "bind"; the USB core's hub thread runs the
   same probe when a brick is plugged in, out of fail-nth's reach;
-- in a kernel worker (the registration runs in the discipline's ack_work):
+- in a kernel worker (the registration runs in the port's work, ev3_uart_ack()):
   failslab with probability 100, times 1 and an interval that makes its
   call counter reach a multiple of it at the Nth call (Counter).
 
@@ -681,7 +681,7 @@ class Registration:
 
     def run(self, timeout=15.0):
         """'registered' (the sensor published, with or without its IIO
-        device) or 'failed', once ack_work is done with it, and when (the
+        device) or 'failed', once ev3_uart_ack() is done with it, and when (the
         trace's clock, the kernel log's)."""
         tracing.write(self.trace.root + '/trace', '')
         listening = threading.Event()
@@ -716,7 +716,7 @@ class Registration:
 
 def test_ev3_sensor_registration(fault_setup, kmsg, record_property):
     """A sensor's registration with the Nth allocation under
-    ev3_uart_sensor_create() failing. It runs in the discipline's ack_work,
+    ev3_uart_sensor_create() failing. It runs in the port's work, ev3_uart_ack(),
     a kernel worker, which fail-nth does not reach: failslab (Counter), its
     stack filter set to ev3_uart_sensor_create(), which every allocation of
     the registration has on its stack (the sensor, its class device, then
@@ -756,7 +756,7 @@ def test_ev3_sensor_registration(fault_setup, kmsg, record_property):
         if got == 'failed':
             assert not sensors and not iio, (n, sensors, iio)
             # -ENOMEM with CONFIG_SYMBOLIC_ERRNAME, which the test kernel
-            # lacks. ack_work logs it before it traces the failure, and the
+            # lacks. ev3_uart_ack() logs it before it traces the failure, and the
             # line is rate-limited (10 in 5 s): a line missing must be one
             # of those. The rate limit's 5 s are jiffies, which lag the
             # trace's clock while the guest's ticks are late (a line was

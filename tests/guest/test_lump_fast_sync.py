@@ -93,8 +93,9 @@ def test_spike_registers_by_fast_sync(trace, line, kind):
     # The emulator answered the probe and the handshake it sent at 115200
     # was taken. Python in the emulated machine answers the probe in 4 to
     # 15 ms (the host waits 30 ms); one that answers too late waits for an
-    # ACK in vain, resets, and the next probe but one catches it.
-    assert emu.handshakes == 1 and emu.sync_speeds[-1] == 115200, emu.events
+    # ACK in vain, resets, and the next probe but one catches it. The sensor
+    # is registered before the emulator's thread has read the host's ACK.
+    assert ev3.wait_handshakes(emu, 1) == 1 and emu.sync_speeds[-1] == 115200, emu.events
     assert set(emu.sync_speeds) == {115200} and emu.fast_syncs == len(emu.sync_speeds)
     ev = trace.registered(line.address)
     hs_time, hs = last_handshake(ev)
@@ -129,7 +130,7 @@ def test_fast_sync_is_much_faster_than_2400(trace, line):
     """The same SPIKE colour sensor, its probe answered, then ignored."""
     emu, path, took_fast = plug_and_find(line, 'spike-color')
     fast, _ = last_handshake(trace.registered(line.address))
-    assert emu.handshakes == 1 and emu.sync_speeds[-1] == 115200, emu.events
+    assert ev3.wait_handshakes(emu, 1) == 1 and emu.sync_speeds[-1] == 115200, emu.events
     emu.unplug()
     assert ev3.wait_gone(path, 5.0)
     emu.stop()

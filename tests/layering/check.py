@@ -10,7 +10,9 @@ uses B and B, directly or not, uses A) fails, as does a function of the
 drivers' C sources longer than MAX_LINES lines from its opening brace to its
 closing one (kernel style: both alone at the start of a line), a view (the
 sysfs class, IIO, the char device, sysfs attributes) that uses its
-transport's object or includes its transport's header. KUnit test objects
+transport's object or includes its transport's header, and a source file
+that reads a field of a structure another file owns (the EV3 parser's:
+the port asks ev3_uart_proto.h's questions instead). KUnit test objects
 are left out. --driver checks only the drivers named (all by default).
 --report prints the graph and the long functions and exits 0. --src
 reads the sources from DIR/drivers/lego rather than this checkout's
@@ -29,7 +31,10 @@ DRIVERS = {
     # The discipline's structure is private to ev3_uart_ldisc.c: it has no
     # header a view could include.
     'ev3': {'views': ['ev3_uart_class.c', 'ev3_uart_iio.c'], 'transport': ['ev3_uart_ldisc.h'],
-            'transport_objs': ['ev3_uart_ldisc.o']},
+            'transport_objs': ['ev3_uart_ldisc.o'],
+            # (owner, a use of a field, what): struct ev3_uart_parser's
+            # fields are read through its accessors outside its own file.
+            'private': [('ev3_uart_proto.c', r'\bparser\s*(?:\.|->)\s*(\w+)', 'the parser')]},
     'nxt': {'views': ['nxt_cdev.c', 'nxt_sysfs.c'], 'transport': ['nxt_usb.h'],
             'transport_objs': ['nxt_usb.o']},
 }
@@ -148,6 +153,15 @@ def main(argv=None):
             for fn, n in long_functions(c):
                 bad.append('%s: %s() is %d lines (at most %d)' % (os.path.basename(c), fn, n,
                                                                    MAX_LINES))
+        for owner, pattern, what in conf.get('private', []):
+            for c in sorted(glob.glob(os.path.join(src, '*.c'))):
+                base = os.path.basename(c)
+                if base == owner or base.endswith('_test.c'):
+                    continue
+                fields = sorted(set(re.findall(pattern, open(c).read())))
+                if fields:
+                    bad.append('%s: reads %s\'s fields %s (only %s may)'
+                               % (base, what, ', '.join(fields), owner))
         for v in conf['views']:
             text = open(os.path.join(src, v)).read()
             for h in conf['transport']:

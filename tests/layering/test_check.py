@@ -77,3 +77,17 @@ def test_a_view_including_the_transport_header_fails(tmp_path, good):
     rc, out = run(tmp_path, good)
     assert rc == 1 and "ev3_uart_class.c: the view includes the transport's ev3_uart_ldisc.h" \
         in out, out
+
+
+def test_reading_the_parsers_fields_fails(tmp_path, good):
+    good['ev3_uart_core.c'] += ('struct parser { int state; };\n'
+                                'int core_state(struct parser *parser)\n{\n'
+                                '\treturn parser->state;\n}\n')
+    rc, out = run(tmp_path, good)
+    assert rc == 1 and "ev3_uart_core.c: reads the parser's fields state " \
+        "(only ev3_uart_proto.c may)" in out, out
+    # The parser's own file may.
+    good['ev3_uart_proto.c'] = good['ev3_uart_core.c']
+    good['ev3_uart_core.c'] = GOOD['ev3_uart_core.c']
+    rc, out = run(tmp_path, good)
+    assert rc == 0, out

@@ -18,15 +18,18 @@
  *    handshake;
  *  - on the sensor's ACK, ack_timer fires 10 ms later (the sensor waits
  *    80 ms at most; a delayed work would wait 0 to 10 ms at HZ=100) and
- *    ack_work answers ACK, switches the line to the sensor's speed and
- *    registers the sensor with the views;
+ *    the port's work answers ACK, switches the line to the sensor's speed
+ *    and registers the sensor with the views (ev3_uart_ack());
  *  - keepalive_work sends NACK every 100 ms from the moment the speed is
  *    switched, registration included (the sensor resets itself after
  *    about a second without one) and declares the sensor lost after about
  *    700 ms without data;
- *  - reset_work removes a lost sensor and goes back to 2400 baud, where
- *    a new handshake brings it back.
- * Nothing sleeps or waits in the receive path.
+ *  - the port's work removes a lost sensor and goes back to 2400 baud,
+ *    where a new handshake brings it back (ev3_uart_reset()).
+ * One work item, ev3_uart_work(), makes every change of the line's state
+ * but the keep-alive's, one at a time: the receive path, the keep-alive
+ * and the timers only ask it for them (ev3_uart_ask()). Nothing sleeps or
+ * waits in the receive path.
  */
 #define pr_fmt(fmt) KBUILD_MODNAME ": " fmt
 
@@ -114,11 +117,35 @@ static unsigned int ev3_uart_settle_ms(const struct ev3_uart_sensor *desc)
 			pr_info(fmt, ##__VA_ARGS__);			\
 	} while (0)
 
-static void ev3_uart_queue(struct ev3_uart_port *port, struct work_struct *work)
+/*
+ * What the port's work is asked to do (bits of ev3_uart_port.todo), in the
+ * order it does them when several are asked (ev3_uart_work()).
+ */
+enum ev3_uart_todo {
+	EV3_UART_DO_RESET,	/* an error or a lost sensor: hunt again */
+	EV3_UART_DO_ACK,	/* 10 ms after the sensor's ACK: answer it */
+	EV3_UART_DO_FAST_LATE,	/* a fast sync's handshake did not come */
+	EV3_UART_DO_PROBE,	/* the fast sync probe */
+};
+
+/*
+ * Ask the port's work for @what. From any context (the timers' hard
+ * interrupt included): it takes no lock. Nothing is asked once the port is
+ * closing but from a timer, which ev3_uart_port_stop() cancels before the
+ * work.
+ */
+static void ev3_uart_kick(struct ev3_uart_port *port, enum ev3_uart_todo what)
+{
+	set_bit(what, &port->todo);
+	queue_work(port->wq, &port->work);
+}
+
+/* As ev3_uart_kick(), but not once the port is closing. @lock held. */
+static void ev3_uart_ask(struct ev3_uart_port *port, enum ev3_uart_todo what)
 {
 	lockdep_assert_held(&port->lock);
 	if (!port->closing)
-		queue_work(port->wq, work);
+		ev3_uart_kick(port, what);
 }
 
 /*
@@ -129,7 +156,7 @@ static void ev3_uart_trace_state(struct ev3_uart_port *port, u8 from,
 				 const struct ev3_uart_event *ev,
 				 const char *why)
 {
-	u8 to = port->parser.state;
+	u8 to = ev3_uart_parser_state(&port->parser);
 
 	if (from == to)
 		return;
@@ -155,7 +182,8 @@ static u8 ev3_uart_accepted_by(const struct ev3_uart_port *port,
 {
 	if (ev->us_dc_in)
 		return EV3_UART_TRACE_QUIRK_US_DC_IN;
-	if (port->parser.sensor.type == EV3_UART_TYPE_COLOR && ev->mode == 4 &&
+	if (ev3_uart_parser_sensor(&port->parser)->type == EV3_UART_TYPE_COLOR &&
+	    ev->mode == 4 &&
 	    ev->len == 8)
 		return EV3_UART_TRACE_QUIRK_RGB_RAW;
 	return EV3_UART_TRACE_CSUM;
@@ -192,7 +220,7 @@ static void ev3_uart_data_event(struct ev3_uart_port *port,
 		return;
 	/*
 	 * Not only on ev->mode_changed: a SELECT written through sysfs
-	 * between the sensor's registration and ack_work publishing it in
+	 * between the sensor's registration and ev3_uart_ack() publishing it in
 	 * port->sensor is confirmed by DATA nobody passed on.
 	 */
 	if (ev->mode != sd->mode) {
@@ -201,7 +229,7 @@ static void ev3_uart_data_event(struct ev3_uart_port *port,
 			msecs_to_jiffies(ev3_uart_settle_ms(&sd->desc));
 		changed = true;
 	}
-	memcpy(sd->data, port->parser.data, ev->len);
+	memcpy(sd->data, ev3_uart_parser_data(&port->parser), ev->len);
 	memset(sd->data + ev->len, 0, sizeof(sd->data) - ev->len);
 	sd->data_len = ev->len;
 	settled = !time_before(jiffies, sd->settle_until);
@@ -213,7 +241,7 @@ static void ev3_uart_data_event(struct ev3_uart_port *port,
 			v->data(sd, ev->mode, sd->data, ev->len, rest);
 	}
 	if (port->select_mode == ev->mode &&
-	    port->parser.pending_mode == EV3_UART_NO_MODE) {
+	    ev3_uart_parser_pending(&port->parser) == EV3_UART_NO_MODE) {
 		port->select_mode = EV3_UART_NO_MODE;
 		complete(&port->select_done);
 	}
@@ -222,7 +250,7 @@ static void ev3_uart_data_event(struct ev3_uart_port *port,
 /* The sensor's ACK ended its handshake: ours goes 10 ms later. @lock held. */
 static void ev3_uart_handshake_event(struct ev3_uart_port *port)
 {
-	const struct ev3_uart_sensor *s = &port->parser.sensor;
+	const struct ev3_uart_sensor *s = ev3_uart_parser_sensor(&port->parser);
 
 	port->stats.handshakes++;
 	trace_ev3_uart_rx(port->name, EV3_UART_TRACE_ACK, EV3_UART_SYS_ACK,
@@ -237,7 +265,7 @@ static void ev3_uart_handshake_event(struct ev3_uart_port *port)
 /* A TYPE message started a handshake. @lock held. */
 static void ev3_uart_sync_event(struct ev3_uart_port *port, u8 from)
 {
-	const struct ev3_uart_sensor *s = &port->parser.sensor;
+	const struct ev3_uart_sensor *s = ev3_uart_parser_sensor(&port->parser);
 
 	port->probe_missed = false;
 	/* A TYPE at 2400 during the probe: no need to wait for it. */
@@ -273,7 +301,7 @@ static void ev3_uart_event(struct ev3_uart_port *port,
 				  (ev->mode & EV3_UART_MSG_TYPE_MASK) == EV3_UART_MSG_INFO ?
 				  EV3_UART_TRACE_INFO : EV3_UART_TRACE_CMD,
 				  ev->mode, ev->mode & EV3_UART_MSG_CMD_MASK,
-				  port->parser.msg_info, ev->len,
+				  ev3_uart_parser_msg_info(&port->parser), ev->len,
 				  EV3_UART_TRACE_CSUM, false);
 		break;
 	case EV3_UART_EV_HANDSHAKE:
@@ -286,7 +314,7 @@ static void ev3_uart_event(struct ev3_uart_port *port,
 		port->stats.resyncs++;
 		port->last_error = ev->reason;
 		ev3_uart_info(port, "%s: %s\n", port->name, ev->reason);
-		ev3_uart_queue(port, &port->reset_work);
+		ev3_uart_ask(port, EV3_UART_DO_RESET);
 		break;
 	case EV3_UART_EV_FAST:
 		/* The probe's answer: ev3_uart_probe() waits for it. */
@@ -316,8 +344,7 @@ static void ev3_uart_break(struct ev3_uart_port *port)
 	lockdep_assert_held(&port->lock);
 	if (READ_ONCE(port->no_probe) || port->closing)
 		return;
-	if (port->parser.state == EV3_UART_STATE_SYNC &&
-	    port->parser.sync_speed != EV3_UART_SPEED_MIN)
+	if (ev3_uart_parser_fast_handshake(&port->parser))
 		return;		/* answered: its handshake comes */
 	/*
 	 * The last break's probe went unanswered and no handshake followed:
@@ -330,9 +357,14 @@ static void ev3_uart_break(struct ev3_uart_port *port)
 		return;
 	}
 	port->break_probe = true;
-	queue_delayed_work(port->wq, &port->probe_work,
-			   port->probed_at && time_before(jiffies, next) ?
-			   next - jiffies : 0);
+	if (hrtimer_is_queued(&port->probe_timer))
+		return;		/* the probe already put off comes */
+	if (port->probed_at && time_before(jiffies, next))
+		hrtimer_start(&port->probe_timer,
+			      ms_to_ktime(jiffies_to_msecs(next - jiffies)),
+			      HRTIMER_MODE_REL);
+	else
+		ev3_uart_ask(port, EV3_UART_DO_PROBE);
 }
 
 /**
@@ -356,9 +388,9 @@ void ev3_uart_port_receive(struct ev3_uart_port *port, const u8 *cp,
 
 	spin_lock(&port->lock);
 	/* The handshake's messages one by one, for ev3_uart_rx. */
-	port->parser.report_msgs = trace_ev3_uart_rx_enabled();
+	ev3_uart_parser_report_msgs(&port->parser, trace_ev3_uart_rx_enabled());
 	while (count > 0) {
-		from = port->parser.state;
+		from = ev3_uart_parser_state(&port->parser);
 		if (flags && *flags != EV3_UART_RX_OK) {
 			if (*flags == EV3_UART_RX_BREAK &&
 			    (from == EV3_UART_STATE_SYNC || from == EV3_UART_STATE_PROBE))
@@ -386,16 +418,36 @@ void ev3_uart_port_receive(struct ev3_uart_port *port, const u8 *cp,
 }
 
 /*
- * Hard interrupt context: only queue the work. ev3_uart_port_stop() cancels
- * the timer before the work, so the work queue still exists here.
+ * The port's timers, in hard interrupt context: each only asks the port's
+ * work for its task. ev3_uart_port_stop() cancels them before the work, so
+ * the work queue still exists here.
  */
 static enum hrtimer_restart ev3_uart_ack_timer(struct hrtimer *timer)
 {
-	struct ev3_uart_port *port = container_of(timer, struct ev3_uart_port,
-						  ack_timer);
-
-	queue_work(port->wq, &port->ack_work);
+	ev3_uart_kick(container_of(timer, struct ev3_uart_port, ack_timer),
+		      EV3_UART_DO_ACK);
 	return HRTIMER_NORESTART;
+}
+
+static enum hrtimer_restart ev3_uart_probe_timer(struct hrtimer *timer)
+{
+	ev3_uart_kick(container_of(timer, struct ev3_uart_port, probe_timer),
+		      EV3_UART_DO_PROBE);
+	return HRTIMER_NORESTART;
+}
+
+static enum hrtimer_restart ev3_uart_fast_timer(struct hrtimer *timer)
+{
+	ev3_uart_kick(container_of(timer, struct ev3_uart_port, fast_timer),
+		      EV3_UART_DO_FAST_LATE);
+	return HRTIMER_NORESTART;
+}
+
+/* A fast sync's handshake came (or the probe starts again): no time-out. */
+static void ev3_uart_fast_cancel(struct ev3_uart_port *port)
+{
+	hrtimer_try_to_cancel(&port->fast_timer);
+	clear_bit(EV3_UART_DO_FAST_LATE, &port->todo);
 }
 
 /* Hard interrupt context, as the ACK's timer: only queue the keep-alive. */
@@ -455,11 +507,11 @@ static void ev3_uart_restore_mode(struct ev3_uart_port *port,
  */
 static void ev3_uart_parser_restart(struct ev3_uart_port *port, const char *why)
 {
-	u8 from = port->parser.state;
+	u8 from = ev3_uart_parser_state(&port->parser);
 
 	lockdep_assert_held(&port->lock);
-	port->stats.garbage += port->parser.garbage;
-	port->stats.bad_frames += port->parser.bad_frames;
+	port->stats.garbage += ev3_uart_parser_garbage(&port->parser);
+	port->stats.bad_frames += ev3_uart_parser_bad_frames(&port->parser);
 	ev3_uart_parser_init(&port->parser);
 	ev3_uart_trace_state(port, from, NULL, why);
 }
@@ -620,7 +672,7 @@ static void ev3_uart_sensor_destroy(struct ev3_uart_sensor_dev *sd)
  * its handshake goes on at 2400. On a UART, bytes sent at 2400 meanwhile
  * arrive garbled and are lost (an EV3 sensor caught in its handshake
  * repeats it). After the answer, the handshake must come within 500 ms
- * (ev3_uart_fast_work()). Only from the port's workqueue, with the parser
+ * (ev3_uart_fast_late()). Only from the port's work, with the parser
  * in SYNC at 2400 baud (else nothing is done).
  *
  * Return: true if the probe was made (the line is then at the speed the
@@ -636,9 +688,9 @@ static bool ev3_uart_probe(struct ev3_uart_port *port, bool on_break)
 
 	if (port->no_probe)
 		return false;
-	cancel_delayed_work(&port->fast_work);
+	ev3_uart_fast_cancel(port);
 	spin_lock(&port->lock);
-	from = port->parser.state;
+	from = ev3_uart_parser_state(&port->parser);
 	ret = port->closing ? -ESHUTDOWN :
 	      ev3_uart_parser_probe(&port->parser, EV3_UART_SPEED_FAST);
 	if (!ret) {
@@ -668,14 +720,14 @@ static bool ev3_uart_probe(struct ev3_uart_port *port, bool on_break)
 	}
 
 	spin_lock(&port->lock);
-	from = port->parser.state;
+	from = ev3_uart_parser_state(&port->parser);
 	speed = ev3_uart_parser_probe_end(&port->parser);
 	ev3_uart_trace_state(port, from, NULL, why);
 	port->probe_missed = on_break && speed == EV3_UART_SPEED_MIN &&
-			     port->parser.state == EV3_UART_STATE_SYNC;
+			     ev3_uart_parser_syncing(&port->parser);
 	if (speed != EV3_UART_SPEED_MIN && !port->closing)
-		queue_delayed_work(port->wq, &port->fast_work,
-				   msecs_to_jiffies(EV3_UART_FAST_SYNC_MS));
+		hrtimer_start(&port->fast_timer,
+			      ms_to_ktime(EV3_UART_FAST_SYNC_MS), HRTIMER_MODE_REL);
 	spin_unlock(&port->lock);
 	if (speed != port->speed)
 		ev3_uart_set_speed(port, speed);
@@ -689,11 +741,9 @@ static void ev3_uart_hunt(struct ev3_uart_port *port)
 		ev3_uart_set_speed(port, EV3_UART_SPEED_MIN);
 }
 
-static void ev3_uart_probe_work(struct work_struct *work)
+/* The probe the port's start or a break asked for. */
+static void ev3_uart_probe_asked(struct ev3_uart_port *port)
 {
-	struct ev3_uart_port *port = container_of(to_delayed_work(work),
-						  struct ev3_uart_port,
-						  probe_work);
 	bool on_break;
 
 	spin_lock(&port->lock);
@@ -704,17 +754,12 @@ static void ev3_uart_probe_work(struct work_struct *work)
 }
 
 /* A device answered the probe, and its handshake did not follow in time. */
-static void ev3_uart_fast_work(struct work_struct *work)
+static void ev3_uart_fast_late(struct ev3_uart_port *port)
 {
-	struct ev3_uart_port *port = container_of(to_delayed_work(work),
-						  struct ev3_uart_port,
-						  fast_work);
 	bool late;
 
 	spin_lock(&port->lock);
-	late = port->parser.sync_speed != EV3_UART_SPEED_MIN &&
-	       (port->parser.state == EV3_UART_STATE_SYNC ||
-		port->parser.state == EV3_UART_STATE_INFO);
+	late = ev3_uart_parser_fast_handshake(&port->parser);
 	if (late)
 		ev3_uart_parser_restart(port, "no handshake after the fast sync");
 	spin_unlock(&port->lock);
@@ -816,30 +861,32 @@ static const char *ev3_uart_ack_register(struct ev3_uart_port *port,
 	return NULL;
 }
 
-static void ev3_uart_ack_work(struct work_struct *work)
+/*
+ * Answer the sensor's ACK, switch to its speed, start the keep-alive and
+ * register the sensor; or, if it cannot be, hunt again.
+ */
+static void ev3_uart_ack(struct ev3_uart_port *port)
 {
-	struct ev3_uart_port *port = container_of(work, struct ev3_uart_port,
-						  ack_work);
 	/* In the port: 16 modes are too much for the stack. */
 	struct ev3_uart_sensor *desc = &port->ack_desc;
 	const char *why;
 	u8 from;
 
 	spin_lock(&port->lock);
-	if (port->closing || port->parser.state != EV3_UART_STATE_ACKED) {
+	if (port->closing || !ev3_uart_parser_acked(&port->parser)) {
 		spin_unlock(&port->lock);
 		return;
 	}
-	*desc = port->parser.sensor;
+	*desc = *ev3_uart_parser_sensor(&port->parser);
 	spin_unlock(&port->lock);
-	cancel_delayed_work(&port->fast_work);
+	ev3_uart_fast_cancel(port);
 
 	why = ev3_uart_ack_refused(port, desc) ?: ev3_uart_ack_answer(port, desc);
 	if (why)
 		goto fail;
 
 	spin_lock(&port->lock);
-	from = port->parser.state;
+	from = ev3_uart_parser_state(&port->parser);
 	ev3_uart_parser_start_data(&port->parser);
 	ev3_uart_trace_state(port, from, NULL, "ACK answered, speed switched");
 	spin_unlock(&port->lock);
@@ -877,10 +924,10 @@ static void ev3_uart_keepalive_work(struct work_struct *work)
 	bool alive;
 
 	spin_lock(&port->lock);
-	from = port->parser.state;
+	from = ev3_uart_parser_state(&port->parser);
 	if (ev3_uart_parser_tick(&port->parser, &ev))
 		ev3_uart_event(port, &ev, 0, from);
-	alive = port->parser.state == EV3_UART_STATE_DATA;
+	alive = ev3_uart_parser_in_data(&port->parser);
 	/*
 	 * The SELECT restoring the user's mode after a reconnect can arrive
 	 * while the sensor still listens at 2400 baud: send it again now and
@@ -888,7 +935,7 @@ static void ev3_uart_keepalive_work(struct work_struct *work)
 	 */
 	restore = port->restore_mode;
 	if (restore != EV3_UART_NO_MODE &&
-	    port->parser.pending_mode != restore) {
+	    ev3_uart_parser_pending(&port->parser) != restore) {
 		restore = EV3_UART_NO_MODE;
 		port->restore_mode = EV3_UART_NO_MODE;
 	} else if (restore != EV3_UART_NO_MODE &&
@@ -906,7 +953,7 @@ static void ev3_uart_keepalive_work(struct work_struct *work)
 	if (restore != EV3_UART_NO_MODE && mutex_trylock(&port->select_mutex)) {
 		spin_lock(&port->lock);
 		if (port->restore_mode != restore ||
-		    port->parser.pending_mode != restore)
+		    ev3_uart_parser_pending(&port->parser) != restore)
 			restore = EV3_UART_NO_MODE;
 		spin_unlock(&port->lock);
 		if (restore != EV3_UART_NO_MODE)
@@ -922,7 +969,7 @@ static void ev3_uart_keepalive_work(struct work_struct *work)
 
 /*
  * @sd was lost: hold off the next connections if the sensors on this line
- * keep failing right after they are registered. Only from reset_work.
+ * keep failing right after they are registered. Only from ev3_uart_reset().
  */
 static void ev3_uart_backoff(struct ev3_uart_port *port,
 			     const struct ev3_uart_sensor_dev *sd)
@@ -938,10 +985,9 @@ static void ev3_uart_backoff(struct ev3_uart_port *port,
 		      port->backoff.failures, wait);
 }
 
-static void ev3_uart_reset_work(struct work_struct *work)
+/* Drop a lost sensor (if any) and hunt for the next one. */
+static void ev3_uart_reset(struct ev3_uart_port *port)
 {
-	struct ev3_uart_port *port = container_of(work, struct ev3_uart_port,
-						  reset_work);
 	struct ev3_uart_sensor_dev *sd;
 
 	/*
@@ -979,6 +1025,28 @@ static void ev3_uart_reset_work(struct work_struct *work)
 	}
 }
 
+/*
+ * The port's one work item, on its ordered workqueue: whatever the receive
+ * path, the keep-alive and the timers asked for, in the order of enum
+ * ev3_uart_todo. A reset comes first: it hunts again, so that an ACK asked
+ * before it finds the parser hunting and is dropped, rather than a sensor
+ * registered to be removed at once.
+ */
+static void ev3_uart_work(struct work_struct *work)
+{
+	struct ev3_uart_port *port = container_of(work, struct ev3_uart_port,
+						  work);
+
+	if (test_and_clear_bit(EV3_UART_DO_RESET, &port->todo))
+		ev3_uart_reset(port);
+	if (test_and_clear_bit(EV3_UART_DO_ACK, &port->todo))
+		ev3_uart_ack(port);
+	if (test_and_clear_bit(EV3_UART_DO_FAST_LATE, &port->todo))
+		ev3_uart_fast_late(port);
+	if (test_and_clear_bit(EV3_UART_DO_PROBE, &port->todo))
+		ev3_uart_probe_asked(port);
+}
+
 /**
  * ev3_uart_get_data() - read a sensor's current mode and last values
  * @sd: the sensor
@@ -1010,7 +1078,7 @@ int ev3_uart_get_data(struct ev3_uart_sensor_dev *sd, u8 *mode, u8 *data)
  * Wait until a new mode's values can be trusted: until @settle, then for one
  * DATA message received after it (the last one before may be stale too).
  * A lost sensor ends the wait at once: the sysfs write waiting here would
- * otherwise hold up reset_work's unregistering of the sensor, and with it
+ * otherwise hold up ev3_uart_reset()'s unregistering of the sensor, and with it
  * every work item of the port (the next sensor's ACK among them).
  */
 static int ev3_uart_settle(struct ev3_uart_sensor_dev *sd, u8 mode,
@@ -1085,7 +1153,7 @@ static int ev3_uart_select_start(struct ev3_uart_sensor_dev *sd, u8 mode)
 		/* An IIO buffer captures another mode's values. */
 		ret = -EBUSY;
 	} else if (sd->mode == mode &&
-		   port->parser.pending_mode == EV3_UART_NO_MODE) {
+		   ev3_uart_parser_pending(&port->parser) == EV3_UART_NO_MODE) {
 		/* Nothing to send, but the user's choice all the same. */
 		ev3_uart_requested(port, sd, mode);
 		ret = 1;
@@ -1340,15 +1408,16 @@ int ev3_uart_port_init(struct ev3_uart_port *port,
 	spin_lock_init(&port->lock);
 	mutex_init(&port->select_mutex);
 	init_completion(&port->select_done);
+	INIT_WORK(&port->work, ev3_uart_work);
 	hrtimer_setup(&port->ack_timer, ev3_uart_ack_timer, CLOCK_MONOTONIC,
 		      HRTIMER_MODE_REL);
-	INIT_WORK(&port->ack_work, ev3_uart_ack_work);
+	hrtimer_setup(&port->probe_timer, ev3_uart_probe_timer,
+		      CLOCK_MONOTONIC, HRTIMER_MODE_REL);
+	hrtimer_setup(&port->fast_timer, ev3_uart_fast_timer, CLOCK_MONOTONIC,
+		      HRTIMER_MODE_REL);
 	hrtimer_setup(&port->keepalive_timer, ev3_uart_keepalive_timer,
 		      CLOCK_MONOTONIC, HRTIMER_MODE_REL);
 	INIT_WORK(&port->keepalive_work, ev3_uart_keepalive_work);
-	INIT_WORK(&port->reset_work, ev3_uart_reset_work);
-	INIT_DELAYED_WORK(&port->probe_work, ev3_uart_probe_work);
-	INIT_DELAYED_WORK(&port->fast_work, ev3_uart_fast_work);
 	init_completion(&port->probe_done);
 	ratelimit_state_init(&port->log_rs, DEFAULT_RATELIMIT_INTERVAL,
 			     DEFAULT_RATELIMIT_BURST);
@@ -1368,7 +1437,7 @@ int ev3_uart_port_init(struct ev3_uart_port *port,
  */
 void ev3_uart_port_start(struct ev3_uart_port *port)
 {
-	queue_delayed_work(port->wq, &port->probe_work, 0);
+	ev3_uart_kick(port, EV3_UART_DO_PROBE);
 }
 
 /**
@@ -1391,18 +1460,17 @@ void ev3_uart_port_stop(struct ev3_uart_port *port)
 	spin_unlock(&port->lock);
 
 	/*
-	 * An ack_work already running registers its sensor whatever
-	 * @closing says, and a pending reset_work still runs: take the
-	 * sensor only once no work can run any more. @closing keeps the
-	 * receive path from starting the timer again; a timer that fired
-	 * has queued its work before hrtimer_cancel() returns.
+	 * The port's work, if it is registering a sensor, does so whatever
+	 * @closing says: take the sensor only once the work cannot run any
+	 * more. @closing keeps everything from starting a timer or asking
+	 * the work again; a timer that fired has asked it before
+	 * hrtimer_cancel() returns, so the timers go first.
 	 */
 	hrtimer_cancel(&port->ack_timer);
-	cancel_work_sync(&port->ack_work);
+	hrtimer_cancel(&port->probe_timer);
+	hrtimer_cancel(&port->fast_timer);
 	ev3_uart_keepalive_stop(port);
-	/* Queued on the work queue; with @closing set, not again. */
-	cancel_delayed_work_sync(&port->probe_work);
-	cancel_delayed_work_sync(&port->fast_work);
+	cancel_work_sync(&port->work);
 	destroy_workqueue(port->wq);
 
 	spin_lock(&port->lock);
@@ -1411,7 +1479,7 @@ void ev3_uart_port_stop(struct ev3_uart_port *port)
 	if (sd)
 		WRITE_ONCE(sd->gone, true);
 	/*
-	 * A sensor ack_work published after the first complete_all() may
+	 * A sensor the work published after the first complete_all() may
 	 * have a mode change waiting: wake it, or the unregistering below
 	 * waits for it (up to 250 ms).
 	 */
@@ -1461,9 +1529,9 @@ u8 ev3_uart_port_stats(struct ev3_uart_port *port, struct ev3_uart_stats *st)
 
 	spin_lock(&port->lock);
 	*st = port->stats;
-	st->garbage += port->parser.garbage;
-	st->bad_frames += port->parser.bad_frames;
-	state = port->parser.state;
+	st->garbage += ev3_uart_parser_garbage(&port->parser);
+	st->bad_frames += ev3_uart_parser_bad_frames(&port->parser);
+	state = ev3_uart_parser_state(&port->parser);
 	spin_unlock(&port->lock);
 	return state;
 }

@@ -27,7 +27,7 @@
  *
  * ev3_uart_port.select_mutex serialises mode changes (one SELECT in
  * flight): a user's (sysfs, IIO buffer) and the restore of the user's mode
- * after a reconnect (ack_work, keepalive_work), which only try it and give
+ * after a reconnect (the port's work, keepalive_work), which only try it and give
  * way. A mode held by an IIO buffer (ev3_uart_sensor_dev.held_mode) is set
  * under it too, with the port lock, so that no mode change slips in
  * between.
@@ -35,20 +35,23 @@
  * ev3_uart_port.closing and ev3_uart_sensor_dev.gone are written under the
  * port lock; the few readers outside it use READ_ONCE().
  *
- * The work items that register and unregister sensors (ack_work,
- * reset_work) run on the port's ordered workqueue, so a sensor is never
- * registered and unregistered at the same time. So do the ones that set
- * the line's speed: those two, probe_work and fast_work (the fast sync
- * probe, see ev3_uart_hunt()); ev3_uart_port.speed and .no_probe are
- * theirs (the receive path only reads no_probe, with READ_ONCE()). The
+ * One work item, ev3_uart_port.work, makes every change of the line's
+ * state: it answers a handshake and registers the sensor, removes a lost
+ * one, probes for a fast sync and gives one up, in the order of its
+ * ev3_uart_port.todo bits (ev3_uart_work()), one at a time, so a sensor is
+ * never registered and unregistered at the same time, and only it sets
+ * the line's speed: ev3_uart_port.speed and .no_probe are its (the receive
+ * path only reads no_probe, with READ_ONCE()). The receive path, the
+ * keep-alive and the timers only set a bit of @todo and queue it. The
  * receive path completes ev3_uart_port.probe_done, under the port lock,
  * when the probe is answered. keepalive_work runs on an unbound
  * high-priority workqueue of the module's, so that NACKs go out (from
- * another CPU if need be) while a sensor registers (the sensor resets
- * after a second without one); it only ticks the parser, sends, queues
- * reset_work and starts keepalive_timer for its next run. The two timers,
- * ev3_uart_port.ack_timer and .keepalive_timer, run in hard interrupt
- * context and take no lock: each only queues its work.
+ * another CPU if need be) while the port's work registers a sensor (the
+ * sensor resets after a second without one); it only ticks the parser,
+ * sends, asks for a reset and starts keepalive_timer for its next run.
+ * The timers (ev3_uart_port.ack_timer, .probe_timer, .fast_timer and
+ * .keepalive_timer) run in hard interrupt context and take no lock: each
+ * only queues its work.
  *
  * Lifetime
  * --------
@@ -224,29 +227,31 @@ struct ev3_uart_view_ops {
  * @parent: the device of the line, parent of the sensor's devices
  * @lock: see "Locking" above
  * @parser: protocol state
- * @ack_desc: ev3_uart_ack_work()'s copy of the sensor description (only
- *	that work uses it)
+ * @ack_desc: ev3_uart_ack()'s copy of the sensor description (only the
+ *	port's work uses it)
  * @sensor: the registered sensor, or NULL
  * @closing: ev3_uart_port_stop() has started; no work may be queued any
  *	more (written under @lock)
- * @wq: ordered workqueue for all work of this port
- * @ack_timer: queues @ack_work 10 ms after the sensor's ACK (an hrtimer:
- *	exact at any HZ; it only queues the work, so it takes no lock)
- * @ack_work: answers the sensor's ACK, switches speed and registers the
- *	sensor
+ * @wq: ordered workqueue of @work
+ * @todo: what @work is asked to do (bits of enum ev3_uart_todo, set and
+ *	cleared atomically, without @lock)
+ * @work: the port's state changes but the keep-alive's (ev3_uart_work()):
+ *	answers the sensor's ACK, switches speed and registers the sensor;
+ *	drops a lost sensor and goes back to 2400 baud (after the fast sync
+ *	probe); probes when the port starts and when a device resets (a
+ *	break in the SYNC or PROBE state), 100 ms after the last probe at the
+ *	earliest; gives up a fast sync whose handshake did not come in time
+ * @ack_timer: asks @work to answer 10 ms after the sensor's ACK (an
+ *	hrtimer: exact at any HZ; it takes no lock)
+ * @probe_timer: asks @work for a probe a break put off
+ * @fast_timer: asks @work to give up a fast sync, 500 ms after the answer
  * @keepalive_timer: queues @keepalive_work 100 ms after its last run (an
  *	hrtimer, as @ack_timer: a timer of the timer wheel, run in a softirq,
  *	was seen over 100 ms late in the test VM while its CPUs ran)
  * @keepalive_work: sends NACK every 100 ms and detects a lost sensor
- * @reset_work: drops a lost sensor and goes back to 2400 baud (after the
- *	fast sync probe)
- * @probe_work: the fast sync probe, when the port starts and when a
- *	device resets (a break in the SYNC or PROBE state), 100 ms after the
- *	last at the earliest
- * @fast_work: gives up a fast sync whose handshake did not come in time
  * @probe_done: completed by the receive path when the probe is answered
  * @probed_at: jiffies of the last probe (under @lock)
- * @break_probe: @probe_work was queued for a break (under @lock)
+ * @break_probe: the probe asked for is for a break (under @lock)
  * @probe_missed: the last probe for a break went unanswered, and no
  *	handshake started since: the next break gets none (under @lock)
  * @speed: the speed the line was last set to, 0 if unknown
@@ -267,9 +272,9 @@ struct ev3_uart_view_ops {
  *	%LEGO_EV3_SET_PORT_LABEL), e.g. "in1"; under @lock
  * @last_error: reason of the last protocol error, for the log (under @lock)
  * @bad_speed: a speed this line could not be set to: handshakes asking for
- *	it are not answered (only ack_work uses it)
- * @backoff: how the sensors on this line have been failing (only ack_work
- *	and reset_work, on the ordered workqueue, use it and the next two)
+ *	it are not answered (only @work uses it)
+ * @backoff: how the sensors on this line have been failing (only @work
+ *	uses it and the next two)
  * @registered_at: jiffies when the sensor was registered
  * @backoff_until: jiffies until which handshakes are left unanswered (a
  *	device that keeps failing, see ev3_uart_backoff_lost()), 0 for none
@@ -286,13 +291,13 @@ struct ev3_uart_port {
 	struct ev3_uart_sensor_dev *sensor;
 	bool closing;
 	struct workqueue_struct *wq;
+	unsigned long todo;
+	struct work_struct work;
 	struct hrtimer ack_timer;
-	struct work_struct ack_work;
+	struct hrtimer probe_timer;
+	struct hrtimer fast_timer;
 	struct hrtimer keepalive_timer;
 	struct work_struct keepalive_work;
-	struct work_struct reset_work;
-	struct delayed_work probe_work;
-	struct delayed_work fast_work;
 	struct completion probe_done;
 	unsigned long probed_at;
 	bool break_probe;

@@ -214,7 +214,7 @@ static void ev3_uart_tx_log(struct ev3_uart_ldisc *ld, int what, int err)
  * what the tty driver holds and has not sent: a UART's buffer behind a
  * held transmitter, a USB adapter's, would else send it at the new speed
  * or to the next sensor. The ACK is waited for before its speed change
- * (ack_work), the probe's SPEED before the probe ends. Not on a pty: it
+ * (ev3_uart_ack()), the probe's SPEED before the probe ends. Not on a pty: it
  * holds nothing, what is written is in the other end's input at once, and
  * its flush_buffer drops that (an ACK the sensor has not read yet).
  */

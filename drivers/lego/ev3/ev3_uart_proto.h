@@ -219,13 +219,13 @@ enum ev3_uart_state {
  * @EV3_UART_EV_NONE: nothing (all bytes consumed)
  * @EV3_UART_EV_SYNC: a TYPE message started a handshake
  * @EV3_UART_EV_HANDSHAKE: the sensor sent ACK after a valid handshake: the
- *	description is in &ev3_uart_parser.sensor; answer ACK, switch speed
+ *	description is ev3_uart_parser_sensor()'s; answer ACK, switch speed
  * @EV3_UART_EV_DATA: a DATA message for the current mode; its payload is in
- *	&ev3_uart_parser.data
+ *	ev3_uart_parser_data()
  * @EV3_UART_EV_ERROR: a protocol error; the parser is back in SYNC state and
  *	the caller must go back to 2400 baud
  * @EV3_UART_EV_MSG: a handshake message (CMD or INFO) was taken; only with
- *	&ev3_uart_parser.report_msgs set (for tracing): nothing to act on
+ *	ev3_uart_parser_report_msgs() on (for tracing): nothing to act on
  * @EV3_UART_EV_FAST: a device answered the SPEED probe with ACK: the line
  *	stays at &ev3_uart_parser.sync_speed, where the parser now hunts for
  *	its TYPE message (SYNC state)
@@ -263,6 +263,10 @@ struct ev3_uart_event {
 
 /**
  * struct ev3_uart_parser - state of the protocol on one line
+ *
+ * Its fields are the parser's own: ev3_uart_proto.c alone reads or writes
+ * them (and its KUnit suite); the port asks the questions below.
+ *
  * @state: see &enum ev3_uart_state
  * @sync_speed: the speed the line runs at in the SYNC, PROBE and INFO
  *	states: %EV3_UART_SPEED_MIN, or the probe's (after the device
@@ -333,6 +337,82 @@ struct ev3_uart_parser {
 	bool report_msgs;
 	u8 msg_info;
 };
+
+/* What the port may ask the parser (its lock held, as for a feed). */
+
+/* The state, for traces and statistics (&enum ev3_uart_state). */
+static inline u8 ev3_uart_parser_state(const struct ev3_uart_parser *p)
+{
+	return p->state;
+}
+
+/* Hunting for a TYPE message. */
+static inline bool ev3_uart_parser_syncing(const struct ev3_uart_parser *p)
+{
+	return p->state == EV3_UART_STATE_SYNC;
+}
+
+/* A sensor sent its handshake and ACK: ours is due (%EV3_UART_EV_HANDSHAKE). */
+static inline bool ev3_uart_parser_acked(const struct ev3_uart_parser *p)
+{
+	return p->state == EV3_UART_STATE_ACKED;
+}
+
+/* In the data phase. */
+static inline bool ev3_uart_parser_in_data(const struct ev3_uart_parser *p)
+{
+	return p->state == EV3_UART_STATE_DATA;
+}
+
+/* A device answered the fast sync probe; its handshake is yet to end. */
+static inline bool ev3_uart_parser_fast_handshake(const struct ev3_uart_parser *p)
+{
+	return p->sync_speed != EV3_UART_SPEED_MIN &&
+	       (p->state == EV3_UART_STATE_SYNC || p->state == EV3_UART_STATE_INFO);
+}
+
+/* The sensor's description, complete from %EV3_UART_EV_HANDSHAKE on. */
+static inline const struct ev3_uart_sensor *
+ev3_uart_parser_sensor(const struct ev3_uart_parser *p)
+{
+	return &p->sensor;
+}
+
+/* The payload of the DATA message of the last %EV3_UART_EV_DATA. */
+static inline const u8 *ev3_uart_parser_data(const struct ev3_uart_parser *p)
+{
+	return p->data;
+}
+
+/* The mode a SELECT asked for and no DATA confirmed yet, or %EV3_UART_NO_MODE. */
+static inline u8 ev3_uart_parser_pending(const struct ev3_uart_parser *p)
+{
+	return p->pending_mode;
+}
+
+/* For %EV3_UART_EV_MSG: the INFO type of an INFO message, 0 for a CMD. */
+static inline u8 ev3_uart_parser_msg_info(const struct ev3_uart_parser *p)
+{
+	return p->msg_info;
+}
+
+/* Whether to return %EV3_UART_EV_MSG for each handshake message (tracing). */
+static inline void ev3_uart_parser_report_msgs(struct ev3_uart_parser *p, bool on)
+{
+	p->report_msgs = on;
+}
+
+/* Bytes dropped while hunting for a message, since the parser's init. */
+static inline unsigned long ev3_uart_parser_garbage(const struct ev3_uart_parser *p)
+{
+	return p->garbage;
+}
+
+/* DATA messages dropped (checksum, size or mode), since the parser's init. */
+static inline unsigned long ev3_uart_parser_bad_frames(const struct ev3_uart_parser *p)
+{
+	return p->bad_frames;
+}
 
 /*
  * Back-off of a device that keeps failing (ev3_uart_backoff_lost()): a

@@ -129,6 +129,28 @@ def nullmodem(pairs):
         time.sleep(0.05)
 
 
+def ref_module(out):
+    """The discipline built without the parser's fast path (run.sh builds
+    it with LEGO_EV3_PROTO_REFERENCE=1 into OUT/ref-modules), or None."""
+    found = glob.glob(os.path.join(out, 'ref-modules', '**', 'lego_ev3_uart.ko'),
+                      recursive=True)
+    return found[0] if found else None
+
+
+def use_ev3_module(ko):
+    """Load `ko` as lego_ev3_uart in place of the one loaded."""
+    if os.path.isdir('/sys/module/lego_ev3_uart'):
+        subprocess.run(['rmmod', 'lego_ev3_uart'], check=True)
+    subprocess.run(['insmod', ko], check=True)
+
+
+def default_ev3_module():
+    for mod in os.environ.get('LEGO_MODULES', '').split():
+        if os.path.basename(mod) == 'lego_ev3_uart.ko':
+            return mod
+    raise BenchError('no lego_ev3_uart.ko in LEGO_MODULES')
+
+
 def ensure_ev3_module():
     if not os.path.isdir('/sys/module/lego_ev3_uart'):
         for mod in os.environ.get('LEGO_MODULES', '').split():
@@ -456,10 +478,11 @@ def generate(nsensors, seconds, reader=None, senders=()):
 
 
 def sample_run(binary, reader, work, nsensors, seconds, path, base_rate):
-    """One run of `path` ('iio': the line discipline, 'tty': the reference)."""
+    """One run of `path` ('iio': the line discipline, 'iio-ref': the same
+    without the parser's fast path, 'tty': the userspace reference)."""
     fds, procs, devs = [], [], []
     try:
-        if path == 'iio':
+        if path != 'tty':
             fds = [attach(p) for p in range(nsensors)]
             # Connected, the sensors answer NACKs (value 0xffff) until
             # SIGUSR1; then they are quiet (-q) while the generator sends,
@@ -519,25 +542,54 @@ def sample_run(binary, reader, work, nsensors, seconds, path, base_rate):
             'kernel': kernel / max(distinct, 1) * 1e6, 'stopped': stopped}
 
 
-def bench_samples(binary, reader, work, nsensors, seconds, runs):
-    """`runs` rounds of: the generator alone (no line open), the discipline, the reference.
+def bench_samples(binary, reader, work, nsensors, seconds, runs, ref_ko=None):
+    """`runs` rounds of: the generator alone (no line open), the discipline,
+    the reference (and, with `ref_ko`, the discipline without the parser's
+    fast path).
 
-    The two paths take turns to go first, and a short run of the reference,
+    The paths take turns to go first, and a short run of the reference,
     not counted, comes before them all: the first stream on many lines makes
     the kernel start more workqueue threads (the tty layer's receive work),
-    a cost that should fall on neither path.
+    a cost that should fall on no path.
     """
     out = []
+    paths = ['iio', 'tty'] + (['iio-ref'] if ref_ko else [])
     sample_run(binary, reader, work, nsensors, 1.0, 'tty', 0.0)
     for i in range(runs):
         gen, _, busy, span = generate(nsensors, seconds)
         base = {'rate': busy / span, 'sent': sum(gen['sent']), 'span': gen['span'],
                 'gen_cpu': gen['cpu']}
         res = {}
-        for path in ('iio', 'tty') if i % 2 == 0 else ('tty', 'iio'):
-            res[path] = sample_run(binary, reader, work, nsensors, seconds, path, base['rate'])
-        out.append((base, res['iio'], res['tty']))
+        k = i % len(paths)
+        for path in paths[k:] + paths[:k]:
+            if path == 'iio-ref':
+                use_ev3_module(ref_ko)
+            try:
+                res[path] = sample_run(binary, reader, work, nsensors, seconds, path,
+                                       base['rate'])
+            finally:
+                if path == 'iio-ref':
+                    use_ev3_module(default_ev3_module())
+        out.append((base, res['iio'], res['tty'], res.get('iio-ref')))
     return out
+
+
+def lead_note(a, b, name_a, name_b):
+    """Whether path a used less CPU per sample than b, from their runs'
+    figures: a lead only beyond the run-to-run spread of either."""
+    gap = statistics.median(b) - statistics.median(a)
+    spread_max = max(max(a) - min(a), max(b) - min(b))
+    if len(a) < 2 or len(b) < 2:
+        return ('%.1f us (%s) and %.1f us (%s): one run gives no run-to-run spread, so no '
+                'lead is claimed' % (a[0], name_a, b[0], name_b))
+    for x, y, nx, ny, g in ((a, b, name_a, name_b, gap), (b, a, name_b, name_a, -gap)):
+        if max(x) < min(y) and g > spread_max:
+            return ('%s used less CPU per sample than %s in every run, by %.1f us (medians), '
+                    'more than the spread of either (%.1f us)' % (nx, ny, g, spread_max))
+    return ('medians %.1f us (%s) and %.1f us (%s), %.1f us apart, within the run-to-run '
+            'spread (%s %.1f to %.1f us, %s %.1f to %.1f us): no lead is claimed'
+            % (statistics.median(a), name_a, statistics.median(b), name_b, abs(gap),
+               name_a, min(a), max(a), name_b, min(b), max(b)))
 
 
 def spread(values, fmt='%.1f'):
@@ -631,6 +683,22 @@ def sample_figures(n, runs):
                    'run-to-run spread (driver %.1f to %.1f us, reference %.1f to %.1f us): no lead '
                    'is claimed' % (statistics.median(drv), statistics.median(ref), abs(gap),
                                    min(drv), max(drv), min(ref), max(ref)))
+    refp = [r[3] for r in runs if r[3]]
+    if refp:
+        slow = [r['per_sample'] for r in refp]
+        figs.append(figure(
+            '%s: CPU per sample, lego_ev3_uart without the parser\'s fast path + IIO + C '
+            'reader' % label, round(statistics.median(slow), 1), 'us',
+            'lego_ev3_uart as built (fast path)', round(statistics.median(drv), 1),
+            None, None,
+            'median of %d runs: %s us (of which the reader: %s us; the kernel: %s us); the '
+            'same module source built with EV3_UART_PROTO_REFERENCE (the byte loop alone, '
+            'no fast path), swapped in for its runs; lost %d of %d samples'
+            % (len(refp), spread(slow), spread([r['reader'] for r in refp]),
+               spread([r['kernel'] for r in refp]), sum(r['lost'] for r in refp),
+               sum(r['sent'] for r in refp))))
+        verdict += '; the parser\'s fast path: ' + lead_note(
+            drv, slow, 'with the fast path', 'without it')
     return figs, '%d sensors, %d runs: %s.' % (n, len(runs), verdict)
 
 
@@ -715,7 +783,8 @@ def main():
         failed, verdicts = [], []
         for nsensors in (4, 16):
             try:
-                res = bench_samples(binary, reader, work, nsensors, seconds, runs)
+                res = bench_samples(binary, reader, work, nsensors, seconds, runs,
+                                    ref_module(args.out))
             except (BenchError, OSError) as e:
                 # A sensor lost mid-run (its device gone: ENODEV, ENOENT)
                 # spoils this figure, not the ones after it.
@@ -726,6 +795,11 @@ def main():
             verdicts.append(v)
         notes.append(SAMPLES_NOTE % {'seconds': seconds, 'runs': runs, 'rate': RATE,
                                      'period': READ_PERIOD_MS, 'ack': STREAM_ACK_MS})
+        if ref_module(args.out):
+            notes.append('A third path, (3), is path (1) with the discipline built without '
+                         "the parser's fast path (EV3_UART_PROTO_REFERENCE: the byte loop "
+                         'alone), loaded in place of the usual module for its runs; the three '
+                         'paths take turns to go first.')
         notes += ['CPU per sample, %s' % v for v in verdicts]
         if not args.only:
             figures += bench_mode_switch(binary, work, 6 if args.quick else 20)
