@@ -384,11 +384,18 @@ int nxt_node_add(struct nxt_brick *b, struct device *parent)
  */
 void nxt_node_remove(struct nxt_brick *b)
 {
+	/*
+	 * No open() finds the brick from here on, but its minor stays taken
+	 * until its device is gone (NULL stored in an allocating XArray
+	 * reserves the entry): a brick plugged meanwhile would else get the
+	 * minor while "nxtN" is still in sysfs, and fail to probe.
+	 */
 	down_write(&nxt_nodes_rwsem);
-	xa_erase(&nxt_nodes, b->minor);
+	xa_store(&nxt_nodes, b->minor, NULL, GFP_KERNEL);
 	up_write(&nxt_nodes_rwsem);
 	device_destroy(&nxt_class, MKDEV(MAJOR(nxt_devt), b->minor));
 	b->node = NULL;
+	xa_erase(&nxt_nodes, b->minor);
 }
 
 /**
