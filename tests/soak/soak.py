@@ -623,7 +623,7 @@ def attacher(res, seconds, seed):
                 set_ldisc(slave, N_TTY)          # detach, tty stays open
                 bump(res, 'detach_setd')
             elif how == 1:
-                os.close(slave)                  # last close of the tty
+                os.close(slave)                  # the discipline stays till the master goes
                 closed.add(slave)
                 bump(res, 'detach_close')
             elif how == 2:
