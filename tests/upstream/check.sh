@@ -395,13 +395,15 @@ step_kunit() {
 	rc=$?
 	echo "$out"
 	[ "$rc" = 0 ] || return 1
-	# Both suites ran, and every case of both passed: as many as the
-	# suites' sources list.
-	for d in lego_ev3_uart_proto lego_nxt_proto; do
+	# Every suite of the drivers' *_test.c ran, and every case passed: as
+	# many as those sources list.
+	local tests=("$top"/drivers/lego/*/*_test.c) suites
+	suites=$(sed -n 's/^[[:space:]]*\.name[[:space:]]*=[[:space:]]*"\(lego_[a-z0-9_]*\)",$/\1/p' "${tests[@]}")
+	[ -n "$suites" ] || { echo "no KUnit suite found in ${tests[*]}"; return 1; }
+	for d in $suites; do
 		echo "$out" | grep -E "^\[[0-9:]+\] =+ $d \(" >/dev/null || { echo "suite $d did not run"; return 1; }
 	done
-	n=$(cat "$top"/drivers/lego/ev3/ev3_uart_proto_test.c "$top"/drivers/lego/nxt/nxt_proto_test.c |
-		grep -c '^[[:space:]]*KUNIT_CASE')
+	n=$(cat "${tests[@]}" | grep -c '^[[:space:]]*KUNIT_CASE')
 	echo "$out" | grep -E "Testing complete\. Ran $n tests: passed: $n\$" ||
 		{ echo "not all $n cases ran and passed"; return 1; }
 }
