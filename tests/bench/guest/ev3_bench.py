@@ -698,7 +698,7 @@ def sample_figures(n, runs):
                spread([r['kernel'] for r in refp]), sum(r['lost'] for r in refp),
                sum(r['sent'] for r in refp))))
         verdict += '; the parser\'s fast path: ' + lead_note(
-            drv, slow, 'with the fast path', 'without it')
+            drv, slow, 'the fast path', 'the byte loop alone')
     return figs, '%d sensors, %d runs: %s.' % (n, len(runs), verdict)
 
 
