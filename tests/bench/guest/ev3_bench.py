@@ -153,9 +153,7 @@ def default_ev3_module():
 
 def ensure_ev3_module():
     if not os.path.isdir('/sys/module/lego_ev3_uart'):
-        for mod in os.environ.get('LEGO_MODULES', '').split():
-            if os.path.basename(mod) == 'lego_ev3_uart.ko':
-                subprocess.run(['insmod', mod], check=True)
+        subprocess.run(['insmod', default_ev3_module()], check=True)
     if not os.path.isdir('/sys/module/lego_ev3_uart'):
         raise BenchError('lego_ev3_uart is not loaded')
 
@@ -574,19 +572,21 @@ def bench_samples(binary, reader, work, nsensors, seconds, runs, ref_ko=None):
     return out
 
 
-def lead_note(a, b, name_a, name_b):
-    """Whether path a used less CPU per sample than b, from their runs'
-    figures: a lead only beyond the run-to-run spread of either."""
+def compare(a, b, name_a, name_b):
+    """(whether path a used less CPU per sample than b, what the figures
+    say), from their runs' figures: a lead only beyond the run-to-run
+    spread of either."""
     gap = statistics.median(b) - statistics.median(a)
     spread_max = max(max(a) - min(a), max(b) - min(b))
     if len(a) < 2 or len(b) < 2:
-        return ('%.1f us (%s) and %.1f us (%s): one run gives no run-to-run spread, so no '
-                'lead is claimed' % (a[0], name_a, b[0], name_b))
+        return False, ('%.1f us (%s) and %.1f us (%s): one run gives no run-to-run spread, '
+                       'so no lead is claimed' % (a[0], name_a, b[0], name_b))
     for x, y, nx, ny, g in ((a, b, name_a, name_b, gap), (b, a, name_b, name_a, -gap)):
         if max(x) < min(y) and g > spread_max:
-            return ('%s used less CPU per sample than %s in every run, by %.1f us (medians), '
-                    'more than the spread of either (%.1f us)' % (nx, ny, g, spread_max))
-    return ('medians %.1f us (%s) and %.1f us (%s), %.1f us apart, within the run-to-run '
+            return x is a, ('%s used less CPU per sample than %s in every run, by %.1f us '
+                            '(medians), more than the spread of either (%.1f us)'
+                            % (nx, ny, g, spread_max))
+    return False, ('medians %.1f us (%s) and %.1f us (%s), %.1f us apart, within the run-to-run '
             'spread (%s %.1f to %.1f us, %s %.1f to %.1f us): no lead is claimed'
             % (statistics.median(a), name_a, statistics.median(b), name_b, abs(gap),
                name_a, min(a), max(a), name_b, min(b), max(b)))
@@ -606,12 +606,7 @@ def sample_figures(n, runs):
     label = '%d sensors at %.1f messages/s each (lowest measured)' % (n, reached)
     drv = [r['per_sample'] for r in iio]
     ref = [r['per_sample'] for r in tty]
-    # A lead is claimed only beyond the run-to-run spread of either path.
-    spread_max = max(max(drv) - min(drv), max(ref) - min(ref))
-    gap = statistics.median(ref) - statistics.median(drv)
-    several = len(runs) > 1     # one run has no spread to measure a lead against
-    lead = several and max(drv) < min(ref) and gap > spread_max
-    behind = several and min(drv) > max(ref) and -gap > spread_max
+    lead, verdict = compare(drv, ref, 'the line discipline', 'the userspace reference')
     sent_i = sum(r['sent'] for r in iio)
     lost_i = sum(r['lost'] for r in iio)
     sent_t = sum(r['sent'] for r in tty)
@@ -667,22 +662,6 @@ def sample_figures(n, runs):
                   spread([b['rate'] * 100 for b in base], '%.2f'),
                   statistics.median(b['gen_cpu'] / max(b['sent'], 1) * 1e6 for b in base))),
     ]
-    if lead:
-        verdict = ('the line discipline used less CPU per sample than the userspace reference in '
-                   'every run, by %.1f us (medians), more than the spread of either (%.1f us)'
-                   % (gap, spread_max))
-    elif behind:
-        verdict = ('the userspace reference used less CPU per sample than the line discipline in '
-                   'every run, by %.1f us (medians), more than the spread of either (%.1f us)'
-                   % (-gap, spread_max))
-    elif not several:
-        verdict = ('%.1f us (driver) and %.1f us (reference): one run gives no run-to-run spread, '
-                   'so no lead is claimed' % (drv[0], ref[0]))
-    else:
-        verdict = ('medians %.1f us (driver) and %.1f us (reference), %.1f us apart, within the '
-                   'run-to-run spread (driver %.1f to %.1f us, reference %.1f to %.1f us): no lead '
-                   'is claimed' % (statistics.median(drv), statistics.median(ref), abs(gap),
-                                   min(drv), max(drv), min(ref), max(ref)))
     refp = [r[3] for r in runs if r[3]]
     if refp:
         slow = [r['per_sample'] for r in refp]
@@ -697,8 +676,8 @@ def sample_figures(n, runs):
             % (len(refp), spread(slow), spread([r['reader'] for r in refp]),
                spread([r['kernel'] for r in refp]), sum(r['lost'] for r in refp),
                sum(r['sent'] for r in refp))))
-        verdict += '; the parser\'s fast path: ' + lead_note(
-            drv, slow, 'the fast path', 'the byte loop alone')
+        verdict += '; the parser\'s fast path: ' + compare(
+            drv, slow, 'the fast path', 'the byte loop alone')[1]
     return figs, '%d sensors, %d runs: %s.' % (n, len(runs), verdict)
 
 
@@ -781,10 +760,10 @@ def main():
         seconds = args.seconds or (5 if args.quick else 12)
         runs = args.runs or (1 if args.quick else 5)
         failed, verdicts = [], []
+        ref_ko = ref_module(args.out)
         for nsensors in (4, 16):
             try:
-                res = bench_samples(binary, reader, work, nsensors, seconds, runs,
-                                    ref_module(args.out))
+                res = bench_samples(binary, reader, work, nsensors, seconds, runs, ref_ko)
             except (BenchError, OSError) as e:
                 # A sensor lost mid-run (its device gone: ENODEV, ENOENT)
                 # spoils this figure, not the ones after it.
@@ -795,7 +774,7 @@ def main():
             verdicts.append(v)
         notes.append(SAMPLES_NOTE % {'seconds': seconds, 'runs': runs, 'rate': RATE,
                                      'period': READ_PERIOD_MS, 'ack': STREAM_ACK_MS})
-        if ref_module(args.out):
+        if ref_ko:
             notes.append('A third path, (3), is path (1) with the discipline built without '
                          "the parser's fast path (EV3_UART_PROTO_REFERENCE: the byte loop "
                          'alone), loaded in place of the usual module for its runs; the three '
