@@ -63,12 +63,6 @@ make -s -C tests/bench/nxt
 echo "==> protocol cores on the host (callgrind)"
 tests/bench/proto/run.sh "$out" $quick || { echo "bench: the protocol-core benchmark failed" >&2; fail=1; }
 
-# The discipline without the parser's fast path, for the EV3 benchmark's
-# third path (ev3_bench.py swaps it in): built against the kernel the VM boots.
-read -r kver _ < <(tests/kernel/fetch-source.sh newest)
-tree=$(tests/kernel/build-kernel.sh "${variant[@]}" "$kver")
-LEGO_EV3_PROTO_REFERENCE=1 tests/build-modules.sh "$tree" "$out/ref-modules"
-
 echo "==> the test VM: EV3 and NXT benchmarks"
 # One guest CPU, as the figures in results.md were measured (and as the EV3
 # brick has): the sensors' emulators then compete with the driver for it.

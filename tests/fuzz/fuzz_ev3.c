@@ -12,15 +12,14 @@
  * registrations, fast sync probes (SPEED 115200) that the bytes may answer
  * or not. After every call the parser's state is checked against
  * what its header promises, and every event against the state. One input
- * in four also goes through differential(): the fast path against the
- * byte loop.
+ * in four also goes through differential(): the bytes in batches against
+ * the same bytes one at a time.
  *
  * A custom mutator keeps most checksums right (see the end of this file).
  */
 #include <errno.h>
 #include <string.h>
 
-#include "ev3_ref.h"
 #include "ev3_uart_chan.h"
 #include "ev3_uart_proto.h"
 #include "fuzz_check.h"
@@ -87,22 +86,6 @@ static void check_parser(const struct ev3_uart_parser *p)
 	/* EXT_MODE (Powered Up) adds 0 or 8 to the mode of a DATA header. */
 	CHECK(p->ext_mode == 0 || p->ext_mode == EV3_UART_MAX_EV3_MODES);
 	CHECK(s->num_combos <= EV3_UART_MAX_COMBOS);
-	/*
-	 * The fast path's trusted header (ev3_uart_data_fast()): only in the
-	 * data phase, with nothing to parse again, no bad frame on the count
-	 * and no SELECT pending, for the current mode and a payload it takes.
-	 */
-	CHECK(p->fast_len >= 1);
-	if (p->fast_hdr != EV3_UART_NO_HDR) {
-		CHECK(p->state == EV3_UART_STATE_DATA);
-		CHECK(p->replay_pos == p->replay_len);
-		CHECK(!p->data_err);
-		CHECK(p->pending_mode == EV3_UART_NO_MODE);
-		CHECK((p->fast_hdr & EV3_UART_MSG_TYPE_MASK) == EV3_UART_MSG_DATA);
-		CHECK(((p->fast_hdr & EV3_UART_MSG_CMD_MASK) | p->ext_mode) == p->mode);
-		CHECK(p->fast_len == ev3_uart_msg_len(p->fast_hdr));
-		CHECK(p->fast_len <= 8 + 2);
-	}
 	if (p->state == EV3_UART_STATE_SYNC) {
 		CHECK(p->msg_len <= 3);
 		return;
@@ -114,7 +97,6 @@ static void check_parser(const struct ev3_uart_parser *p)
 	if (p->state == EV3_UART_STATE_PROBE) {
 		CHECK(p->sync_speed == EV3_UART_SPEED_FAST);
 		CHECK(p->msg_len <= 3 && p->replay_pos == p->replay_len);
-		CHECK(p->fast_hdr == EV3_UART_NO_HDR);
 		return;
 	}
 	/* A message being received: its header and length agree. */
@@ -505,46 +487,18 @@ static void host_actions(struct host *h)
 }
 
 /*
- * The differential check of the parser's fast path: the same bytes go to
- * the reference parser (ev3_ref.c: the byte loop alone) one at a time, and
- * to the parser in batches of 1 to 64 bytes (so messages whole in a batch,
- * and messages split anywhere between two). Both must give the same
- * events, at the same offsets in the stream, with the same payloads, and
- * be in the same state after every batch. The hosts answer a handshake at
- * once and, between batches, do the same SELECTs, keep-alive ticks and
+ * The differential check of batching: the same bytes go to one parser one
+ * at a time, and to another in batches of 1 to 64 bytes (so messages whole
+ * in a batch, and messages split anywhere between two). Both must give the
+ * same events, at the same offsets in the stream, with the same payloads,
+ * and be in the same state after every batch. The hosts answer a handshake
+ * at once and, between batches, do the same SELECTs, keep-alive ticks and
  * line errors.
  */
 /* Events of one batch: at most one a byte, the replayed bytes and two more. */
 #define DIFF_MAX_EVENTS	(64 + EV3_UART_MAX_MSG_LEN + 2)
 
-struct diff_ops {
-	void (*init)(struct ev3_uart_parser *p);
-	size_t (*feed)(struct ev3_uart_parser *p, const u8 *buf, size_t len,
-		       struct ev3_uart_event *ev);
-	void (*line_error)(struct ev3_uart_parser *p, struct ev3_uart_event *ev);
-	void (*start_data)(struct ev3_uart_parser *p);
-	int (*select)(struct ev3_uart_parser *p, u8 mode);
-	bool (*tick)(struct ev3_uart_parser *p, struct ev3_uart_event *ev);
-	int (*probe)(struct ev3_uart_parser *p, u32 speed);
-	u32 (*probe_end)(struct ev3_uart_parser *p);
-};
-
-static const struct diff_ops diff_ref = {
-	ref_ev3_uart_parser_init, ref_ev3_uart_parser_feed,
-	ref_ev3_uart_parser_line_error, ref_ev3_uart_parser_start_data,
-	ref_ev3_uart_parser_select, ref_ev3_uart_parser_tick,
-	ref_ev3_uart_parser_probe, ref_ev3_uart_parser_probe_end,
-};
-
-static const struct diff_ops diff_fast = {
-	ev3_uart_parser_init, ev3_uart_parser_feed,
-	ev3_uart_parser_line_error, ev3_uart_parser_start_data,
-	ev3_uart_parser_select, ev3_uart_parser_tick,
-	ev3_uart_parser_probe, ev3_uart_parser_probe_end,
-};
-
 struct diff_run {
-	const struct diff_ops *ops;
 	size_t step;		/* bytes per call: 1, or 0 for the whole batch */
 	struct ev3_uart_parser p;
 	struct ev3_uart_event ev[DIFF_MAX_EVENTS];
@@ -565,7 +519,7 @@ static void diff_event(struct diff_run *r, const struct ev3_uart_event *ev,
 		memcpy(r->data[r->n], r->p.data, ev->len);
 	r->n++;
 	if (ev->type == EV3_UART_EV_HANDSHAKE)
-		r->ops->start_data(&r->p);
+		ev3_uart_parser_start_data(&r->p);
 }
 
 /* Feed @len bytes at stream offset @at, as @r does. */
@@ -576,7 +530,7 @@ static void diff_feed(struct diff_run *r, const u8 *buf, size_t len, size_t at)
 
 	do {
 		n = r->step && len > r->step ? r->step : len;
-		used = r->ops->feed(&r->p, buf, n, &ev);
+		used = ev3_uart_parser_feed(&r->p, buf, n, &ev);
 		CHECK(used <= n);
 		CHECK(ev.type != EV3_UART_EV_NONE || used == n);
 		buf += used;
@@ -586,7 +540,7 @@ static void diff_feed(struct diff_run *r, const u8 *buf, size_t len, size_t at)
 	} while (len || ev.type != EV3_UART_EV_NONE);
 }
 
-/* What must agree (the fast path's cache, fast_hdr and fast_len, need not). */
+/* What must agree: all but the scratch of a message already handled. */
 static void diff_state(const struct ev3_uart_parser *a,
 		       const struct ev3_uart_parser *b)
 {
@@ -651,12 +605,10 @@ static void differential(const u8 *data, size_t size, u32 seed)
 	int ret[2];
 	u8 mode;
 
-	r[0].ops = &diff_ref;
 	r[0].step = 1;
-	r[1].ops = &diff_fast;
 	r[1].step = 0;
 	for (i = 0; i < 2; i++)
-		r[i].ops->init(&r[i].p);
+		ev3_uart_parser_init(&r[i].p);
 	while (at < size) {
 		n = 1 + rnd(&h) % 64;
 		n = n < size - at ? n : size - at;
@@ -668,29 +620,29 @@ static void differential(const u8 *data, size_t size, u32 seed)
 		if (rnd(&h) % 8 == 0) {
 			mode = rnd(&h) % (EV3_UART_MAX_MODES + 1);
 			for (i = 0; i < 2; i++)
-				ret[i] = r[i].ops->select(&r[i].p, mode);
+				ret[i] = ev3_uart_parser_select(&r[i].p, mode);
 			CHECK(ret[0] == ret[1]);
 		}
 		if (rnd(&h) % 4 == 0) {
 			for (i = 0; i < 2; i++) {
-				lost[i] = r[i].ops->tick(&r[i].p, &ev[i]);
+				lost[i] = ev3_uart_parser_tick(&r[i].p, &ev[i]);
 				diff_event(&r[i], &ev[i], at);
 			}
 			CHECK(lost[0] == lost[1]);
 		}
 		if (rnd(&h) % 32 == 0) {
 			for (i = 0; i < 2; i++) {
-				r[i].ops->line_error(&r[i].p, &ev[i]);
+				ev3_uart_parser_line_error(&r[i].p, &ev[i]);
 				diff_event(&r[i], &ev[i], at);
 			}
 		}
 		if (rnd(&h) % 32 == 0) {
 			for (i = 0; i < 2; i++)
-				ret[i] = r[i].ops->probe(&r[i].p, EV3_UART_SPEED_FAST);
+				ret[i] = ev3_uart_parser_probe(&r[i].p, EV3_UART_SPEED_FAST);
 			CHECK(ret[0] == ret[1]);
 		} else if (rnd(&h) % 4 == 0) {
 			for (i = 0; i < 2; i++)
-				ret[i] = r[i].ops->probe_end(&r[i].p);
+				ret[i] = ev3_uart_parser_probe_end(&r[i].p);
 			CHECK(ret[0] == ret[1]);
 		}
 		diff_logs(&r[0], &r[1]);

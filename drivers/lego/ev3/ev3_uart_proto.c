@@ -41,39 +41,6 @@
 
 enum { EV3_UART_STASH_RAW, EV3_UART_STASH_PCT, EV3_UART_STASH_SI };
 
-/*
- * With EV3_UART_PROTO_REFERENCE defined, this file builds without the data
- * phase's fast path (the byte loop and ev3_uart_data_msg() alone): the
- * userspace fuzzer builds it so beside the real one, and checks the fast
- * path against it.
- */
-#ifdef EV3_UART_PROTO_REFERENCE
-#define EV3_UART_FAST_PATH	0
-#else
-#define EV3_UART_FAST_PATH	1
-#endif
-
-/* ev3_uart_checksum(), inline for the parser. */
-static __always_inline u8 __ev3_uart_checksum(const u8 *msg, size_t len)
-{
-	u32 x = 0xff;
-
-	/*
-	 * Four bytes at a time, then folded: XOR does not care which byte
-	 * of the word a byte lands in.
-	 */
-	for (; len >= 4; len -= 4, msg += 4)
-		x ^= get_unaligned_le32(msg);
-	if (len & 2) {
-		x ^= get_unaligned_le16(msg);
-		msg += 2;
-	}
-	if (len & 1)
-		x ^= *msg;
-	x ^= x >> 16;
-	return x ^ x >> 8;
-}
-
 /**
  * ev3_uart_checksum() - compute the checksum of a message
  * @msg: the message, starting with its header
@@ -83,7 +50,11 @@ static __always_inline u8 __ev3_uart_checksum(const u8 *msg, size_t len)
  */
 u8 ev3_uart_checksum(const u8 *msg, size_t len)
 {
-	return __ev3_uart_checksum(msg, len);
+	u8 x = 0xff;
+
+	while (len--)
+		x ^= *msg++;
+	return x;
 }
 EXPORT_SYMBOL_IF_KUNIT(ev3_uart_checksum);
 
@@ -592,31 +563,6 @@ EXPORT_SYMBOL_IF_KUNIT(ev3_uart_build_lump_data);
 
 /* ---- the parser ---- */
 
-/*
- * memcpy() of the few bytes (@n up to %EV3_UART_MAX_MSG_LEN) of a message
- * split between two batches, inline and without a loop for the usual ones:
- * two moves of k bytes, overlapping if need be, copy k to 2k bytes.
- */
-static __always_inline void ev3_uart_copy_short(u8 *dst, const u8 *src,
-						unsigned int n)
-{
-	unsigned int i;
-
-	if (n >= 8) {
-		for (i = 0; i + 8 < n; i += 8)
-			memcpy(dst + i, src + i, 8);
-		memcpy(dst + n - 8, src + n - 8, 8);
-	} else if (n >= 4) {
-		memcpy(dst, src, 4);
-		memcpy(dst + n - 4, src + n - 4, 4);
-	} else if (n >= 2) {
-		memcpy(dst, src, 2);
-		memcpy(dst + n - 2, src + n - 2, 2);
-	} else if (n) {
-		dst[0] = src[0];
-	}
-}
-
 static void ev3_uart_set_mode_defaults(struct ev3_uart_parser *p)
 {
 	p->stash[EV3_UART_STASH_RAW][0] = EV3_UART_F32_0;
@@ -627,20 +573,8 @@ static void ev3_uart_set_mode_defaults(struct ev3_uart_parser *p)
 	p->stash[EV3_UART_STASH_SI][1] = EV3_UART_F32_1;
 }
 
-/*
- * Forget the header the fast path trusts (see ev3_uart_data_fast()). The
- * length stays at least 1: ev3_uart_parser_feed() reads @buf[0] only when
- * @len reaches it.
- */
-static void ev3_uart_fast_clear(struct ev3_uart_parser *p)
-{
-	p->fast_hdr = EV3_UART_NO_HDR;
-	p->fast_len = EV3_UART_MAX_MSG_LEN;
-}
-
 static void ev3_uart_reset(struct ev3_uart_parser *p)
 {
-	ev3_uart_fast_clear(p);
 	p->state = EV3_UART_STATE_SYNC;
 	p->sync_speed = EV3_UART_SPEED_MIN;
 	p->msg_len = 0;
@@ -948,7 +882,7 @@ static const char *ev3_uart_info_name(struct ev3_uart_parser *p, u8 mode,
 		return "bad mode name";
 	memset(m, 0, sizeof(*m));
 	/* 8-character names fill their payload with no NUL after them. */
-	ev3_uart_copy_short((u8 *)m->name, payload, n);
+	memcpy(m->name, payload, n);
 	/* Powered Up: capability flags after a short name, in a 16-byte payload. */
 	if (n <= EV3_UART_SHORT_NAME_LEN &&
 	    plen >= EV3_UART_SHORT_NAME_LEN + 1 + EV3_UART_NAME_FLAGS) {
@@ -1084,7 +1018,7 @@ static void ev3_uart_sys_info(struct ev3_uart_parser *p, u8 b,
 static void ev3_uart_info_msg(struct ev3_uart_parser *p, const u8 *msg,
 			      unsigned int len, struct ev3_uart_event *ev)
 {
-	if (msg[len - 1] != __ev3_uart_checksum(msg, len - 1))
+	if (msg[len - 1] != ev3_uart_checksum(msg, len - 1))
 		return ev3_uart_error(p, ev, "bad checksum in handshake");
 
 	switch (msg[0] & EV3_UART_MSG_TYPE_MASK) {
@@ -1132,8 +1066,6 @@ static void ev3_uart_data_resync(struct ev3_uart_parser *p)
 	p->replay_len = p->msg_len - 1 + rest;
 	p->replay_pos = 0;
 	p->msg_len = 0;
-	/* The fast path must not pass the bytes to parse again. */
-	ev3_uart_fast_clear(p);
 }
 
 /*
@@ -1181,11 +1113,7 @@ static void ev3_uart_ext_mode(struct ev3_uart_parser *p,
 	if (p->msg[2] != ev3_uart_checksum(p->msg, 2) ||
 	    (ext && ext != EV3_UART_MAX_EV3_MODES))
 		return ev3_uart_bad_frame(p, ev);
-	if (ext != p->ext_mode) {
-		p->ext_mode = ext;
-		/* The headers the fast path trusts now mean other modes. */
-		ev3_uart_fast_clear(p);
-	}
+	p->ext_mode = ext;
 }
 
 /*
@@ -1295,175 +1223,20 @@ static void ev3_uart_data_msg(struct ev3_uart_parser *p,
 	ev->len = plen;
 }
 
-/* ---- the data phase's fast path ---- */
-
-/*
- * ev3_uart_data_msg()'s checks of a DATA message of @plen payload bytes with
- * header @hdr, for the common case only: a message of the current mode with
- * no SELECT pending, and room for the mode's values. Then the US-DC-IN
- * quirk cannot apply (it needs mode 5 while the current mode is 6), and the
- * mode is below @p->sensor.num_modes (@p->mode only ever holds a checked
- * mode).
- */
-static __always_inline bool ev3_uart_data_common(const struct ev3_uart_parser *p,
-						 u8 hdr, unsigned int plen)
-{
-	/* @p->ext_mode is 0 or 8: the mode is below 16. */
-	u8 mode = (hdr & EV3_UART_MSG_CMD_MASK) | p->ext_mode;
-	const struct ev3_uart_mode *m = &p->sensor.modes[mode];
-
-	/* Not an EXT_MODE: ev3_uart_data_msg() takes those. */
-	return (hdr & EV3_UART_MSG_TYPE_MASK) == EV3_UART_MSG_DATA &&
-	       mode == p->mode && p->pending_mode == EV3_UART_NO_MODE &&
-	       plen >= m->num_values * ev3_uart_data_size(m->data_type);
-}
-
-/* The XOR of the four bytes of @w. */
-static __always_inline u8 ev3_uart_xor32(u32 w)
-{
-	w ^= w >> 16;
-	return w ^ w >> 8;
-}
-
-/*
- * The checksum test of ev3_uart_data_msg(): @x is the XOR of the payload
- * bytes, @csum the message's last byte. (The RGB-RAW quirk is for 8-byte
- * messages: see ev3_uart_data_take().)
- */
-static __always_inline bool ev3_uart_data_csum_ok(u8 hdr, u8 x, u8 csum)
-{
-	return (u8)(0xff ^ hdr ^ x) == csum;
-}
-
-/*
- * Check the checksum of the whole DATA message @msg of @plen payload bytes
- * (a power of two, at most %EV3_UART_MAX_PAYLOAD), and copy its payload to
- * @p->data if it is right. The payload is read once, in words, and written
- * from the same registers: no loop over bytes and no call to memcpy() for
- * the usual sizes.
- *
- * Return: true if the payload was taken.
- */
-static __always_inline bool ev3_uart_data_take(struct ev3_uart_parser *p,
-					       const u8 *msg, unsigned int plen)
-{
-	const u8 *src = msg + 1;
-	u8 hdr = msg[0], csum = msg[plen + 1];
-	u32 w0, w1;
-
-	/* The sizes by how often sensors use them. */
-	if (plen == 2) {
-		if (!ev3_uart_data_csum_ok(hdr, src[0] ^ src[1], csum))
-			return false;
-		put_unaligned_le16(get_unaligned_le16(src), p->data);
-	} else if (plen == 8) {
-		w0 = get_unaligned_le32(src);
-		w1 = get_unaligned_le32(src + 4);
-		/* The quirk first: it spares RGB-RAW's useless checksums. */
-		if (!ev3_uart_rgb_raw_quirk(&p->sensor, hdr) &&
-		    !ev3_uart_data_csum_ok(hdr, ev3_uart_xor32(w0 ^ w1), csum))
-			return false;
-		put_unaligned_le32(w0, p->data);
-		put_unaligned_le32(w1, p->data + 4);
-	} else if (plen == 1) {
-		if (!ev3_uart_data_csum_ok(hdr, src[0], csum))
-			return false;
-		p->data[0] = src[0];
-	} else if (plen == 4) {
-		w0 = get_unaligned_le32(src);
-		if (!ev3_uart_data_csum_ok(hdr, ev3_uart_xor32(w0), csum))
-			return false;
-		put_unaligned_le32(w0, p->data);
-	} else {
-		/* 16 and 32: ev3_uart_data_msg() takes them. */
-		return false;
-	}
-	return true;
-}
-
-/*
- * Deliver the whole DATA message @msg of @plen payload bytes (at most
- * %EV3_UART_MAX_PAYLOAD) whose header passed ev3_uart_data_common(), if its
- * checksum is right or the RGB-RAW quirk applies: what ev3_uart_data_msg()
- * does with such a message. @fast: the header is @p->fast_hdr, so
- * @p->data_err is 0 (see ev3_uart_data_fast()).
- *
- * Return: true if the message was delivered (@ev is %EV3_UART_EV_DATA).
- */
-static __always_inline bool ev3_uart_data_deliver(struct ev3_uart_parser *p,
-						  const u8 *msg, unsigned int plen,
-						  struct ev3_uart_event *ev,
-						  bool fast)
-{
-	if (!ev3_uart_data_take(p, msg, plen))
-		return false;
-	p->frames++;
-	if (!fast && p->data_err)
-		p->data_err--;
-	p->data_since_tick = true;
-	ev->type = EV3_UART_EV_DATA;
-	/* The header passed ev3_uart_data_common(): its mode is @p->mode. */
-	ev->mode = p->mode;
-	ev->len = plen;
-	return true;
-}
-
-/*
- * The fast path of the data phase: deliver the whole DATA message @msg of
- * @plen payload bytes (at most %EV3_UART_MAX_PAYLOAD), in the caller's
- * buffer or in @p->msg, if it is the common case (ev3_uart_data_common())
- * with a good checksum or the RGB-RAW quirk. Anything else returns false,
- * and ev3_uart_data_msg() deals with it: that is the one place where bad
- * frames, SELECTs and stale modes are handled.
- *
- * @p->fast_hdr caches the checks: a header that passed
- * ev3_uart_data_common() passes it again until a SELECT or a new data phase
- * (@p->mode changes only on a SELECT, the modes only in a handshake). It is
- * set only with nothing to parse again in @p->replay and no bad frame on
- * the count (@p->data_err 0), and cleared by whatever changes that: a
- * SELECT, a resync, a line error, an error (ev3_uart_reset()), a new data
- * phase. So ev3_uart_parser_feed() delivers a message with that header (and
- * of @p->fast_len bytes), whole or split between two calls, with only its
- * checksum to check and @p->data_err to leave at 0.
- *
- * Return: true if the message was delivered (@ev is %EV3_UART_EV_DATA).
- */
-static __always_inline bool ev3_uart_data_fast(struct ev3_uart_parser *p,
-					       const u8 *msg, unsigned int plen,
-					       struct ev3_uart_event *ev)
-{
-	u8 hdr = msg[0];
-
-	if (hdr != p->fast_hdr && !ev3_uart_data_common(p, hdr, plen))
-		return false;
-	if (!ev3_uart_data_deliver(p, msg, plen, ev, false))
-		return false;
-	/*
-	 * Trusted only with nothing left to parse again and no bad frame on
-	 * the count: see above.
-	 */
-	if (p->replay_pos == p->replay_len && !p->data_err) {
-		p->fast_hdr = hdr;
-		p->fast_len = plen + 2;
-	}
-	return true;
-}
-
 /* A whole message is in @p->msg: act on it. */
-static noinline void ev3_uart_msg_done(struct ev3_uart_parser *p,
-				       struct ev3_uart_event *ev)
+static void ev3_uart_msg_done(struct ev3_uart_parser *p,
+			      struct ev3_uart_event *ev)
 {
 	if (p->state != EV3_UART_STATE_DATA)
 		ev3_uart_info_msg(p, p->msg, p->msg_len, ev);
-	else if (!EV3_UART_FAST_PATH ||
-		 !ev3_uart_data_fast(p, p->msg, p->msg_len - 2, ev))
+	else
 		ev3_uart_data_msg(p, ev);
 	p->msg_len = 0;
 }
 
 /* The first byte of a message in the INFO and DATA states: its header. */
-static __always_inline void ev3_uart_msg_start(struct ev3_uart_parser *p,
-					       u8 b, struct ev3_uart_event *ev)
+static void ev3_uart_msg_start(struct ev3_uart_parser *p, u8 b,
+			       struct ev3_uart_event *ev)
 {
 	/*
 	 * Quirk: a lone 0xff shows up at message boundaries: the infrared
@@ -1502,18 +1275,17 @@ static __always_inline void ev3_uart_msg_start(struct ev3_uart_parser *p,
  *
  * Return: the number of bytes of @buf taken.
  */
-static __always_inline size_t ev3_uart_msg_body(struct ev3_uart_parser *p,
-						const u8 *buf, size_t len,
-						struct ev3_uart_event *ev)
+static size_t ev3_uart_msg_body(struct ev3_uart_parser *p, const u8 *buf,
+				size_t len, struct ev3_uart_event *ev)
 {
 	unsigned int need = p->msg_size - p->msg_len;
 
 	if (len < need) {
-		ev3_uart_copy_short(p->msg + p->msg_len, buf, len);
+		memcpy(p->msg + p->msg_len, buf, len);
 		p->msg_len += len;
 		return len;
 	}
-	ev3_uart_copy_short(p->msg + p->msg_len, buf, need);
+	memcpy(p->msg + p->msg_len, buf, need);
 	p->msg_len += need;
 	ev3_uart_msg_done(p, ev);
 	return need;
@@ -1597,225 +1369,6 @@ static size_t ev3_uart_feed_bytes(struct ev3_uart_parser *p, const u8 *buf,
 	return used;
 }
 
-/*
- * ev3_uart_feed_bytes() in the INFO state with nothing to parse again, the
- * handshake: a header, then the rest of the message in one go, until an
- * event. Without one the state stays, and nothing is left to parse again
- * (only a bad DATA message does that).
- */
-static noinline size_t ev3_uart_feed_info(struct ev3_uart_parser *p,
-					  const u8 *buf, size_t len,
-					  struct ev3_uart_event *ev)
-{
-	size_t used = 0;
-	unsigned int n;
-	u8 b;
-
-	while (used < len) {
-		if (p->msg_len) {
-			/* The rest of a message (ev3_uart_msg_body()). */
-			n = p->msg_size - p->msg_len;
-			if (len - used < n) {
-				ev3_uart_copy_short(p->msg + p->msg_len, buf + used,
-						    len - used);
-				p->msg_len += len - used;
-				return len;
-			}
-			ev3_uart_copy_short(p->msg + p->msg_len, buf + used, n);
-			used += n;
-			ev3_uart_info_msg(p, p->msg, p->msg_size, ev);
-			p->msg_len = 0;
-		} else {
-			b = buf[used];
-			n = ev3_uart_msg_len(b);
-			if (n == 1 || ev3_uart_payload_len(b) > EV3_UART_MAX_PAYLOAD) {
-				/* 0xff, SYS or too long. */
-				ev3_uart_msg_start(p, b, ev);
-				used++;
-			} else if (len - used >= n) {
-				/* A whole message: where it is. */
-				ev3_uart_info_msg(p, buf + used, n, ev);
-				used += n;
-			} else {
-				/* The start of one: n is at most the room in @p->msg. */
-				ev3_uart_copy_short(p->msg, buf + used, len - used);
-				p->msg_len = len - used;
-				p->msg_size = n;
-				used = len;
-			}
-		}
-		if (ev->type != EV3_UART_EV_NONE)
-			break;
-	}
-	return used;
-}
-
-/* The payload length of a DATA header: 2^L. */
-static __always_inline unsigned int ev3_uart_data_plen(u8 hdr)
-{
-	return 1U << ((hdr & EV3_UART_MSG_SIZE_MASK) >> EV3_UART_MSG_SIZE_SHIFT);
-}
-
-/*
- * The data phase: the start of a DATA message at the end of @buf, @len
- * bytes (fewer than the message's, so at most %EV3_UART_MAX_PAYLOAD + 1),
- * kept in @p->msg as ev3_uart_feed_bytes() would keep them.
- */
-static noinline size_t ev3_uart_data_head(struct ev3_uart_parser *p,
-					  const u8 *buf, size_t len)
-{
-	ev3_uart_copy_short(p->msg, buf, len);
-	p->msg_len = len;
-	p->msg_size = ev3_uart_data_plen(buf[0]) + 2;
-	return len;
-}
-
-/*
- * The end of ev3_uart_data_rest() for a message ev3_uart_data_fast() did
- * not deliver: ev3_uart_data_msg() decides, then parsing goes on as in
- * ev3_uart_feed_bytes().
- */
-static noinline size_t ev3_uart_data_slow(struct ev3_uart_parser *p,
-					  const u8 *buf, size_t len,
-					  unsigned int need,
-					  struct ev3_uart_event *ev)
-{
-	p->msg_len += need;
-	ev3_uart_data_msg(p, ev);
-	p->msg_len = 0;
-	if (ev->type != EV3_UART_EV_NONE)
-		return need;
-	return need + ev3_uart_feed_bytes(p, buf + need, len - need, ev);
-}
-
-/*
- * The data phase with the start of a DATA message in @p->msg (its header
- * was checked, so the whole message fits): the rest of it, as much of it
- * as @buf holds, then the message as ev3_uart_feed_bytes() would take it.
- *
- * Return: the bytes of @buf taken.
- */
-static noinline size_t ev3_uart_data_rest(struct ev3_uart_parser *p,
-					  const u8 *buf, size_t len,
-					  struct ev3_uart_event *ev)
-{
-	unsigned int plen = ev3_uart_data_plen(p->msg[0]);
-	unsigned int need = plen + 2 - p->msg_len;
-
-	if (len < need) {
-		ev3_uart_copy_short(p->msg + p->msg_len, buf, len);
-		p->msg_len += len;
-		return len;
-	}
-	ev3_uart_copy_short(p->msg + p->msg_len, buf, need);
-	if (!ev3_uart_data_fast(p, p->msg, plen, ev))
-		return ev3_uart_data_slow(p, buf, len, need, ev);
-	p->msg_len = 0;
-	return need;
-}
-
-/*
- * Powered Up devices send an EXT_MODE message before every DATA message;
- * one that changes nothing (the value in force, a right checksum), whole
- * at the start of @buf in the data phase, is only skipped: what
- * ev3_uart_data_msg() would do with it. Then the rest of @buf as usual
- * (it starts with no such message: no deeper recursion).
- */
-static noinline size_t ev3_uart_feed_ext(struct ev3_uart_parser *p,
-					 const u8 *buf, size_t len,
-					 struct ev3_uart_event *ev)
-{
-	u8 csum = 0xff ^ EV3_UART_EXT_MODE_HDR ^ p->ext_mode;
-	size_t used = 0;
-
-	if (!p->sensor.lump)
-		return ev3_uart_feed_bytes(p, buf, len, ev);
-	while (len - used >= 3 && buf[used] == EV3_UART_EXT_MODE_HDR &&
-	       buf[used + 1] == p->ext_mode && buf[used + 2] == csum)
-		used += 3;
-	if (!used)
-		return ev3_uart_feed_bytes(p, buf, len, ev);
-	return used + ev3_uart_parser_feed(p, buf + used, len - used, ev);
-}
-
-/*
- * ev3_uart_parser_feed() but for a whole message with the header in
- * @p->fast_hdr: in the data phase, a whole DATA message at the start of
- * @buf for ev3_uart_data_fast(), taken where it is; the parts of a message
- * split between two calls, taken a part at a time; everything else through
- * ev3_uart_feed_bytes(). The slower cases are calls in tail position.
- */
-static noinline size_t ev3_uart_feed(struct ev3_uart_parser *p, const u8 *buf,
-				     size_t len, struct ev3_uart_event *ev)
-{
-	unsigned int plen;
-	u8 hdr;
-
-	if (p->replay_pos != p->replay_len)
-		return ev3_uart_feed_bytes(p, buf, len, ev);
-	if (p->state == EV3_UART_STATE_INFO)
-		return ev3_uart_feed_info(p, buf, len, ev);
-	if (p->state != EV3_UART_STATE_DATA || !len)
-		return ev3_uart_feed_bytes(p, buf, len, ev);
-	if (p->msg_len)
-		return ev3_uart_data_rest(p, buf, len, ev);
-	hdr = buf[0];
-	if (!ev3_uart_data_hdr_ok(hdr)) {
-		if (hdr == EV3_UART_EXT_MODE_HDR)
-			return ev3_uart_feed_ext(p, buf, len, ev);
-		return ev3_uart_feed_bytes(p, buf, len, ev);
-	}
-	plen = ev3_uart_data_plen(hdr);
-	if (len < plen + 2)
-		return ev3_uart_data_head(p, buf, len);
-	if (ev3_uart_data_fast(p, buf, plen, ev))
-		return plen + 2;
-	return ev3_uart_feed_bytes(p, buf, len, ev);
-}
-
-/*
- * ev3_uart_parser_feed() with the start of a message in @p->msg: if it has
- * the header in @p->fast_hdr, the rest of it, as much of it as @buf holds,
- * and then the message delivered; else ev3_uart_feed().
- */
-static noinline size_t ev3_uart_feed_rest(struct ev3_uart_parser *p,
-					  const u8 *buf, size_t len,
-					  struct ev3_uart_event *ev)
-{
-	/* A message is whole as soon as it is: have < n. */
-	unsigned int have = p->msg_len, n = p->fast_len, need = n - have;
-
-	if (p->msg[0] != p->fast_hdr) {
-		if (p->state == EV3_UART_STATE_INFO && p->replay_pos == p->replay_len)
-			return ev3_uart_feed_info(p, buf, len, ev);
-		return ev3_uart_feed(p, buf, len, ev);
-	}
-	if (len < need) {
-		ev3_uart_copy_short(p->msg + have, buf, len);
-		p->msg_len = have + len;
-		return len;
-	}
-	ev3_uart_copy_short(p->msg + have, buf, need);
-	if (!ev3_uart_data_deliver(p, p->msg, n - 2, ev, true))
-		return ev3_uart_data_slow(p, buf, len, need, ev);
-	p->msg_len = 0;
-	return need;
-}
-
-/*
- * ev3_uart_parser_feed() with the start of a message with the header in
- * @p->fast_hdr at the end of @buf.
- */
-static noinline size_t ev3_uart_feed_head(struct ev3_uart_parser *p,
-					  const u8 *buf, size_t len)
-{
-	/* Fewer than @p->fast_len bytes: @p->msg has room for them. */
-	ev3_uart_copy_short(p->msg, buf, len);
-	p->msg_len = len;
-	p->msg_size = p->fast_len;
-	return len;
-}
-
 /**
  * ev3_uart_parser_feed() - parse received bytes up to the next event
  * @p: the parser
@@ -1832,25 +1385,7 @@ size_t ev3_uart_parser_feed(struct ev3_uart_parser *p, const u8 *buf,
 			    size_t len, struct ev3_uart_event *ev)
 {
 	memset(ev, 0, sizeof(*ev));
-	if (!EV3_UART_FAST_PATH)
-		return ev3_uart_feed_bytes(p, buf, len, ev);
-	/*
-	 * The data phase's common case first: a message with the header of
-	 * the last one ev3_uart_data_fast() delivered, whole at the start of
-	 * @buf, or split between two calls. A valid @p->fast_hdr means the
-	 * data phase with nothing to parse again (see ev3_uart_data_fast()),
-	 * and @p->fast_len is then the message's length (else at least 1).
-	 */
-	if (p->msg_len)
-		return ev3_uart_feed_rest(p, buf, len, ev);
-	if (len >= p->fast_len) {
-		if (buf[0] == p->fast_hdr &&
-		    ev3_uart_data_deliver(p, buf, p->fast_len - 2, ev, true))
-			return p->fast_len;
-	} else if (len && buf[0] == p->fast_hdr) {
-		return ev3_uart_feed_head(p, buf, len);
-	}
-	return ev3_uart_feed(p, buf, len, ev);
+	return ev3_uart_feed_bytes(p, buf, len, ev);
 }
 EXPORT_SYMBOL_IF_KUNIT(ev3_uart_parser_feed);
 
@@ -1883,7 +1418,6 @@ void ev3_uart_parser_line_error(struct ev3_uart_parser *p,
 	case EV3_UART_STATE_DATA:
 		p->msg_len = 0;
 		p->bad_frames++;
-		ev3_uart_fast_clear(p);	/* data_err may no longer be 0 */
 		if (!ev3_uart_settling(p) && ++p->data_err > EV3_UART_MAX_DATA_ERR)
 			ev3_uart_error(p, ev, "too many line errors");
 		break;
@@ -1910,7 +1444,6 @@ void ev3_uart_parser_start_data(struct ev3_uart_parser *p)
 	p->data_err = 0;
 	p->silent_ticks = 0;
 	p->data_since_tick = false;
-	ev3_uart_fast_clear(p);
 	p->frames = 0;
 }
 EXPORT_SYMBOL_IF_KUNIT(ev3_uart_parser_start_data);
@@ -1936,7 +1469,6 @@ int ev3_uart_parser_select(struct ev3_uart_parser *p, u8 mode)
 	if (mode != p->pending_mode)
 		p->select_ticks = 0;
 	p->pending_mode = mode;
-	ev3_uart_fast_clear(p);
 	return 0;
 }
 EXPORT_SYMBOL_IF_KUNIT(ev3_uart_parser_select);

@@ -107,9 +107,6 @@ enum ev3_uart_msg_type {
 #define EV3_UART_TYPE_SPIKE_DIST	62
 
 #define EV3_UART_NO_MODE		0xff
-/* No byte has this value: &ev3_uart_parser.fast_hdr holds no header. */
-#define EV3_UART_NO_HDR			0x100
-
 /**
  * enum ev3_uart_data_type - the wire type of the values of a mode
  * @EV3_UART_DATA_S8: signed 8-bit
@@ -293,10 +290,6 @@ struct ev3_uart_event {
  * @data_err: bad frames, less good ones (never below 0)
  * @silent_ticks: keep-alive periods in a row without a good DATA message
  * @data_since_tick: a good DATA message arrived since the last tick
- * @fast_hdr: the header of the last DATA message the fast path delivered,
- *	whose mode and size need no checking again until a SELECT, an error
- *	or a new data phase; %EV3_UART_NO_HDR for none
- * @fast_len: the length of a message with that header (at least 1)
  * @data: payload of the last DATA message delivered
  * @frames: good DATA messages since the last handshake
  * @bad_frames: DATA messages dropped (checksum, size or mode)
@@ -328,8 +321,6 @@ struct ev3_uart_parser {
 	u8 data_err;
 	u8 silent_ticks;
 	bool data_since_tick;
-	u16 fast_hdr;
-	u8 fast_len;
 	u8 data[EV3_UART_MAX_PAYLOAD];
 	unsigned long frames;
 	unsigned long bad_frames;

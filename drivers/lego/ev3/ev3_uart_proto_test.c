@@ -1092,7 +1092,7 @@ static void check_ext_mode(struct kunit *test, size_t chunk)
 	KUNIT_EXPECT_EQ(test, last(&c->r)->mode, 8);
 	KUNIT_EXPECT_TRUE(test, last(&c->r)->mode_changed);
 
-	/* No EXT_MODE before it: still mode 8, through the fast path too. */
+	/* No EXT_MODE before them: still mode 8. */
 	len = enc_data(c->buf, 0, spec, 4);
 	len += enc_data(c->buf + len, 0, spec, 4);
 	feed(&c->p, c->buf, len, chunk, &c->r);
@@ -1459,11 +1459,8 @@ static void test_lump_16_modes_and_flags(struct kunit *test)
 	KUNIT_EXPECT_EQ(test, v, -2);
 }
 
-/*
- * The same header means mode 0 or mode 8 by the last EXT_MODE: the header
- * the fast path trusts is forgotten when EXT_MODE changes.
- */
-static void test_ext_mode_and_fast_path(struct kunit *test)
+/* The same header means mode 0 or mode 8 by the last EXT_MODE. */
+static void test_ext_mode_gives_the_header_its_mode(struct kunit *test)
 {
 	static const u8 modes[4] = { 7, 7, 8, 3 };
 	static const u8 fmt8[4] = { 1, 0, 3, 0 };
@@ -1488,20 +1485,18 @@ static void test_ext_mode_and_fast_path(struct kunit *test)
 	ev3_uart_parser_start_data(&c->p);
 	c->r.n = 0;
 
-	/* Mode 0, header c0: the fast path takes it from the second on. */
+	/* Mode 0, header c0. */
 	len = enc_data(c->buf, 0, &v1, 1);
 	for (i = 0; i < 3; i++)
 		feed(&c->p, c->buf, len, len, &c->r);
 	KUNIT_ASSERT_EQ(test, c->r.n, 3U);
-	KUNIT_EXPECT_EQ(test, c->p.fast_hdr, 0xc0);
 
 	/* EXT_MODE 8 without a SELECT: c0 is mode 8 now, old news, dropped. */
 	feed(&c->p, ext8, sizeof(ext8), sizeof(ext8), &c->r);
-	KUNIT_EXPECT_EQ(test, c->p.fast_hdr, EV3_UART_NO_HDR);
 	feed(&c->p, c->buf, len, len, &c->r);
 	KUNIT_EXPECT_EQ(test, c->r.n, 3U);
 
-	/* SELECT 8: c0 after EXT_MODE 8 confirms it, then takes the fast path. */
+	/* SELECT 8: c0 after EXT_MODE 8 confirms it. */
 	KUNIT_ASSERT_EQ(test, ev3_uart_parser_select(&c->p, 8), 0);
 	for (i = 0; i < 3; i++)
 		feed(&c->p, c->buf, len, len, &c->r);
@@ -1509,7 +1504,6 @@ static void test_ext_mode_and_fast_path(struct kunit *test)
 	KUNIT_EXPECT_EQ(test, c->r.ev[3].mode, 8);
 	KUNIT_EXPECT_TRUE(test, c->r.ev[3].mode_changed);
 	KUNIT_EXPECT_EQ(test, last(&c->r)->mode, 8);
-	KUNIT_EXPECT_EQ(test, c->p.fast_hdr, 0xc0);
 
 	/* EXT_MODE 0 in the same batch as c0: mode 0, not delivered as 8. */
 	memcpy(c->buf + len, ext0, sizeof(ext0));
@@ -1865,7 +1859,7 @@ static void test_line_errors(struct kunit *test)
 	KUNIT_EXPECT_EQ(test, c->p.state, EV3_UART_STATE_SYNC);
 }
 
-/* ---- the data phase's fast path ---- */
+/* ---- the data phase, whole messages and parts of them in a batch ---- */
 
 /* One GYRO-ANG message (mode 0, S16) of the value @v. */
 static size_t enc_gyro_ang(u8 *buf, s16 v)
@@ -1883,7 +1877,7 @@ static size_t feed_once(struct ctx *c, const u8 *buf, size_t len,
 	return ev3_uart_parser_feed(&c->p, buf, len, ev);
 }
 
-static void test_fast_whole_message(struct kunit *test)
+static void test_data_whole_messages(struct kunit *test)
 {
 	struct ctx *c = new_ctx(test);
 	struct ev3_uart_event ev;
@@ -1893,7 +1887,7 @@ static void test_fast_whole_message(struct kunit *test)
 	int i;
 
 	connect(test, c, &sensors[2]);
-	/* The first message passes every check; the next ones its header's. */
+	/* Each message its own event, its value in @p->data. */
 	for (i = 0; i < 3; i++) {
 		len = enc_gyro_ang(b, -100 + i);
 		KUNIT_ASSERT_EQ(test, feed_once(c, b, len, &ev), len);
@@ -1904,15 +1898,13 @@ static void test_fast_whole_message(struct kunit *test)
 		KUNIT_EXPECT_EQ(test, ev3_uart_read_value(&c->p.sensor.modes[0], c->p.data,
 							  ev.len, 0, &v), 0);
 		KUNIT_EXPECT_EQ(test, v, -100 + i);
-		KUNIT_EXPECT_EQ(test, c->p.fast_hdr, b[0]);
-		KUNIT_EXPECT_EQ(test, c->p.fast_len, len);
 	}
 	KUNIT_EXPECT_EQ(test, c->p.frames, 3UL);
 	KUNIT_EXPECT_EQ(test, c->p.msg_len, 0);
 	KUNIT_EXPECT_TRUE(test, c->p.data_since_tick);
 }
 
-static void test_fast_split_everywhere(struct kunit *test)
+static void test_data_split_everywhere(struct kunit *test)
 {
 	/* IR-SEEK: eight S8 values, an 8-byte payload. */
 	static const u8 seek[8] = { 1, 0xfe, 3, 0xfc, 5, 0xfa, 7, 0xf8 };
@@ -1922,7 +1914,7 @@ static void test_fast_split_everywhere(struct kunit *test)
 	size_t len, k;
 	int warm;
 
-	/* Split after every byte, with the header trusted or not yet. */
+	/* Split after every byte, in the SELECT's first message or a later one. */
 	for (warm = 0; warm < 2; warm++) {
 		for (k = 1; k < 10; k++) {
 			c = new_ctx(test);
@@ -1931,11 +1923,10 @@ static void test_fast_split_everywhere(struct kunit *test)
 			len = enc_data(b, 1, seek, 8);
 			KUNIT_ASSERT_EQ(test, len, 10U);
 			if (warm) {
-				/* One confirms the SELECT, the next is trusted. */
+				/* One confirms the SELECT, one more. */
 				feed(&c->p, b, len, len, &c->r);
 				feed(&c->p, b, len, len, &c->r);
 				KUNIT_ASSERT_EQ(test, count(&c->r, EV3_UART_EV_DATA), 2U);
-				KUNIT_ASSERT_EQ(test, c->p.fast_hdr, b[0]);
 			}
 			KUNIT_EXPECT_EQ(test, feed_once(c, b, k, &ev), k);
 			KUNIT_EXPECT_EQ(test, ev.type, EV3_UART_EV_NONE);
@@ -1952,7 +1943,7 @@ static void test_fast_split_everywhere(struct kunit *test)
 	}
 }
 
-static void test_fast_back_to_back(struct kunit *test)
+static void test_data_back_to_back(struct kunit *test)
 {
 	struct ctx *c = new_ctx(test);
 	struct ev3_uart_event ev;
@@ -1978,7 +1969,7 @@ static void test_fast_back_to_back(struct kunit *test)
 	KUNIT_EXPECT_EQ(test, c->p.frames, 3UL);
 }
 
-static void test_fast_bad_checksum_mid_batch(struct kunit *test)
+static void test_data_bad_checksum_mid_batch(struct kunit *test)
 {
 	struct ctx *c = new_ctx(test);
 	u8 b[16];
@@ -2002,7 +1993,7 @@ static void test_fast_bad_checksum_mid_batch(struct kunit *test)
 	KUNIT_EXPECT_EQ(test, v, 3);
 	KUNIT_EXPECT_EQ(test, c->p.replay_pos, c->p.replay_len);
 
-	/* Bad frames pile up as before, whether the header is trusted or not. */
+	/* Bad frames in a row end the connection. */
 	for (bad = 0; bad <= EV3_UART_MAX_DATA_ERR; bad++) {
 		len = enc_gyro_ang(b, 4);
 		b[3] ^= 0x5a;
@@ -2010,10 +2001,9 @@ static void test_fast_bad_checksum_mid_batch(struct kunit *test)
 	}
 	KUNIT_EXPECT_EQ(test, last(&c->r)->type, EV3_UART_EV_ERROR);
 	KUNIT_EXPECT_EQ(test, c->p.state, EV3_UART_STATE_SYNC);
-	KUNIT_EXPECT_EQ(test, c->p.fast_hdr, EV3_UART_NO_HDR);
 }
 
-static void test_fast_rgb_raw_in_batches(struct kunit *test)
+static void test_data_rgb_raw_in_batches(struct kunit *test)
 {
 	static const u8 rgb[8] = { 0x10, 0x00, 0x20, 0x00, 0x30, 0x00, 0x05, 0x00 };
 	struct ctx *c = new_ctx(test);
@@ -2050,7 +2040,7 @@ static void test_fast_rgb_raw_in_batches(struct kunit *test)
 	KUNIT_EXPECT_EQ(test, c->p.bad_frames, 1UL);
 }
 
-static void test_fast_straddling_batch_end(struct kunit *test)
+static void test_data_straddling_batch_end(struct kunit *test)
 {
 	struct ctx *c = new_ctx(test);
 	struct ev3_uart_event ev;
@@ -2068,9 +2058,8 @@ static void test_fast_straddling_batch_end(struct kunit *test)
 	KUNIT_ASSERT_EQ(test, feed_once(c, b + 4, 2, &ev), 2U);
 	KUNIT_ASSERT_EQ(test, ev.type, EV3_UART_EV_NONE);
 	KUNIT_EXPECT_EQ(test, c->p.msg_len, 2);
-	/* ...a SELECT in between does not let it through unchecked... */
+	/* ...a SELECT in between... */
 	KUNIT_ASSERT_EQ(test, ev3_uart_parser_select(&c->p, 1), 0);
-	KUNIT_EXPECT_EQ(test, c->p.fast_hdr, EV3_UART_NO_HDR);
 	/* ...second batch: its rest, then the last message. */
 	KUNIT_ASSERT_EQ(test, feed_once(c, b + 6, len - 6, &ev), 2U);
 	KUNIT_ASSERT_EQ(test, ev.type, EV3_UART_EV_DATA);
@@ -2084,7 +2073,7 @@ static void test_fast_straddling_batch_end(struct kunit *test)
 	KUNIT_EXPECT_EQ(test, c->p.pending_mode, 1);
 }
 
-static void test_fast_header_forgotten(struct kunit *test)
+static void test_data_err_after_line_error(struct kunit *test)
 {
 	struct ctx *c = new_ctx(test);
 	struct ev3_uart_event ev;
@@ -2094,18 +2083,14 @@ static void test_fast_header_forgotten(struct kunit *test)
 	connect(test, c, &sensors[2]);
 	len = enc_gyro_ang(b, 1);
 	feed(&c->p, b, len, len, &c->r);
-	KUNIT_ASSERT_EQ(test, c->p.fast_hdr, b[0]);
-	/* A line error may put a bad frame on the count: checks again. */
+	/* A line error puts a bad frame on the count; a good frame takes it off. */
 	ev3_uart_parser_line_error(&c->p, &ev);
-	KUNIT_EXPECT_EQ(test, c->p.fast_hdr, EV3_UART_NO_HDR);
 	KUNIT_EXPECT_EQ(test, c->p.data_err, 1);
 	feed(&c->p, b, len, len, &c->r);
 	KUNIT_EXPECT_EQ(test, c->p.data_err, 0);
-	KUNIT_EXPECT_EQ(test, c->p.fast_hdr, b[0]);
 	/* The sensor lost: a new handshake, a new data phase. */
 	while (!ev3_uart_parser_tick(&c->p, &ev))
 		;
-	KUNIT_EXPECT_EQ(test, c->p.fast_hdr, EV3_UART_NO_HDR);
 	KUNIT_EXPECT_EQ(test, c->p.state, EV3_UART_STATE_SYNC);
 }
 
@@ -2612,7 +2597,7 @@ static struct kunit_case ev3_uart_proto_cases[] = {
 	KUNIT_CASE(test_probe_meets_type),
 	KUNIT_CASE(test_ext_mode_ignored_for_ev3),
 	KUNIT_CASE(test_lump_16_modes_and_flags),
-	KUNIT_CASE(test_ext_mode_and_fast_path),
+	KUNIT_CASE(test_ext_mode_gives_the_header_its_mode),
 	KUNIT_CASE(test_data_decode_real_frames),
 	KUNIT_CASE(test_rgb_raw_checksum_quirk),
 	KUNIT_CASE(test_us_dc_in_mode5_tags),
@@ -2623,13 +2608,13 @@ static struct kunit_case ev3_uart_proto_cases[] = {
 	KUNIT_CASE(test_keepalive_ticks),
 	KUNIT_CASE(test_bytes_dropped_while_acked),
 	KUNIT_CASE(test_line_errors),
-	KUNIT_CASE(test_fast_whole_message),
-	KUNIT_CASE(test_fast_split_everywhere),
-	KUNIT_CASE(test_fast_back_to_back),
-	KUNIT_CASE(test_fast_bad_checksum_mid_batch),
-	KUNIT_CASE(test_fast_rgb_raw_in_batches),
-	KUNIT_CASE(test_fast_straddling_batch_end),
-	KUNIT_CASE(test_fast_header_forgotten),
+	KUNIT_CASE(test_data_whole_messages),
+	KUNIT_CASE(test_data_split_everywhere),
+	KUNIT_CASE(test_data_back_to_back),
+	KUNIT_CASE(test_data_bad_checksum_mid_batch),
+	KUNIT_CASE(test_data_rgb_raw_in_batches),
+	KUNIT_CASE(test_data_straddling_batch_end),
+	KUNIT_CASE(test_data_err_after_line_error),
 	KUNIT_CASE(test_handshake_every_batch_size),
 	KUNIT_CASE(test_f32_to_fixed),
 	KUNIT_CASE(test_scale_value),

@@ -129,21 +129,6 @@ def nullmodem(pairs):
         time.sleep(0.05)
 
 
-def ref_module(out):
-    """The discipline built without the parser's fast path (run.sh builds
-    it with LEGO_EV3_PROTO_REFERENCE=1 into OUT/ref-modules), or None."""
-    found = glob.glob(os.path.join(out, 'ref-modules', '**', 'lego_ev3_uart.ko'),
-                      recursive=True)
-    return found[0] if found else None
-
-
-def use_ev3_module(ko):
-    """Load `ko` as lego_ev3_uart in place of the one loaded."""
-    if os.path.isdir('/sys/module/lego_ev3_uart'):
-        subprocess.run(['rmmod', 'lego_ev3_uart'], check=True)
-    subprocess.run(['insmod', ko], check=True)
-
-
 def default_ev3_module():
     for mod in os.environ.get('LEGO_MODULES', '').split():
         if os.path.basename(mod) == 'lego_ev3_uart.ko':
@@ -476,8 +461,8 @@ def generate(nsensors, seconds, reader=None, senders=()):
 
 
 def sample_run(binary, reader, work, nsensors, seconds, path, base_rate):
-    """One run of `path` ('iio': the line discipline, 'iio-ref': the same
-    without the parser's fast path, 'tty': the userspace reference)."""
+    """One run of `path` ('iio': the line discipline, 'tty': the userspace
+    reference)."""
     fds, procs, devs = [], [], []
     try:
         if path != 'tty':
@@ -540,10 +525,9 @@ def sample_run(binary, reader, work, nsensors, seconds, path, base_rate):
             'kernel': kernel / max(distinct, 1) * 1e6, 'stopped': stopped}
 
 
-def bench_samples(binary, reader, work, nsensors, seconds, runs, ref_ko=None):
+def bench_samples(binary, reader, work, nsensors, seconds, runs):
     """`runs` rounds of: the generator alone (no line open), the discipline,
-    the reference (and, with `ref_ko`, the discipline without the parser's
-    fast path).
+    the reference.
 
     The paths take turns to go first, and a short run of the reference,
     not counted, comes before them all: the first stream on many lines makes
@@ -551,7 +535,7 @@ def bench_samples(binary, reader, work, nsensors, seconds, runs, ref_ko=None):
     a cost that should fall on no path.
     """
     out = []
-    paths = ['iio', 'tty'] + (['iio-ref'] if ref_ko else [])
+    paths = ['iio', 'tty']
     sample_run(binary, reader, work, nsensors, 1.0, 'tty', 0.0)
     for i in range(runs):
         gen, _, busy, span = generate(nsensors, seconds)
@@ -560,15 +544,9 @@ def bench_samples(binary, reader, work, nsensors, seconds, runs, ref_ko=None):
         res = {}
         k = i % len(paths)
         for path in paths[k:] + paths[:k]:
-            if path == 'iio-ref':
-                use_ev3_module(ref_ko)
-            try:
-                res[path] = sample_run(binary, reader, work, nsensors, seconds, path,
-                                       base['rate'])
-            finally:
-                if path == 'iio-ref':
-                    use_ev3_module(default_ev3_module())
-        out.append((base, res['iio'], res['tty'], res.get('iio-ref')))
+            res[path] = sample_run(binary, reader, work, nsensors, seconds, path,
+                                   base['rate'])
+        out.append((base, res['iio'], res['tty']))
     return out
 
 
@@ -662,22 +640,6 @@ def sample_figures(n, runs):
                   spread([b['rate'] * 100 for b in base], '%.2f'),
                   statistics.median(b['gen_cpu'] / max(b['sent'], 1) * 1e6 for b in base))),
     ]
-    refp = [r[3] for r in runs if r[3]]
-    if refp:
-        slow = [r['per_sample'] for r in refp]
-        figs.append(figure(
-            '%s: CPU per sample, lego_ev3_uart without the parser\'s fast path + IIO + C '
-            'reader' % label, round(statistics.median(slow), 1), 'us',
-            'lego_ev3_uart as built (fast path)', round(statistics.median(drv), 1),
-            None, None,
-            'median of %d runs: %s us (of which the reader: %s us; the kernel: %s us); the '
-            'same module source built with EV3_UART_PROTO_REFERENCE (the byte loop alone, '
-            'no fast path), swapped in for its runs; lost %d of %d samples'
-            % (len(refp), spread(slow), spread([r['reader'] for r in refp]),
-               spread([r['kernel'] for r in refp]), sum(r['lost'] for r in refp),
-               sum(r['sent'] for r in refp))))
-        verdict += '; the parser\'s fast path: ' + compare(
-            drv, slow, 'the fast path', 'the byte loop alone')[1]
     return figs, '%d sensors, %d runs: %s.' % (n, len(runs), verdict)
 
 
@@ -760,10 +722,9 @@ def main():
         seconds = args.seconds or (5 if args.quick else 12)
         runs = args.runs or (1 if args.quick else 5)
         failed, verdicts = [], []
-        ref_ko = ref_module(args.out)
         for nsensors in (4, 16):
             try:
-                res = bench_samples(binary, reader, work, nsensors, seconds, runs, ref_ko)
+                res = bench_samples(binary, reader, work, nsensors, seconds, runs)
             except (BenchError, OSError) as e:
                 # A sensor lost mid-run (its device gone: ENODEV, ENOENT)
                 # spoils this figure, not the ones after it.
@@ -774,11 +735,6 @@ def main():
             verdicts.append(v)
         notes.append(SAMPLES_NOTE % {'seconds': seconds, 'runs': runs, 'rate': RATE,
                                      'period': READ_PERIOD_MS, 'ack': STREAM_ACK_MS})
-        if ref_ko:
-            notes.append('A third path, (3), is path (1) with the discipline built without '
-                         "the parser's fast path (EV3_UART_PROTO_REFERENCE: the byte loop "
-                         'alone), loaded in place of the usual module for its runs; the three '
-                         'paths take turns to go first.')
         notes += ['CPU per sample, %s' % v for v in verdicts]
         if not args.only:
             figures += bench_mode_switch(binary, work, 6 if args.quick else 20)
