@@ -403,7 +403,7 @@ step_kunit() {
 	for d in $suites; do
 		echo "$out" | grep -E "^\[[0-9:]+\] =+ $d \(" >/dev/null || { echo "suite $d did not run"; return 1; }
 	done
-	n=$(cat "${tests[@]}" | grep -c '^[[:space:]]*KUNIT_CASE')
+	n=$(up_kunit_cases "${tests[@]}")
 	echo "$out" | grep -E "Testing complete\. Ran $n tests: passed: $n\$" ||
 		{ echo "not all $n cases ran and passed"; return 1; }
 }

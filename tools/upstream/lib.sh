@@ -102,3 +102,9 @@ up_have() {
 		sed -n 's/^lego-have: //p' | head -n 1
 	rm -rf "$m"
 }
+
+# up_kunit_cases FILE...: how many KUnit cases the suites in FILEs list (the
+# series' messages quote the counts; the kunit steps check that many ran).
+up_kunit_cases() {
+	cat "$@" | grep -c '^[[:space:]]*KUNIT_CASE'
+}

@@ -167,9 +167,8 @@ commit() {
 	maintainers
 	# -f: Debian's .gitignore ignores everything at the top level.
 	up_git add -A -f .
-	ev3=$(grep -c '^[[:space:]]*KUNIT_CASE' "$top/drivers/lego/ev3/ev3_uart_proto_test.c")
-	nxt=$(cat "$top/drivers/lego/nxt/nxt_proto_test.c" "$top/drivers/lego/nxt/nxt_core_test.c" |
-		grep -c '^[[:space:]]*KUNIT_CASE')
+	ev3=$(up_kunit_cases "$top"/drivers/lego/ev3/*_test.c)
+	nxt=$(up_kunit_cases "$top"/drivers/lego/nxt/*_test.c)
 	sed -e "s/@EV3_CASES@/$ev3/g" -e "s/@NXT_CASES@/$nxt/g" "$here/msg/$1" |
 		up_git commit -q -s --no-verify -F -
 }
