@@ -168,6 +168,30 @@ static void direct_inputs(void)
 	end();
 }
 
+/* The Bluetooth queries: the contacts' and the connections' count, and a name. */
+static void bt_count(const char *name, const struct lnxt_msg *m)
+{
+	uint8_t count;
+
+	if (run(name, m) == 0) {
+		parsed(name, lnxt_parse_bt_count(reply, reply_len, &count));
+		printf(" count=%u", count);
+	}
+	end();
+}
+
+static void bt_name(const char *name, const struct lnxt_msg *m)
+{
+	uint8_t type;
+	char bt[18];
+
+	if (run(name, m) == 0) {
+		parsed(name, lnxt_parse_bt_name(reply, reply_len, &type, bt));
+		printf(" type=%u name=%s", type, bt);
+	}
+	end();
+}
+
 static void direct_others(void)
 {
 	char name[LNXT_NAME_MAX + 1];
@@ -175,8 +199,6 @@ static void direct_others(void)
 	struct lnxt_msg m;
 	uint32_t value;
 	uint16_t mv;
-	uint8_t count, type;
-	char bt[18];
 
 	lnxt_get_battery_level(&m);
 	if (run("get_battery_level", &m) == 0) {
@@ -230,29 +252,13 @@ static void direct_others(void)
 	}
 	end();
 	lnxt_bt_get_contact_count(&m);
-	if (run("bt_get_contact_count", &m) == 0) {
-		parsed("bt_get_contact_count", lnxt_parse_bt_count(reply, reply_len, &count));
-		printf(" count=%u", count);
-	}
-	end();
+	bt_count("bt_get_contact_count", &m);
 	lnxt_bt_get_contact_name(&m, 0);
-	if (run("bt_get_contact_name", &m) == 0) {
-		parsed("bt_get_contact_name", lnxt_parse_bt_name(reply, reply_len, &type, bt));
-		printf(" type=%u name=%s", type, bt);
-	}
-	end();
+	bt_name("bt_get_contact_name", &m);
 	lnxt_bt_get_conn_count(&m);
-	if (run("bt_get_conn_count", &m) == 0) {
-		parsed("bt_get_conn_count", lnxt_parse_bt_count(reply, reply_len, &count));
-		printf(" count=%u", count);
-	}
-	end();
+	bt_count("bt_get_conn_count", &m);
 	lnxt_bt_get_conn_name(&m, 0);
-	if (run("bt_get_conn_name", &m) == 0) {
-		parsed("bt_get_conn_name", lnxt_parse_bt_name(reply, reply_len, &type, bt));
-		printf(" type=%u name=%s", type, bt);
-	}
-	end();
+	bt_name("bt_get_conn_name", &m);
 	BUILD(lnxt_set_property(&m, LNXT_PROP_VOLUME, 2));
 	run("set_property", &m);
 	end();
@@ -296,7 +302,7 @@ static void system_info(void)
 	end();
 }
 
-/* Open with @build (a handle reply), write @data, close. */
+/* Open with @open_msg (its reply is a handle), write @data, close. */
 static void write_file(const char *what, const struct lnxt_msg *open_msg,
 		       const char *data)
 {
