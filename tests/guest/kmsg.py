@@ -2,6 +2,17 @@
 guest tests read to see what the drivers said (and the splats) while they
 ran."""
 import os
+import re
+
+# /dev/kmsg shows a record's control bytes, bytes of 127 and more and the
+# backslash itself as \xNN (kernel/printk/printk.c, msg_add_ext_text()):
+# a sensor's mode name "\2V4" is logged as "\x5c2V4".
+_ESCAPE = re.compile(rb'\\x([0-9a-f]{2})')
+
+
+def unescape(text):
+    """A record's text as the driver logged it, from /dev/kmsg's form."""
+    return _ESCAPE.sub(lambda m: bytes([int(m.group(1), 16)]), text)
 
 
 class Kmsg:
@@ -25,10 +36,13 @@ class Kmsg:
                 continue
             if not rec:
                 return out
-            head, _, text = rec.decode(errors='replace').partition(';')
-            fields = head.split(',')
+            head, _, text = rec.partition(b';')
+            fields = head.split(b',')
             usec = int(fields[2]) if len(fields) > 2 and fields[2].isdigit() else 0
-            out.append((usec / 1e6, text.split('\n')[0]))
+            # The first line is the message (its own newlines escaped);
+            # the lines after it are the record's dictionary.
+            line = unescape(text.split(b'\n')[0]).decode(errors='replace')
+            out.append((usec / 1e6, line))
 
     def texts(self):
         """read() without the times."""
