@@ -10,8 +10,12 @@
  * then the reply (the rest of the input). The flags say which values of the
  * brick's information are known before the telegram (bits 0 to 2: the
  * versions, the device information, the battery voltage); the other bits
- * are not used. Replies of up to 80 bytes (USB gives at most 64) are in
- * buffers of exactly their size, so ASan sees any read past them.
+ * are not used but bit 7: with it, the rest of the input is what a serial
+ * link (Bluetooth) brought, read by nxt_bt_rx_feed() once a byte at a
+ * time and once in batches whose sizes the flags seed; both must give the
+ * same replies, each a well-formed one, and account for every byte. Replies
+ * of up to 80 bytes (USB gives at most 64) are in buffers of exactly their
+ * size, so ASan sees any read past them.
  */
 #include <errno.h>
 #include <string.h>
@@ -40,6 +44,7 @@
 #define KNOWS_VERSIONS		0x01
 #define KNOWS_DEVICE		0x02
 #define KNOWS_BATTERY		0x04
+#define BT_STREAM		0x80
 
 /* nxt_reply_check() and what its result promises. */
 static int check_reply(const u8 *tg, size_t tg_len, const u8 *reply, size_t len)
@@ -194,6 +199,86 @@ static int check_telegram(const u8 *tg, size_t tg_len)
 	return ret;
 }
 
+/* A reply out of the stream: well formed, then as a USB packet would be. */
+static void bt_reply(struct nxt_brick_info *info, const u8 *tg, size_t tg_len,
+		     const u8 *reply, unsigned int len)
+{
+	u8 *copy;
+
+	CHECK(len >= NXT_REPLY_MIN && len <= NXT_TELEGRAM_MAX);
+	CHECK(reply[0] == NXT_REPLY);
+	copy = malloc(len);
+	CHECK(copy);
+	memcpy(copy, reply, len);
+	if (check_reply(tg, tg_len, copy, len) >= 0) {
+		decode_sysfs(copy, len);
+		check_note_reply(info, tg, tg_len, copy, len);
+	}
+	free(copy);
+}
+
+/*
+ * The stream read a byte at a time, then in batches of 1 to 64 bytes: the
+ * same replies in the same order, and every byte is in a reply's frame,
+ * dropped, or held.
+ */
+static void bt_stream(struct nxt_brick_info *info, const u8 *tg, size_t tg_len,
+		      const u8 *data, size_t size, u8 seed)
+{
+	static u8 replies[64 * 1024];
+	static u8 lens[64 * 1024 / (NXT_BT_PREFIX + NXT_REPLY_MIN) + 1];
+	struct nxt_bt_rx one = { }, batch = { };
+	size_t at = 0, framed = 0, n = 0, m = 0, i;
+	unsigned int rand = seed | 1;
+
+	CHECK(size <= sizeof(replies));
+	for (i = 0; i < size; i++) {
+		const u8 *reply;
+		unsigned int len;
+
+		CHECK(nxt_bt_rx_feed(&one, data + i, 1, &reply, &len) == 1);
+		CHECK(one.have <= NXT_BT_FRAME_MAX);
+		if (!reply) {
+			CHECK(len == 0);
+			continue;
+		}
+		bt_reply(info, tg, tg_len, reply, len);
+		memcpy(replies + framed, reply, len);
+		framed += len;
+		lens[n++] = len;
+	}
+	CHECK(framed + NXT_BT_PREFIX * n + one.dropped + one.have == size);
+
+	framed = 0;
+	while (at < size) {
+		size_t step, used;
+		const u8 *reply;
+		unsigned int len;
+
+		rand = rand * 1103515245 + 12345;
+		step = 1 + (rand >> 16) % 64;
+		if (step > size - at)
+			step = size - at;
+		while (step) {
+			used = nxt_bt_rx_feed(&batch, data + at, step, &reply, &len);
+			CHECK(used >= 1 && used <= step);
+			at += used;
+			step -= used;
+			if (!reply)
+				continue;
+			CHECK(m < n && lens[m++] == len);
+			CHECK(!memcmp(replies + framed, reply, len));
+			framed += len;
+		}
+	}
+	CHECK(m == n);
+	CHECK(framed + NXT_BT_PREFIX * n + batch.dropped + batch.have == size);
+	CHECK(batch.have == one.have && batch.dropped == one.dropped);
+	CHECK(!memcmp(batch.buf, one.buf, one.have));
+	nxt_bt_rx_reset(&batch);
+	CHECK(batch.have == 0 && batch.dropped == one.dropped + one.have);
+}
+
 int LLVMFuzzerTestOneInput(const unsigned char *data, size_t size)
 {
 	u8 tg[NXT_TELEGRAM_MAX + 1] = { };
@@ -221,6 +306,11 @@ int LLVMFuzzerTestOneInput(const unsigned char *data, size_t size)
 	check_note_sent(&info, tg, tg_len);
 	if (ret != 1)
 		return 0;
+	if (flags & BT_STREAM) {
+		if (size <= 64 * 1024)
+			bt_stream(&info, tg, tg_len, data, size, flags);
+		return 0;
+	}
 	len = size < REPLY_MAX ? size : REPLY_MAX;
 	reply = malloc(len ? len : 1);
 	CHECK(reply);

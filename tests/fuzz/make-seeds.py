@@ -14,7 +14,8 @@ fuzz_nxt.c:
 - nxt: telegrams (as NXT_IOC_TRANSACT and write() take them) and the
   replies tests/emulator/nxt_brick.py's firmware model gives them, with no
   brick information known before them, and those that fill or clear the
-  sysfs attributes' information again with all of it known.
+  sysfs attributes' information again with all of it known; and those
+  replies as a Bluetooth stream (framed, with garbage between).
 
 The output is deterministic; tests/bench/proto uses the same streams.
 """
@@ -151,6 +152,7 @@ def nxt_raw_pairs():
 # show (GetVersions, GetDeviceInfo, GetBatteryLevel) or that make it
 # unknown (SetBrickName, DeleteUserFlash): again with all of it known.
 KNOWN_ALL = 0x07
+BT_STREAM = 0x80
 NOTED = {(0x01, 0x88), (0x01, 0x9b), (0x00, 0x0b), (0x01, 0x98), (0x01, 0xa0)}
 
 
@@ -165,6 +167,12 @@ def nxt_seeds():
         if (tg[0], tg[1]) in NOTED:
             seeds['known-%02x%02x-%d' % (tg[0], tg[1], len(tg))] = \
                 bytes([KNOWN_ALL, len(tg) - 2]) + tg + r
+            # Bluetooth (flags bit 7): the reply framed with its 2-byte
+            # length, then line noise and a lying prefix, then again.
+            framed = struct.pack('<H', len(r)) + r
+            seeds['bt-%02x%02x-%d' % (tg[0], tg[1], len(tg))] = \
+                bytes([BT_STREAM | KNOWN_ALL, len(tg) - 2]) + tg + framed + \
+                b'\xff\x00\x41\x00\x02' + framed
     return seeds
 
 

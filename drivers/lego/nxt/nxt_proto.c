@@ -601,3 +601,101 @@ void nxt_info_note_reply(struct nxt_brick_info *info, const u8 *tg,
 	}
 }
 EXPORT_SYMBOL_IF_KUNIT(nxt_info_note_reply);
+
+/*
+ * Bluetooth framing.
+ *
+ * A byte stream has no packet boundaries, and the length prefix comes from
+ * the brick like any other byte: it may be 0, longer than any reply, or
+ * followed by fewer or more bytes than it says (a link that dropped bytes,
+ * a brick that reset, garbage on a serial line). The reader trusts a
+ * prefix only if it gives a reply's length (3 to 64) and the byte after it
+ * is a reply's type (0x02); otherwise it drops the first byte it holds and
+ * looks again at the next, so that it finds the frames again after any
+ * garbage. A frame whose prefix promised more bytes than came is completed
+ * by the next frame's bytes and fails the engine's reply check; the
+ * transport resets the reader before it sends each telegram, since
+ * nothing that came before then can answer it.
+ */
+
+/**
+ * nxt_bt_rx_reset() - forget the frame being read
+ * @rx: the reader
+ */
+void nxt_bt_rx_reset(struct nxt_bt_rx *rx)
+{
+	rx->dropped += rx->have;
+	rx->have = 0;
+}
+EXPORT_SYMBOL_IF_KUNIT(nxt_bt_rx_reset);
+
+/* The held bytes can still start a frame. */
+static bool nxt_bt_rx_plausible(const struct nxt_bt_rx *rx)
+{
+	unsigned int len;
+
+	if (rx->have < NXT_BT_PREFIX)
+		return true;
+	len = get_unaligned_le16(rx->buf);
+	if (len < NXT_REPLY_MIN || len > NXT_TELEGRAM_MAX)
+		return false;
+	return rx->have == NXT_BT_PREFIX || rx->buf[NXT_BT_PREFIX] == NXT_REPLY;
+}
+
+/**
+ * nxt_bt_rx_feed() - read the brick's bytes until a reply is complete
+ * @rx: the reader
+ * @data: bytes from the link
+ * @len: their number
+ * @reply: set to the reply when one is complete (in @rx, valid until the
+ *	next call), NULL otherwise
+ * @reply_len: set to its length (3 to %NXT_TELEGRAM_MAX), 0 if none
+ *
+ * Never holds more than one frame: when a reply is complete it stops, and
+ * the caller feeds the rest of @data after it has taken the reply.
+ *
+ * Return: the bytes of @data consumed.
+ */
+size_t nxt_bt_rx_feed(struct nxt_bt_rx *rx, const u8 *data, size_t len,
+		      const u8 **reply, unsigned int *reply_len)
+{
+	size_t used = 0;
+
+	*reply = NULL;
+	*reply_len = 0;
+	while (used < len) {
+		rx->buf[rx->have++] = data[used++];
+		/* At most three bytes are held while a frame is not trusted. */
+		while (!nxt_bt_rx_plausible(rx)) {
+			memmove(rx->buf, rx->buf + 1, --rx->have);
+			rx->dropped++;
+		}
+		if (rx->have > NXT_BT_PREFIX &&
+		    rx->have == NXT_BT_PREFIX + get_unaligned_le16(rx->buf)) {
+			*reply = rx->buf + NXT_BT_PREFIX;
+			*reply_len = rx->have - NXT_BT_PREFIX;
+			rx->have = 0;
+			break;
+		}
+	}
+	return used;
+}
+EXPORT_SYMBOL_IF_KUNIT(nxt_bt_rx_feed);
+
+/**
+ * nxt_bt_frame() - put a telegram in a Bluetooth frame
+ * @frame: %NXT_BT_FRAME_MAX bytes
+ * @tg: the telegram, already checked (nxt_telegram_check())
+ * @len: its length, 2 to %NXT_TELEGRAM_MAX
+ *
+ * Return: the frame's length.
+ */
+unsigned int nxt_bt_frame(u8 *frame, const u8 *tg, size_t len)
+{
+	if (WARN_ON_ONCE(len > NXT_TELEGRAM_MAX))
+		return 0;
+	put_unaligned_le16(len, frame);
+	memcpy(frame + NXT_BT_PREFIX, tg, len);
+	return NXT_BT_PREFIX + len;
+}
+EXPORT_SYMBOL_IF_KUNIT(nxt_bt_frame);

@@ -96,6 +96,35 @@ struct nxt_brick_info {
 #define NXT_STALL_BACKOFF_MIN_MS	10U
 #define NXT_STALL_BACKOFF_MAX_MS	1000U
 
+/*
+ * Bluetooth (the brick's serial port profile, or any serial line) carries
+ * each telegram after a 2-byte little-endian length that does not count
+ * itself. The driver sends and accepts telegrams of the USB sizes only: one
+ * /dev/nxtN ABI whatever the link.
+ */
+#define NXT_BT_PREFIX		2
+#define NXT_BT_FRAME_MAX	(NXT_BT_PREFIX + NXT_TELEGRAM_MAX)
+
+/**
+ * struct nxt_bt_rx - the brick's replies read out of a serial byte stream
+ * @have: bytes of the frame being read, in @buf (its prefix included)
+ * @dropped: bytes skipped to find a frame again, since the reset
+ * @buf: the frame being read: the length, then the reply
+ *
+ * Only nxt_bt_rx_reset() and nxt_bt_rx_feed() touch it; the transport
+ * serialises their calls.
+ */
+struct nxt_bt_rx {
+	unsigned int have;
+	unsigned int dropped;
+	u8 buf[NXT_BT_FRAME_MAX];
+};
+
+void nxt_bt_rx_reset(struct nxt_bt_rx *rx);
+size_t nxt_bt_rx_feed(struct nxt_bt_rx *rx, const u8 *data, size_t len,
+		      const u8 **reply, unsigned int *reply_len);
+unsigned int nxt_bt_frame(u8 *frame, const u8 *tg, size_t len);
+
 int nxt_telegram_check(const u8 *tg, size_t len);
 unsigned int nxt_reply_length(const u8 *tg, size_t len);
 int nxt_reply_check(const u8 *tg, size_t tg_len, const u8 *reply, size_t len);

@@ -429,6 +429,148 @@ static void nxt_test_versions_and_device_info(struct kunit *test)
 	KUNIT_EXPECT_STREQ(test, di.name, "A?AAAAAAAAAAAAA");
 }
 
+/* Feeds @len bytes @chunk at a time; collects the replies into @out. */
+static unsigned int nxt_bt_feed_all(struct nxt_bt_rx *rx, const u8 *data,
+				    size_t len, size_t chunk, u8 *out,
+				    unsigned int *lens, unsigned int max)
+{
+	unsigned int n = 0, at = 0;
+
+	while (len) {
+		size_t step = min(len, chunk);
+
+		while (step) {
+			const u8 *reply;
+			unsigned int rlen;
+			size_t used = nxt_bt_rx_feed(rx, data, step, &reply, &rlen);
+
+			data += used;
+			len -= used;
+			step -= used;
+			if (reply && n < max) {
+				memcpy(out + at, reply, rlen);
+				lens[n++] = rlen;
+				at += rlen;
+			}
+		}
+	}
+	return n;
+}
+
+static void nxt_test_bt_frames(struct kunit *test)
+{
+	/* GetBatteryLevel's reply (7.8 V), then KeepAlive's (sleep 600000 ms). */
+	static const u8 stream[] = {
+		0x05, 0x00, 0x02, 0x0b, 0x00, 0x78, 0x1e,
+		0x07, 0x00, 0x02, 0x0d, 0x00, 0xc0, 0x27, 0x09, 0x00,
+	};
+	static const u8 battery[] = { 0x00, 0x0b };
+	u8 frame[NXT_BT_FRAME_MAX], out[32];
+	unsigned int lens[4], n;
+	struct nxt_bt_rx rx;
+	size_t chunk;
+
+	KUNIT_EXPECT_EQ(test, nxt_bt_frame(frame, battery, sizeof(battery)), 4U);
+	KUNIT_EXPECT_EQ(test, frame[0], 2);
+	KUNIT_EXPECT_EQ(test, frame[1], 0);
+	KUNIT_EXPECT_EQ(test, frame[2], 0x00);
+	KUNIT_EXPECT_EQ(test, frame[3], 0x0b);
+
+	/* Whatever the link's chunks, the same two replies and nothing dropped. */
+	for (chunk = 1; chunk <= sizeof(stream); chunk++) {
+		memset(&rx, 0, sizeof(rx));
+		n = nxt_bt_feed_all(&rx, stream, sizeof(stream), chunk, out, lens, 4);
+		KUNIT_ASSERT_EQ(test, n, 2U);
+		KUNIT_EXPECT_EQ(test, lens[0], 5U);
+		KUNIT_EXPECT_EQ(test, lens[1], 7U);
+		KUNIT_EXPECT_MEMEQ(test, out, stream + 2, 5);
+		KUNIT_EXPECT_MEMEQ(test, out + 5, stream + 9, 7);
+		KUNIT_EXPECT_EQ(test, rx.dropped, 0U);
+		KUNIT_EXPECT_EQ(test, rx.have, 0U);
+	}
+
+	/* The largest reply the ABI carries; one byte more is a lie. */
+	memset(out, 0, sizeof(out));
+	memset(&rx, 0, sizeof(rx));
+	frame[0] = NXT_TELEGRAM_MAX;
+	frame[1] = 0;
+	frame[2] = NXT_REPLY;
+	memset(frame + 3, 0x5a, NXT_TELEGRAM_MAX - 1);
+	n = nxt_bt_feed_all(&rx, frame, NXT_BT_FRAME_MAX, 7, frame, lens, 1);
+	KUNIT_EXPECT_EQ(test, n, 1U);
+	KUNIT_EXPECT_EQ(test, lens[0], (unsigned int)NXT_TELEGRAM_MAX);
+}
+
+static void nxt_test_bt_lying_prefixes(struct kunit *test)
+{
+	static const u8 good[] = { 0x05, 0x00, 0x02, 0x0b, 0x00, 0x78, 0x1e };
+	static const struct {
+		const char *what;
+		u8 bytes[8];
+		u8 len;
+	} lies[] = {
+		{ "zero length", { 0x00, 0x00 }, 2 },
+		{ "shorter than a reply", { 0x02, 0x00, 0x02, 0x0b }, 4 },
+		{ "longer than a telegram", { 0x41, 0x00, 0x02 }, 3 },
+		{ "a high byte", { 0x05, 0x01, 0x02 }, 3 },
+		{ "not a reply's type", { 0x05, 0x00, 0x01, 0x0b, 0x00 }, 5 },
+		{ "line noise", { 0xff, 0xff, 0x00, 0xff, 0x80, 0x00 }, 6 },
+	};
+	u8 stream[sizeof(good) + 8], out[64];
+	unsigned int lens[4], n, i;
+	struct nxt_bt_rx rx;
+
+	/* Garbage before a frame is skipped, byte by byte, whatever it is. */
+	for (i = 0; i < ARRAY_SIZE(lies); i++) {
+		memcpy(stream, lies[i].bytes, lies[i].len);
+		memcpy(stream + lies[i].len, good, sizeof(good));
+		memset(&rx, 0, sizeof(rx));
+		n = nxt_bt_feed_all(&rx, stream, lies[i].len + sizeof(good), 1,
+				    out, lens, 4);
+		KUNIT_EXPECT_EQ_MSG(test, n, 1U, "%s", lies[i].what);
+		KUNIT_EXPECT_EQ_MSG(test, lens[0], 5U, "%s", lies[i].what);
+		KUNIT_EXPECT_EQ_MSG(test, memcmp(out, good + 2, 5), 0, "%s",
+				    lies[i].what);
+		KUNIT_EXPECT_EQ_MSG(test, rx.dropped, (unsigned int)lies[i].len,
+				    "%s", lies[i].what);
+	}
+
+	/*
+	 * A prefix that promised more than came takes the next frame's bytes:
+	 * the reply is wrong (the engine's check refuses it), and the reset
+	 * before the next telegram drops what is left.
+	 */
+	memset(&rx, 0, sizeof(rx));
+	stream[0] = 0x06;
+	stream[1] = 0x00;
+	stream[2] = 0x02;
+	memcpy(stream + 3, good, sizeof(good));
+	n = nxt_bt_feed_all(&rx, stream, 3 + sizeof(good), 1, out, lens, 4);
+	KUNIT_EXPECT_EQ(test, n, 1U);
+	KUNIT_EXPECT_EQ(test, lens[0], 6U);
+	/* 78 1e is no length: 0x78 is dropped, 0x1e may start one. */
+	KUNIT_EXPECT_EQ(test, rx.have, 1U);
+	KUNIT_EXPECT_EQ(test, rx.dropped, 1U);
+	nxt_bt_rx_reset(&rx);
+	KUNIT_EXPECT_EQ(test, rx.have, 0U);
+	KUNIT_EXPECT_EQ(test, rx.dropped, 2U);
+	n = nxt_bt_feed_all(&rx, good, sizeof(good), 3, out, lens, 4);
+	KUNIT_EXPECT_EQ(test, n, 1U);
+	KUNIT_EXPECT_MEMEQ(test, out, good + 2, 5);
+
+	/* One that promised fewer: the rest is skipped as garbage. */
+	memset(&rx, 0, sizeof(rx));
+	memcpy(stream, good, sizeof(good));
+	stream[0] = 0x03;
+	memcpy(stream + sizeof(good), good, sizeof(good));
+	n = nxt_bt_feed_all(&rx, stream, 2 * sizeof(good), 2, out, lens, 4);
+	KUNIT_EXPECT_EQ(test, n, 2U);
+	KUNIT_EXPECT_EQ(test, lens[0], 3U);
+	KUNIT_EXPECT_EQ(test, lens[1], 5U);
+	KUNIT_EXPECT_MEMEQ(test, out + 3, good + 2, 5);
+	KUNIT_EXPECT_EQ(test, rx.dropped, 2U);
+}
+
 static struct kunit_case nxt_proto_cases[] = {
 	KUNIT_CASE(nxt_test_telegram_types),
 	KUNIT_CASE(nxt_test_telegram_lengths),
@@ -442,6 +584,8 @@ static struct kunit_case nxt_proto_cases[] = {
 	KUNIT_CASE(nxt_test_time),
 	KUNIT_CASE(nxt_test_stall_backoff),
 	KUNIT_CASE(nxt_test_versions_and_device_info),
+	KUNIT_CASE(nxt_test_bt_frames),
+	KUNIT_CASE(nxt_test_bt_lying_prefixes),
 	{}
 };
 
