@@ -158,7 +158,9 @@ INSTALL_KBUILD_ARGS = $(KBUILD_ARGS) LEGO_TESTS=n INSTALL_MOD_DIR=$(INSTALL_MOD_
 	$(if $(DESTDIR),INSTALL_MOD_PATH=$(DESTDIR)) DEPMOD=true $(NO_SIGN)
 # Where kbuild puts them: the subdirectory of each in this tree is kept.
 INSTALLED_MODULES = $(DESTDIR)/lib/modules/$(KRELEASE)/$(INSTALL_MOD_DIR)/drivers/lego/ev3/lego_ev3_uart.ko \
-	$(DESTDIR)/lib/modules/$(KRELEASE)/$(INSTALL_MOD_DIR)/drivers/lego/nxt/lego_nxt_usb.ko
+	$(DESTDIR)/lib/modules/$(KRELEASE)/$(INSTALL_MOD_DIR)/drivers/lego/nxt/lego_nxt.ko \
+	$(DESTDIR)/lib/modules/$(KRELEASE)/$(INSTALL_MOD_DIR)/drivers/lego/nxt/lego_nxt_usb.ko \
+	$(DESTDIR)/lib/modules/$(KRELEASE)/$(INSTALL_MOD_DIR)/drivers/lego/nxt/lego_nxt_serial.ko
 
 modules_install:
 	rm -f modules.order

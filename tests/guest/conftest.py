@@ -10,6 +10,12 @@ import time
 import pytest
 
 
+# The project's modules in load order (a transport after the NXT core it
+# uses), and in the order rmmod takes them.
+MODULES = ['lego_ev3_uart', 'lego_nxt', 'lego_nxt_usb', 'lego_nxt_serial']
+UNLOAD = list(reversed(MODULES))
+
+
 def module_path(name):
     """Path of a module built for the running test kernel."""
     for mod in os.environ.get('LEGO_MODULES', '').split():

@@ -332,9 +332,10 @@ def uapi_layout():
 
 
 def load_driver():
-    if not os.path.isdir('/sys/module/lego_nxt_usb'):
-        from conftest import module_path
-        subprocess.run(['insmod', module_path('lego_nxt_usb')], check=True)
+    from conftest import module_path
+    for name in ('lego_nxt', 'lego_nxt_usb'):
+        if not os.path.isdir('/sys/module/' + name):
+            subprocess.run(['insmod', module_path(name)], check=True)
 
 
 def interface_of(serial):

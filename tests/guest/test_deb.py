@@ -22,7 +22,7 @@ import sys
 
 import pytest
 
-from conftest import loaded, module_path, owned, pid_alive, run, unload, wait_for
+from conftest import MODULES, UNLOAD, loaded, module_path, owned, pid_alive, run, unload, wait_for
 
 TOP = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
 sys.path.insert(0, os.path.join(TOP, 'tests', 'emulator'))
@@ -33,7 +33,6 @@ import debroot  # noqa: E402
 KVER = os.uname().release
 SERIES = '.'.join(KVER.split('.')[:2])
 SERIAL = '0016530D0E0F'
-MODULES = ['lego_ev3_uart', 'lego_nxt_usb']
 
 
 def build_dir():
@@ -71,13 +70,13 @@ def state():
                  'tmpfs', os.path.join(ROOT, d)])
             mounted.append(os.path.join(ROOT, d))
         points = debroot.mount(ROOT)
-        unload('lego_nxt_usb', 'lego_ev3_uart')
+        unload(*UNLOAD)
         yield st
     finally:
         for pid in st.get('udevd', []):
             if pid_alive(pid):
                 os.kill(pid, signal.SIGKILL)
-        unload('lego_nxt_usb', 'lego_ev3_uart')
+        unload(*UNLOAD)
         debroot.umount(points)
         for path in reversed(mounted):
             subprocess.run(['umount', '-l', path])

@@ -28,7 +28,8 @@ DOC = os.path.join(nxt.TOP, 'Documentation', 'lego', 'nxtctl.rst')
 COMMANDS = ['list', 'info', 'battery', 'keep-alive', 'tone', 'play', 'stop-sound', 'motor',
             'motor-state', 'reset-motor', 'sensor-type', 'sensor', 'reset-sensor', 'ultrasonic',
             'mailbox-send', 'mailbox-read', 'start', 'stop', 'current', 'name', 'raw', 'upload',
-            'download', 'ls', 'rm', 'release', 'claim', 'trace', 'help']
+            'download', 'ls', 'rm', 'release', 'claim', 'connect', 'attach', 'disconnect',
+            'trace', 'help']
 
 
 @pytest.fixture

@@ -32,17 +32,18 @@ import sys
 
 import pytest
 
-from conftest import loaded, module_path, owned, run, udevd_with_rules, unload, wait_for
+from conftest import (MODULES, UNLOAD, loaded, module_path, owned, run, udevd_with_rules,
+                      unload, wait_for)
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), '..', 'emulator'))
 
 TOP = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
 KVER = os.uname().release
 NAME = 'lego-mindstorms'
-MODULES = ['lego_ev3_uart', 'lego_nxt_usb']
 WORK = '/tmp/lego-packaging'
 TIOCSETD = 0x5423
 N_LEGOEV3 = 29
+N_LEGONXT = 8
 SERIAL = '0016530A0B0C'
 
 
@@ -95,12 +96,12 @@ def dkms_setup():
             made_fd = True
         moddir = '/lib/modules/' + KVER
         assert os.path.isfile(os.readlink(moddir + '/build') + '/Makefile')
-        unload('lego_nxt_usb', 'lego_ev3_uart')
+        unload(*UNLOAD)
         yield moddir
     finally:
         with open('/proc/sys/kernel/modprobe', 'w') as f:
             f.write(old_modprobe)
-        unload('lego_nxt_usb', 'lego_ev3_uart')
+        unload(*UNLOAD)
         if made_fd:
             os.unlink('/dev/fd')
         for path in reversed(mounted):
@@ -180,6 +181,24 @@ def test_ldisc_29_loads_lego_ev3_uart(kernel_modprobe):
         calls = f.read()
     assert 'tty-ldisc-29' in calls, calls
     run(['rmmod', 'lego_ev3_uart'])
+
+
+def test_ldisc_8_loads_lego_nxt_serial(kernel_modprobe):
+    """N_LEGONXT: the NXT's serial transport, with the core it uses."""
+    unload('lego_nxt_serial', 'lego_nxt_usb', 'lego_nxt')
+    master, slave = os.openpty()
+    try:
+        fcntl.ioctl(slave, TIOCSETD, N_LEGONXT.to_bytes(4, 'little'))
+        assert loaded('lego_nxt_serial'), 'TIOCSETD 8 did not load lego_nxt_serial'
+        assert loaded('lego_nxt')
+        fcntl.ioctl(slave, TIOCSETD, (0).to_bytes(4, 'little'))    # back to N_TTY
+    finally:
+        os.close(slave)
+        os.close(master)
+    with open(kernel_modprobe) as f:
+        calls = f.read()
+    assert 'tty-ldisc-8' in calls, calls
+    run(['rmmod', 'lego_nxt_serial', 'lego_nxt'])
 
 
 @pytest.fixture

@@ -247,7 +247,7 @@ def test_nxt_transaction(brick_dev):
     try:
         # The reader's start-up drain is over before the telegrams go.
         nxt.ok(fd, 'GET_BATTERY_LEVEL')
-        path = '%s/lego_nxt_usb/%s/counters' % (DEBUGFS, dev)
+        path = '%s/lego_nxt/%s/counters' % (DEBUGFS, dev)
         before = counters(path)
         commands = brick.emu.commands
         trace = Trace('lego_nxt_usb')
@@ -289,7 +289,7 @@ def test_nxt_timeout_is_traced(brick_dev):
     and the drain of the late reply are traced and counted."""
     brick, dev = brick_dev
     fd = brick.open()
-    path = '%s/lego_nxt_usb/%s/counters' % (DEBUGFS, dev)
+    path = '%s/lego_nxt/%s/counters' % (DEBUGFS, dev)
     try:
         nxt.ok(fd, 'GET_BATTERY_LEVEL')
         # DeleteUserFlash takes the brick about a second: its reply comes

@@ -36,7 +36,7 @@ DRIVERS = {
             # fields are read through its accessors outside its own file.
             'private': [('ev3_uart_proto.c', r'\bparser\s*(?:\.|->)\s*(\w+)', 'the parser')]},
     'nxt': {'views': ['nxt_cdev.c', 'nxt_sysfs.c'], 'transport': ['nxt_usb.h'],
-            'transport_objs': ['nxt_usb.o']},
+            'transport_objs': ['nxt_usb.o', 'nxt_serial.o']},
 }
 
 

@@ -1,6 +1,6 @@
 """tools/python's nxt-python backend on the host, without a brick: it
-refuses what is not a brick's /dev/nxtN of lego_nxt_usb (a character device
-whose driver knows the lego_nxt ioctls and is lego_nxt_usb in sysfs) with
+refuses what is not a brick's /dev/nxtN of lego_nxt (a character device
+whose driver knows the lego_nxt ioctls and whose class is lego-nxt in sysfs) with
 ENODEV and a message that says so, instead of sending telegrams into
 /dev/null and failing later in nxt-python with struct.error. The bricks
 themselves: tests/guest/test_nxt_python.py.
@@ -38,7 +38,7 @@ def test_connect_refuses_what_is_not_a_brick(path, why, regular_file):
     with pytest.raises(OSError) as e:
         sock.connect()
     assert e.value.errno == errno.ENODEV, e.value
-    assert '%s is not an NXT brick of lego_nxt_usb' % path in str(e.value), e.value
+    assert '%s is not an NXT brick of lego_nxt' % path in str(e.value), e.value
     assert why in str(e.value), e.value
     # Nothing left open.
     assert sock._fd is None

@@ -220,7 +220,8 @@ step_build() {
 	{
 		cat "$top/tests/upstream/build.config"
 		[ "$arch" = x86_64 ] && echo "CONFIG_64BIT=y"
-		for sym in LEGO_EV3_UART LEGO_EV3_UART_KUNIT_TEST USB_LEGO_NXT USB_LEGO_NXT_KUNIT_TEST; do
+		for sym in LEGO_EV3_UART LEGO_EV3_UART_KUNIT_TEST USB_LEGO_NXT LEGO_NXT_SERIAL \
+			LEGO_NXT_KUNIT_TEST; do
 			echo "CONFIG_$sym=$mode"
 		done
 		# Selected by LEGO_EV3_UART, not set by the fragment: Kconfig must
@@ -273,7 +274,8 @@ step_build() {
 	done
 	rm -f "$log2"
 	if [ "$mode" = m ]; then
-		for k in lego_ev3_uart lego_ev3_uart_test lego_nxt_usb lego_nxt_usb_test; do
+		for k in lego_ev3_uart lego_ev3_uart_test lego_nxt lego_nxt_usb lego_nxt_serial \
+			lego_nxt_test; do
 			[ -n "$(find "$out/drivers" -name "$k.ko")" ] || { echo "$k.ko not built"; return 1; }
 		done
 	else

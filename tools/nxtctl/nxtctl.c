@@ -1381,6 +1381,18 @@ static const struct command commands[] = {
 	  "Take a released brick back: lego_nxt_usb binds to it again and\n"
 	  "/dev/nxtN comes back (printed). The brick is -d /dev/bus/usb/BBB/DDD,\n"
 	  "--serial SERIAL, or the only released NXT.\n" },
+	{ "connect", cmd_connect, "BDADDR [--channel=N] [--foreground]",
+	  "Connect to the paired brick BDADDR (AA:BB:CC:DD:EE:FF) over Bluetooth\n"
+	  "(RFCOMM channel 1, or N), attach it, and print its /dev/nxtN. A daemon\n"
+	  "holds the link until nxtctl disconnect, or until the link is lost;\n"
+	  "--foreground holds it in nxtctl itself (for a service). Root.\n" },
+	{ "attach", cmd_attach, "TTY [--foreground]",
+	  "Attach the brick on the serial line TTY (an RFCOMM tty bound with\n"
+	  "rfcomm, or any tty that carries the brick's Bluetooth framing) and\n"
+	  "print its /dev/nxtN; held as with connect. Root.\n" },
+	{ "disconnect", cmd_disconnect, "",
+	  "Let go of the brick -d /dev/nxtN that connect or attach made: the\n"
+	  "node goes, and so does the Bluetooth link of connect. Prints the tty.\n" },
 	{ "trace", cmd_trace, "[USBDEV]",
 	  "Print the telegrams between the driver and the bricks (or the brick\n"
 	  "USBDEV, e.g. 1-1), replies, timeouts, stalls, resets and drains of\n"

@@ -53,6 +53,9 @@ int cmd_rm(int argc, char **argv);
 int cmd_release(int argc, char **argv);
 int cmd_claim(int argc, char **argv);
 int cmd_trace(int argc, char **argv);
+int cmd_attach(int argc, char **argv);
+int cmd_connect(int argc, char **argv);
+int cmd_disconnect(int argc, char **argv);
 
 /* Options of a subcommand: "--name" or "--name VALUE". */
 struct opt {

@@ -33,8 +33,8 @@ with --have (tools/upstream/lib.sh's up_have runs the same probes on it):
   iio_for_each_active_channel(d, ch) into for_each_set_bit() over the
   device's active_scan_mask and masklength (before 6.12), kzalloc_obj(obj,
   gfp) into kzalloc(sizeof(obj), gfp) where the tree has no kzalloc_obj();
-- unifdef -DN_LEGOEV3: the uapi header's fallback ldisc number goes, the
-  tree reserves one in <linux/tty.h>.
+- unifdef -DN_LEGOEV3 -DN_LEGONXT: the uapi headers' fallback ldisc
+  numbers go, the tree reserves them in <linux/tty.h>.
 
 A documentation page (.rst) keeps what it says about the drivers and loses
 what it says about this repository's package (its tools, udev rules,
@@ -42,7 +42,7 @@ tests): the lines from '.. out-of-tree-begin' to '.. out-of-tree-end' go,
 and a comment '.. in-tree' is replaced by its indented block, dedented
 (both are comments to Sphinx, so the package's own pages show the
 out-of-tree text and not the in-tree one). @N_LEGOEV3@ is the number the
-tree gives the line discipline (--ldisc), and :doc:`page` a link to another
+tree gives the EV3 line discipline (--ldisc), @N_LEGONXT@ the next one, and :doc:`page` a link to another
 page of Documentation/lego, which must have a place in the tree.
 
 In every file, each path that tools/upstream/places.py gives a place in the
@@ -259,6 +259,7 @@ def rst_transform(text, ldisc):
     text = '\n'.join(out)
     if ldisc is not None:
         text = text.replace('@N_LEGOEV3@', str(ldisc))
+        text = text.replace('@N_LEGONXT@', str(ldisc + 1))
 
     def doc(m):
         p = place('Documentation/lego/%s.rst' % m.group(1))
@@ -292,7 +293,7 @@ def main():
     if a.src.endswith(('.c', '.h')):
         text = transform(text, have)
         # unifdef exits 0 (unchanged), 1 (changed) or 2 (trouble).
-        r = subprocess.run(['unifdef', '-DN_LEGOEV3'], input=text, capture_output=True,
+        r = subprocess.run(['unifdef', '-DN_LEGOEV3', '-DN_LEGONXT'], input=text, capture_output=True,
                            text=True, check=False)
         if r.returncode not in (0, 1):
             die('unifdef on %s: %s' % (a.src, r.stderr.strip()))

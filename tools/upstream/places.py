@@ -18,6 +18,7 @@ PLACES = (
     ('drivers/lego/nxt/', 'drivers/usb/misc/lego_nxt/'),
     ('Documentation/lego/ev3-uart.rst', 'Documentation/iio/lego_ev3_uart.rst'),
     ('Documentation/lego/nxt-usb.rst', 'Documentation/usb/lego_nxt.rst'),
+    ('Documentation/lego/nxt-bluetooth.rst', 'Documentation/usb/lego_nxt_bluetooth.rst'),
     ('Documentation/lego/tracing.rst', 'Documentation/trace/events-lego.rst'),
 )
 

@@ -31,10 +31,10 @@
 #   drivers/lego/lego_compat.h's shims for what they mean in the target tree
 #   (its LEGO_HAVE_* flags come from the top-level Kbuild's own probes, run
 #   by kbuild on a configured tree of the same source: up_have in
-#   tools/upstream/lib.sh) and runs unifdef -DN_LEGOEV3;
+#   tools/upstream/lib.sh) and runs unifdef -DN_LEGOEV3 -DN_LEGONXT;
 # - hooks into existing kernel files, each inserted at a fixed or sorted
-#   place and checked: N_LEGOEV3 in include/uapi/linux/tty.h (the next free
-#   number, NR_LDISCS raised), the ioctl magic numbers in
+#   place and checked: N_LEGOEV3 and N_LEGONXT in include/uapi/linux/tty.h
+#   (the next free numbers, NR_LDISCS raised), the ioctl magic numbers in
 #   Documentation/userspace-api/ioctl/ioctl-number.rst, the Kconfig
 #   "source" lines and Makefile lines of drivers/iio/common and
 #   drivers/usb/misc, the pages in the index.rst of Documentation/iio,
@@ -184,14 +184,17 @@ piece_ldisc() {
 	END {
 		for (i = 1; i <= NR; i++) {
 			if (lines[i] ~ /^#define NR_LDISCS/)
-				lines[i] = "#define NR_LDISCS\t" nr + 1
+				lines[i] = "#define NR_LDISCS\t" nr + 2
 			print lines[i]
-			if (i == last)
+			if (i == last) {
 				printf "#define N_LEGOEV3\t%d\t/* LEGO MINDSTORMS EV3 UART sensors */\n", nr
+				printf "#define N_LEGONXT\t%d\t/* LEGO MINDSTORMS NXT on Bluetooth */\n", nr + 1
+			}
 		}
 	}' "$tree/$f" >"$tree/$f.new"
 	mv "$tree/$f.new" "$tree/$f"
 	grep -q "^#define N_LEGOEV3" "$tree/$f" || die "$f: N_LEGOEV3 not added"
+	grep -q "^#define N_LEGONXT" "$tree/$f" || die "$f: N_LEGONXT not added"
 	ldisc=$nr
 	commit 1-tty.txt
 }
@@ -252,10 +255,18 @@ piece_nxt_proto() {
 	commit 6-nxt-proto.txt
 }
 
-# 7. The USB driver; Kconfig, Makefile, the ABI it adds.
+# 7. The core module and the USB driver; Kconfig and Makefile without the
+# serial transport (8), the ABI they add.
 piece_nxt_usb() {
-	put_dir drivers/lego/nxt "$NXT" nxt_views.h nxt_usb.c nxt_cdev.c nxt_sysfs.c \
-		nxt_usb_trace.h nxt_usb_trace.c Kconfig Makefile .kunitconfig
+	put_dir drivers/lego/nxt "$NXT" nxt_views.h nxt_main.c nxt_usb.c nxt_cdev.c \
+		nxt_sysfs.c nxt_usb_trace.h nxt_usb_trace.c Kconfig Makefile .kunitconfig
+	awk '/^config LEGO_NXT_SERIAL$/ { skip = 1; next }
+	     skip && /^config / { skip = 0 }
+	     !skip' "$tree/$NXT/Kconfig" >"$tree/$NXT/Kconfig.new"
+	mv "$tree/$NXT/Kconfig.new" "$tree/$NXT/Kconfig"
+	sed -i -e '/LEGO_NXT_SERIAL/d' -e '/lego_nxt_serial/d' "$tree/$NXT/Makefile"
+	! grep -q -e LEGO_NXT_SERIAL -e nxt_serial "$tree/$NXT/Kconfig" "$tree/$NXT/Makefile" ||
+		die "$NXT: the serial transport is left in Kconfig or Makefile"
 	put Documentation/ABI/testing/sysfs-class-lego-nxt \
 		Documentation/ABI/testing/sysfs-class-lego-nxt
 	# Beside the LEGO USB tower's entries.
@@ -265,19 +276,25 @@ piece_nxt_usb() {
 	grep -q '^obj-$(CONFIG_USB_LEGOTOWER)' "$tree/drivers/usb/misc/Makefile" ||
 		die "drivers/usb/misc/Makefile: no USB_LEGOTOWER line"
 	# shellcheck disable=SC2016
-	sed -i '/^obj-$(CONFIG_USB_LEGOTOWER)/a obj-$(CONFIG_USB_LEGO_NXT)\t\t+= lego_nxt/' \
+	sed -i '/^obj-$(CONFIG_USB_LEGOTOWER)/a obj-$(CONFIG_LEGO_NXT)\t\t+= lego_nxt/' \
 		"$tree/drivers/usb/misc/Makefile"
 	commit 7-nxt-usb.txt
 }
 
-# 8. The documentation: each driver's page in its subsystem's guide, the
+# 8. The serial (Bluetooth) transport: a line discipline.
+piece_nxt_serial() {
+	put_dir drivers/lego/nxt "$NXT" nxt_serial.c Kconfig Makefile
+	commit 8-nxt-serial.txt
+}
+
+# 9. The documentation: each driver's page in its subsystem's guide, the
 # trace events' page, and the userspace API guide's page with the uapi
 # headers' kernel-doc. Each page goes into its directory's index, sorted
 # among the pages there.
 piece_docs() {
 	local src dst
 	for src in Documentation/lego/ev3-uart.rst Documentation/lego/nxt-usb.rst \
-		Documentation/lego/tracing.rst; do
+		Documentation/lego/nxt-bluetooth.rst Documentation/lego/tracing.rst; do
 		dst=$("$here/places.py" "$src")
 		put "$src" "$dst"
 		index_add "$dst"
@@ -285,7 +302,7 @@ piece_docs() {
 	put tools/upstream/doc/lego.rst Documentation/userspace-api/lego.rst
 	# Last in the toctree of media/index ("Devices and I/O" since 6.8).
 	toctree_append Documentation/userspace-api/index.rst media/index lego
-	commit 8-docs.txt
+	commit 9-docs.txt
 }
 
 # index_add PAGE: PAGE's entry in the toctree of its directory's index.rst,
@@ -319,6 +336,7 @@ piece_ev3_ldisc
 piece_ev3_class
 piece_nxt_proto
 piece_nxt_usb
+piece_nxt_serial
 piece_docs
 
 # Nothing of this checkout's drivers or their ABI may be left out of the series.

@@ -92,12 +92,23 @@ static int nxt_open(struct inode *inode, struct file *file)
 		ret = -ENODEV;
 		goto out;
 	}
+	/*
+	 * The file holds its transport's module as well as the brick: the
+	 * brick's last put, and the close of its link, run the transport's
+	 * code, which must not be unloaded before then.
+	 */
+	if (!try_module_get(b->ops->owner)) {
+		ret = -ENODEV;
+		goto out;
+	}
 	/* Start collecting replies; stale ones are drained. */
 	ret = nxt_brick_open(b);
-	if (!ret) {
-		nxt_brick_get(b);
-		f->brick = b;
+	if (ret) {
+		module_put(b->ops->owner);
+		goto out;
 	}
+	nxt_brick_get(b);
+	f->brick = b;
 out:
 	up_read(&nxt_nodes_rwsem);
 	if (ret) {
@@ -111,6 +122,7 @@ out:
 static int nxt_release(struct inode *inode, struct file *file)
 {
 	struct nxt_file *f = file->private_data;
+	struct module *owner = f->brick->ops->owner;
 
 	mutex_lock(&f->lock);
 	if (f->pending)
@@ -119,6 +131,7 @@ static int nxt_release(struct inode *inode, struct file *file)
 	nxt_brick_close(f->brick);
 	nxt_brick_put(f->brick);
 	kfree(f);
+	module_put(owner);
 	return 0;
 }
 
@@ -373,6 +386,7 @@ int nxt_node_add(struct nxt_brick *b, struct device *parent)
 	b->node = dev;
 	return 0;
 }
+EXPORT_SYMBOL_GPL(nxt_node_add);
 
 /**
  * nxt_node_remove() - take a brick's /dev/nxtN away
@@ -397,6 +411,7 @@ void nxt_node_remove(struct nxt_brick *b)
 	b->node = NULL;
 	xa_erase(&nxt_nodes, b->minor);
 }
+EXPORT_SYMBOL_GPL(nxt_node_remove);
 
 /**
  * nxt_cdev_init() - register the char device region and the class

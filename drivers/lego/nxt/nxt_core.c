@@ -225,7 +225,7 @@ void nxt_brick_rx(struct nxt_brick *b, const u8 *buf, unsigned int len)
 	trace_nxt_usb_rx(b->name, x, buf[0], buf[1], len > 2 ? buf[2] : 0, len);
 	nxt_finish(b, x, 0);
 }
-EXPORT_SYMBOL_IF_KUNIT(nxt_brick_rx);
+EXPORT_SYMBOL_GPL(nxt_brick_rx);
 
 /**
  * nxt_brick_in_stalled() - the brick refused to send (an IN stall)
@@ -241,7 +241,7 @@ void nxt_brick_in_stalled(struct nxt_brick *b)
 	    b->cur->status == -EINPROGRESS)
 		nxt_finish(b, b->cur, -EPIPE);
 }
-EXPORT_SYMBOL_IF_KUNIT(nxt_brick_in_stalled);
+EXPORT_SYMBOL_GPL(nxt_brick_in_stalled);
 
 /**
  * nxt_brick_link_error() - a receive failed, perhaps an unplug under way
@@ -257,7 +257,7 @@ void nxt_brick_link_error(struct nxt_brick *b)
 	if (b->cur && b->cur->sent)
 		b->cur->link_error = true;
 }
-EXPORT_SYMBOL_IF_KUNIT(nxt_brick_link_error);
+EXPORT_SYMBOL_GPL(nxt_brick_link_error);
 
 /**
  * nxt_brick_rx_started() - the transport started receiving
@@ -271,7 +271,7 @@ void nxt_brick_rx_started(struct nxt_brick *b)
 	lockdep_assert_held(&b->lock);
 	nxt_drain_for(b, NXT_DRAIN_MS);
 }
-EXPORT_SYMBOL_IF_KUNIT(nxt_brick_rx_started);
+EXPORT_SYMBOL_GPL(nxt_brick_rx_started);
 
 /**
  * nxt_brick_sent() - a send ended
@@ -310,7 +310,7 @@ void nxt_brick_sent(struct nxt_brick *b, struct nxt_xfer *x, int err)
 		wake_up(&x->wait);
 	spin_unlock_irqrestore(&b->lock, flags);
 }
-EXPORT_SYMBOL_IF_KUNIT(nxt_brick_sent);
+EXPORT_SYMBOL_GPL(nxt_brick_sent);
 
 /* The transaction in the slot is out of time. */
 static void nxt_timer_fn(struct timer_list *t)
@@ -447,7 +447,7 @@ bool nxt_slot_free(struct nxt_brick *b)
 	spin_unlock_irq(&b->lock);
 	return free;
 }
-EXPORT_SYMBOL_IF_KUNIT(nxt_slot_free);
+EXPORT_SYMBOL_GPL(nxt_slot_free);
 
 /**
  * nxt_gone() - whether the brick has been disconnected
@@ -864,7 +864,7 @@ void nxt_brick_fail(struct nxt_brick *b, int err)
 		nxt_finish(b, b->cur, err);
 	spin_unlock_irq(&b->lock);
 }
-EXPORT_SYMBOL_IF_KUNIT(nxt_brick_fail);
+EXPORT_SYMBOL_GPL(nxt_brick_fail);
 
 /**
  * nxt_brick_in_flight() - whether a sent transaction awaits its reply
@@ -881,7 +881,7 @@ bool nxt_brick_in_flight(struct nxt_brick *b)
 	spin_unlock_irq(&b->lock);
 	return busy;
 }
-EXPORT_SYMBOL_IF_KUNIT(nxt_brick_in_flight);
+EXPORT_SYMBOL_GPL(nxt_brick_in_flight);
 
 /**
  * nxt_brick_disconnect() - the link is gone for good
@@ -907,7 +907,7 @@ void nxt_brick_disconnect(struct nxt_brick *b)
 	spin_unlock_irq(&b->lock);
 	wake_up_all(&b->wait);
 }
-EXPORT_SYMBOL_IF_KUNIT(nxt_brick_disconnect);
+EXPORT_SYMBOL_GPL(nxt_brick_disconnect);
 
 /**
  * nxt_brick_shutdown() - after nxt_brick_disconnect(), once the transport
@@ -924,10 +924,10 @@ void nxt_brick_shutdown(struct nxt_brick *b)
 	timer_delete_sync(&b->timer);
 	wake_up_all(&b->wait);
 }
-EXPORT_SYMBOL_IF_KUNIT(nxt_brick_shutdown);
+EXPORT_SYMBOL_GPL(nxt_brick_shutdown);
 
 /*
- * debugfs lego_nxt_usb/NAME/counters: the brick's counters (struct
+ * debugfs lego_nxt/NAME/counters: the brick's counters (struct
  * nxt_stats), one "name value" a line.
  */
 static int nxt_counters_show(struct seq_file *m, void *unused)
@@ -961,21 +961,23 @@ static int nxt_counters_show(struct seq_file *m, void *unused)
 }
 DEFINE_SHOW_ATTRIBUTE(nxt_counters);
 
+/* lego_nxt in debugfs: a directory per brick, whatever its link. */
+static struct dentry *nxt_debugfs_root;
+
 /**
  * nxt_brick_debugfs() - show the brick's counters in debugfs
  * @b: the brick
- * @parent: the directory to make the brick's own in, or NULL for none
  *
- * The directory goes with nxt_brick_shutdown().
+ * In lego_nxt/NAME/counters; the directory goes with nxt_brick_shutdown().
  */
-void nxt_brick_debugfs(struct nxt_brick *b, struct dentry *parent)
+void nxt_brick_debugfs(struct nxt_brick *b)
 {
-	if (!parent)
+	if (IS_ERR_OR_NULL(nxt_debugfs_root))
 		return;
-	b->debugfs = debugfs_create_dir(b->name, parent);
+	b->debugfs = debugfs_create_dir(b->name, nxt_debugfs_root);
 	debugfs_create_file("counters", 0400, b->debugfs, b, &nxt_counters_fops);
 }
-EXPORT_SYMBOL_IF_KUNIT(nxt_brick_debugfs);
+EXPORT_SYMBOL_GPL(nxt_brick_debugfs);
 
 static void nxt_brick_free(struct kref *kref)
 {
@@ -994,7 +996,7 @@ void nxt_brick_get(struct nxt_brick *b)
 {
 	kref_get(&b->kref);
 }
-EXPORT_SYMBOL_IF_KUNIT(nxt_brick_get);
+EXPORT_SYMBOL_GPL(nxt_brick_get);
 
 /**
  * nxt_brick_put() - drop a reference to a brick
@@ -1004,7 +1006,7 @@ void nxt_brick_put(struct nxt_brick *b)
 {
 	kref_put(&b->kref, nxt_brick_free);
 }
-EXPORT_SYMBOL_IF_KUNIT(nxt_brick_put);
+EXPORT_SYMBOL_GPL(nxt_brick_put);
 
 /**
  * nxt_brick_init() - set up a brick for its transport
@@ -1031,4 +1033,16 @@ void nxt_brick_init(struct nxt_brick *b, const struct nxt_transport_ops *ops,
 	timer_setup(&b->timer, nxt_timer_fn, 0);
 	INIT_DELAYED_WORK(&b->drain_work, nxt_drain_work);
 }
-EXPORT_SYMBOL_IF_KUNIT(nxt_brick_init);
+EXPORT_SYMBOL_GPL(nxt_brick_init);
+
+/** nxt_core_debugfs_init() - make lego_nxt in debugfs (module init) */
+void nxt_core_debugfs_init(void)
+{
+	nxt_debugfs_root = debugfs_create_dir(KBUILD_MODNAME, NULL);
+}
+
+/** nxt_core_debugfs_exit() - remove it (module exit, every brick gone) */
+void nxt_core_debugfs_exit(void)
+{
+	debugfs_remove_recursive(nxt_debugfs_root);
+}

@@ -2,7 +2,7 @@
 /*
  * LEGO MINDSTORMS NXT brick: the transaction engine, whatever the link.
  *
- * A transport (nxt_usb.c) moves telegrams and replies; the views (the char
+ * A transport (nxt_usb.c, nxt_serial.c) moves telegrams and replies; the views (the char
  * device, sysfs) run transactions. Both use the engine through this file
  * only, and the engine knows nothing of either: it calls the transport
  * through struct nxt_transport_ops.
@@ -150,6 +150,8 @@ struct nxt_stats {
  * @get: take a reference to a handle (&nxt_brick.lock held)
  * @put: drop a reference to a handle (any context, no lock held)
  * @release: the last reference to the brick is gone: free it
+ * @owner: the transport's module (THIS_MODULE): each open file holds it,
+ *	since the file may drop the brick's last reference
  */
 struct nxt_transport_ops {
 	int (*open)(struct nxt_brick *b);
@@ -161,6 +163,7 @@ struct nxt_transport_ops {
 	void (*get)(void *handle);
 	void (*put)(void *handle);
 	void (*release)(struct nxt_brick *b);
+	struct module *owner;
 };
 
 /**
@@ -280,7 +283,7 @@ struct nxt_xfer {
 /* For the transport. */
 void nxt_brick_init(struct nxt_brick *b, const struct nxt_transport_ops *ops,
 		    struct device *dev, const char *name);
-void nxt_brick_debugfs(struct nxt_brick *b, struct dentry *parent);
+void nxt_brick_debugfs(struct nxt_brick *b);
 void nxt_brick_rx(struct nxt_brick *b, const u8 *buf, unsigned int len);
 void nxt_brick_in_stalled(struct nxt_brick *b);
 void nxt_brick_link_error(struct nxt_brick *b);
@@ -290,6 +293,10 @@ void nxt_brick_fail(struct nxt_brick *b, int err);
 bool nxt_brick_in_flight(struct nxt_brick *b);
 void nxt_brick_disconnect(struct nxt_brick *b);
 void nxt_brick_shutdown(struct nxt_brick *b);
+
+/* For the module's init and exit (nxt_main.c). */
+void nxt_core_debugfs_init(void);
+void nxt_core_debugfs_exit(void);
 
 /* For the views. */
 int nxt_brick_open(struct nxt_brick *b);

@@ -142,6 +142,7 @@ static const struct nxt_transport_ops fake_ops = {
 	.get		= fake_get,
 	.put		= fake_put,
 	.release	= fake_release,
+	.owner		= THIS_MODULE,
 };
 
 /* The suite's exit: the brick of the test goes, as a transport's would. */

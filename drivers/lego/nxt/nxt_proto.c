@@ -462,7 +462,7 @@ unsigned int nxt_stall_backoff_ms(unsigned int stalls)
 	ms = NXT_STALL_BACKOFF_MIN_MS << min(stalls - 2, 7U);
 	return min(ms, NXT_STALL_BACKOFF_MAX_MS);
 }
-EXPORT_SYMBOL_IF_KUNIT(nxt_stall_backoff_ms);
+EXPORT_SYMBOL_GPL(nxt_stall_backoff_ms);
 
 /**
  * nxt_time_left() - time left until a point on a 64-bit clock, capped
@@ -627,7 +627,7 @@ void nxt_bt_rx_reset(struct nxt_bt_rx *rx)
 	rx->dropped += rx->have;
 	rx->have = 0;
 }
-EXPORT_SYMBOL_IF_KUNIT(nxt_bt_rx_reset);
+EXPORT_SYMBOL_GPL(nxt_bt_rx_reset);
 
 /* The held bytes can still start a frame. */
 static bool nxt_bt_rx_plausible(const struct nxt_bt_rx *rx)
@@ -680,7 +680,7 @@ size_t nxt_bt_rx_feed(struct nxt_bt_rx *rx, const u8 *data, size_t len,
 	}
 	return used;
 }
-EXPORT_SYMBOL_IF_KUNIT(nxt_bt_rx_feed);
+EXPORT_SYMBOL_GPL(nxt_bt_rx_feed);
 
 /**
  * nxt_bt_frame() - put a telegram in a Bluetooth frame
@@ -698,4 +698,4 @@ unsigned int nxt_bt_frame(u8 *frame, const u8 *tg, size_t len)
 	memcpy(frame + NXT_BT_PREFIX, tg, len);
 	return NXT_BT_PREFIX + len;
 }
-EXPORT_SYMBOL_IF_KUNIT(nxt_bt_frame);
+EXPORT_SYMBOL_GPL(nxt_bt_frame);

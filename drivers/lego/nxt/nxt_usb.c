@@ -21,7 +21,6 @@
  *  - it never sends a zero-length packet after a full 64-byte reply, so IN
  *    transfers are exactly one packet long.
  */
-#include <linux/debugfs.h>
 #include <linux/errno.h>
 #include <linux/jiffies.h>
 #include <linux/limits.h>
@@ -81,9 +80,6 @@ struct nxt_usb {
 	bool halted_out;
 	u8 stalls;
 };
-
-/* lego_nxt_usb in debugfs: a directory per brick (nxt_usb_probe()). */
-static struct dentry *nxt_debugfs_root;
 
 static struct nxt_usb *to_nxt_usb(struct nxt_brick *b)
 {
@@ -420,6 +416,7 @@ static const struct nxt_transport_ops nxt_usb_ops = {
 	.get		= nxt_usb_get_urb,
 	.put		= nxt_usb_put_urb,
 	.release	= nxt_usb_release,
+	.owner		= THIS_MODULE,
 };
 
 /* Finds the endpoints and sets up the reader. */
@@ -476,7 +473,7 @@ static int nxt_usb_probe(struct usb_interface *intf,
 		usb_set_intfdata(intf, NULL);
 		goto err_put;
 	}
-	nxt_brick_debugfs(&nxt->brick, nxt_debugfs_root);
+	nxt_brick_debugfs(&nxt->brick);
 
 	/*
 	 * Nothing is sent to the brick until a program that opened it for
@@ -643,30 +640,7 @@ static struct usb_driver nxt_usb_driver = {
 	.supports_autosuspend = 1,
 };
 
-static int __init nxt_usb_init(void)
-{
-	int ret;
-
-	ret = nxt_cdev_init();
-	if (ret)
-		return ret;
-	nxt_debugfs_root = debugfs_create_dir(KBUILD_MODNAME, NULL);
-	ret = usb_register(&nxt_usb_driver);
-	if (ret) {
-		debugfs_remove_recursive(nxt_debugfs_root);
-		nxt_cdev_exit();
-	}
-	return ret;
-}
-module_init(nxt_usb_init);
-
-static void __exit nxt_usb_exit(void)
-{
-	usb_deregister(&nxt_usb_driver);
-	debugfs_remove_recursive(nxt_debugfs_root);
-	nxt_cdev_exit();
-}
-module_exit(nxt_usb_exit);
+module_usb_driver(nxt_usb_driver);
 
 MODULE_DESCRIPTION("LEGO MINDSTORMS NXT brick USB driver");
 MODULE_LICENSE("GPL");

@@ -34,7 +34,21 @@
 #define _UAPI_LINUX_LEGO_NXT_H
 
 #include <linux/ioctl.h>
+#include <linux/tty.h>
 #include <linux/types.h>
+
+#ifndef N_LEGONXT
+/*
+ * N_LEGONXT - the line discipline of a brick on a serial line (Bluetooth's
+ * RFCOMM tty, or any tty that carries the brick's Bluetooth framing). A
+ * kernel that has the driver in its tree reserves a number in
+ * <linux/tty.h>; the out-of-tree module takes 8 (N_MASC), reserved for a
+ * Mobitex driver that never reached the kernel and used by none in it
+ * (N_DEVELOPMENT is lego_ev3_uart's). tools/upstream/series.sh drops this
+ * block (unifdef).
+ */
+#define N_LEGONXT		8
+#endif
 
 /** NXT_TELEGRAM_MIN - shortest telegram: the type byte and the opcode */
 #define NXT_TELEGRAM_MIN	2
@@ -103,5 +117,13 @@ struct nxt_transaction {
 
 /** NXT_IOC_GET_TIMEOUT - read this open file's reply timeout, in milliseconds */
 #define NXT_IOC_GET_TIMEOUT	_IOR(NXT_IOC_MAGIC, 0x02, __u32)
+
+/**
+ * NXT_IOC_TTY_MINOR - on a tty with the N_LEGONXT discipline: the minor of
+ * its brick's node (N of /dev/nxtN)
+ *
+ * Asked of the tty, not of /dev/nxtN (which answers ENOTTY).
+ */
+#define NXT_IOC_TTY_MINOR	_IOR(NXT_IOC_MAGIC, 0x03, __u32)
 
 #endif /* _UAPI_LINUX_LEGO_NXT_H */

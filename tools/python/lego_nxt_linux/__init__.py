@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""nxt-python support for the lego_nxt_usb kernel driver.
+"""nxt-python support for the lego_nxt kernel driver (USB and Bluetooth).
 
 Pass :func:`lego_nxt_linux.get_backend` (or a :class:`Backend`) to
 ``nxt.locator.find(backends=[...])`` to reach NXT bricks through

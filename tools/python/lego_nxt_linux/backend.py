@@ -1,7 +1,8 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""An nxt-python backend over the lego_nxt_usb character devices.
+"""An nxt-python backend over the lego_nxt character devices.
 
-lego_nxt_usb gives each NXT brick on USB a node ``/dev/nxtN`` that carries
+lego_nxt gives each NXT brick, on USB (lego_nxt_usb) or on Bluetooth
+(lego_nxt_serial), a node ``/dev/nxtN`` that carries
 raw telegrams: one ``write()`` sends one telegram (one USB packet), and
 when the telegram asks for a reply the next ``read()`` on the same open
 file returns the whole reply, or fails with ``ETIMEDOUT`` after the file's
@@ -37,7 +38,9 @@ logger = logging.getLogger(__name__)
 
 DEV_DIR = "/dev"
 SYSFS_CLASS = "/sys/class/lego-nxt"
-DRIVER = "lego_nxt_usb"
+#: The class of the nodes, whatever the brick's link (lego_nxt_usb,
+#: lego_nxt_serial): every device in it is a brick of the lego_nxt core.
+CLASS = "lego-nxt"
 
 #: Longest telegram and reply: one full-speed bulk packet.
 TELEGRAM_MAX = 64
@@ -61,22 +64,27 @@ def _sysfs_dir(path):
     if not _NODE_RE.match(base):
         return None
     node = os.path.join(SYSFS_CLASS, base)
+    return node if _class_of(node) == CLASS else None
+
+
+def _class_of(sysdir):
+    """The class of a device's sysfs directory, or None."""
     try:
-        driver = os.path.basename(os.readlink(os.path.join(node, "device", "driver")))
+        return os.path.basename(os.readlink(os.path.join(sysdir, "subsystem")))
     except OSError:
         return None
-    return node if driver == DRIVER else None
 
 
 def _check_node(fd, filename):
-    """Raise OSError unless fd is a lego_nxt_usb node (/dev/nxtN).
+    """Raise OSError unless fd is a brick's node (/dev/nxtN).
 
-    A char device whose driver answers NXT_IOC_GET_TIMEOUT, and where sysfs
-    shows the device's driver, lego_nxt_usb: anything else (/dev/null, a
-    file, a tty) would take the telegrams and fail later, obscurely.
+    A char device whose driver answers NXT_IOC_GET_TIMEOUT, and which sysfs
+    shows in the class lego-nxt (on USB or Bluetooth): anything else
+    (/dev/null, a file, a tty) would take the telegrams and fail later,
+    obscurely.
     """
     def refuse(why, err=errno.ENODEV):
-        raise OSError(err, "%s is not an NXT brick of lego_nxt_usb (%s); "
+        raise OSError(err, "%s is not an NXT brick of lego_nxt (%s); "
                       "the bricks are /dev/nxtN" % (filename, why))
 
     st = os.fstat(fd)
@@ -88,12 +96,9 @@ def _check_node(fd, filename):
         refuse("its driver does not know the lego_nxt ioctls: %s" % os.strerror(e.errno))
     sysdev = "/sys/dev/char/%d:%d" % (os.major(st.st_rdev), os.minor(st.st_rdev))
     if os.path.isdir("/sys/dev/char"):
-        try:
-            driver = os.path.basename(os.readlink(os.path.join(sysdev, "device", "driver")))
-        except OSError:
-            driver = None
-        if driver != DRIVER:
-            refuse("its driver is %s" % (driver or "unknown"))
+        cls = _class_of(sysdev)
+        if cls != CLASS:
+            refuse("its class is %s" % (cls or "unknown"))
 
 
 def _read_attr(directory, name):
@@ -106,7 +111,7 @@ def _read_attr(directory, name):
 
 
 def list_devices():
-    """The nodes of the bricks lego_nxt_usb has bound, in number order.
+    """The nodes of the bricks lego_nxt has, in number order.
 
     :return: Paths such as ``["/dev/nxt0", "/dev/nxt1"]``.
     :rtype: list[str]
@@ -170,7 +175,7 @@ class DevNodeSock:
         self._fd = None
 
     def __str__(self):
-        return "lego_nxt_usb (%s)" % self.filename
+        return "lego_nxt (%s)" % self.filename
 
     def connect(self):
         """Open the node.
@@ -178,7 +183,7 @@ class DevNodeSock:
         :return: Connected brick.
         :rtype: nxt.brick.Brick
         :raises OSError: When the node cannot be opened, is not a brick's
-           node of lego_nxt_usb (``ENODEV``), or the timeout cannot be set.
+           node of lego_nxt (``ENODEV``), or the timeout cannot be set.
         """
         logger.info("connecting via %s", self)
         fd = os.open(self.filename, os.O_RDWR | os.O_CLOEXEC)
@@ -231,7 +236,8 @@ class DevNodeSock:
 
 
 class Backend:
-    """Backend for bricks bound by the lego_nxt_usb kernel driver.
+    """Backend for the bricks of the lego_nxt kernel driver, on USB or
+    Bluetooth.
 
     :param devices: Nodes to try instead of every ``/dev/nxtN`` (a symbolic
        link such as ``/dev/nxt/by-serial/001653XXXXXX`` works too).
@@ -250,7 +256,7 @@ class Backend:
 
         :param name: Brick name (example: ``"NXT"``).
         :param host: Bluetooth address (example: ``"00:16:53:01:02:03"``).
-        :param filename: A node to use; ignored unless lego_nxt_usb owns it
+        :param filename: A node to use; ignored unless lego_nxt owns it
            (the devfile backend takes the same keyword for ``/dev/rfcomm*``).
         :param kwargs: Other parameters are ignored.
         :return: Iterator over the bricks found.
