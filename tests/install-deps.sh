@@ -49,6 +49,10 @@ debs+=(clang-14 libclang-rt-14-dev valgrind)
 # and python3-git for checkpatch's SPDX check, Sphinx for the kernel's
 # documentation build
 debs+=(unifdef coccinelle ocaml-nox libpython3-dev python3-ply python3-git python3-sphinx python3-sphinx-rtd-theme python3-yaml)
+# tests/guest/test_nxt_bluetooth.py: two virtual Bluetooth controllers
+# (btvirt, of bluez-test-tools, on the kernel's /dev/vhci) and hciconfig
+# (bluez) to bring them up
+debs+=(bluez bluez-test-tools)
 # make deb (tests/packaging/make-deb.sh) and its lintian run
 debs+=(dpkg-dev debhelper dh-dkms dh-python pybuild-plugin-pyproject python3-all
 	python3-setuptools fakeroot lintian)

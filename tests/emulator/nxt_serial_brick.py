@@ -24,7 +24,10 @@ nxt_brick.Firmware, the same as on USB.
 `hostile` makes a misbehaving link: `lying` (a length prefix that lies
 before each reply: 0, over 64, or a frame of garbage), `noreply` (no reply
 at all), `hangup` (the link goes after a command is read, before its
-reply). Tests use SerialBrick(fd) with start(), stop(), hangup(), and read
+reply), `fuzz` (random bytes, random frames and lying prefixes around the
+reply, which it sometimes leaves out or cuts short; `seed` picks them).
+Tests use SerialBrick(fd) with start(), stop(), hangup(), set and
+clear `deaf` (the brick reads nothing meanwhile, as a stuck link), and read
 `log` (the times each command came and each reply left).
 
 Usage: python3 tests/emulator/nxt_serial_brick.py --pty
@@ -33,6 +36,7 @@ prints the pty's slave path, then serves until SIGTERM or SIGINT.
 import argparse
 import errno
 import os
+import random
 import select
 import signal
 import struct
@@ -46,7 +50,7 @@ import nxt_brick  # noqa: E402
 TELEGRAM_MAX = 64
 LATENCY = 0.030
 GAP = 0.030
-HOSTILE = ('lying', 'noreply', 'hangup')
+HOSTILE = ('lying', 'noreply', 'hangup', 'fuzz')
 
 
 class SerialBrick:
@@ -54,7 +58,7 @@ class SerialBrick:
     closes on stop() or hangup())."""
 
     def __init__(self, fd, firmware=None, latency=LATENCY, gap=GAP, hostile=None,
-                 now=time.monotonic):
+                 now=time.monotonic, seed=0):
         if hostile not in (None,) + HOSTILE:
             raise ValueError('hostile: one of %s' % (HOSTILE,))
         self.fd = fd
@@ -69,9 +73,11 @@ class SerialBrick:
         self.last_reply = None
         self.stopping = threading.Event()
         self.gone = threading.Event()
+        self.deaf = threading.Event()   # set: reads nothing (the host's tty fills)
         self.lock = threading.Lock()
         self.thread = None
         self._lie = 0
+        self.rng = random.Random(seed)
 
     def start(self):
         self.thread = threading.Thread(target=self._loop, name='nxt-serial-brick', daemon=True)
@@ -110,6 +116,9 @@ class SerialBrick:
             fd = self.fd
             if fd is None:
                 return None
+            if self.deaf.is_set():
+                time.sleep(0.02)
+                continue
             try:
                 r, _, _ = select.select([fd], [], [], 0.1)
                 if not r:
@@ -144,6 +153,28 @@ class SerialBrick:
         self._lie += 1
         return [b'\x00\x00', b'\x41\x00\x02', b'\x05\x01\x02', b'\xff\x13\x37\x00'][self._lie % 4]
 
+    def _fuzz(self, reply):
+        """The reply among random bytes and frames, or cut, or left out."""
+        r = self.rng
+        out = b''
+        for _ in range(r.randrange(3)):
+            kind = r.randrange(4)
+            if kind == 0:
+                out += bytes(r.randrange(256) for _ in range(r.randrange(1, 12)))
+            elif kind == 1:     # a frame of the right shape, of garbage
+                body = b'\x02' + bytes(r.randrange(256) for _ in range(r.randrange(2, 64)))
+                out += self._frame(body)
+            elif kind == 2:     # a length that lies
+                out += struct.pack('<H', r.choice([0, 1, 2, 65, 300, 0xffff]))
+            else:               # a reply's frame cut short
+                out += self._frame(reply)[:r.randrange(1, len(reply) + 2)]
+        choice = r.randrange(10)
+        if choice == 0:
+            return out          # no reply
+        if choice == 1:
+            return out + self._frame(reply)[:-1]
+        return out + self._frame(reply)
+
     def _loop(self):
         while not self.stopping.is_set():
             head = self._read(2)
@@ -174,7 +205,10 @@ class SerialBrick:
                 time.sleep(delay)
             if self.hostile == 'lying':
                 self._write(self._lies())
-            self._write(self._frame(reply))
+            if self.hostile == 'fuzz':
+                self._write(self._fuzz(reply))
+            else:
+                self._write(self._frame(reply))
             self.last_reply = self.now()
             self.log.append(('reply', self.last_reply, reply))
         self.gone.set()

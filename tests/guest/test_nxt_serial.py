@@ -169,6 +169,40 @@ def test_length_prefixes_that_lie_are_survived():
         b.close()
 
 
+@pytest.mark.parametrize('seed', [1, 2, 3])
+def test_random_streams_around_the_replies(seed):
+    """Whole-driver fuzzing of the framing: random bytes, frames and lying
+    lengths around each reply, replies cut or left out. Each transaction
+    ends with its reply, or ETIMEDOUT or EPROTO; a reply given to a caller
+    is one for its telegram; and the brick answers normally afterwards."""
+    b = Attached(hostile='fuzz')
+    b.emu.rng.seed(seed)
+    fd = os.open(b.node, os.O_RDWR)
+    try:
+        nxt.set_timeout(fd, 400)
+        ends = {}
+        for i in range(40):
+            port = i % 4
+            tg = b'\x00\x0b' if i % 2 else b'\x00\x07' + bytes([port])
+            err, reply = nxt.transact(fd, tg)
+            ends[err] = ends.get(err, 0) + 1
+            assert err in (0, errno.ETIMEDOUT, errno.EPROTO), (i, err)
+            if not err:
+                assert reply[:2] == b'\x02' + tg[1:2], (tg, reply)
+                assert len(reply) == (5 if tg[1] == 0x0b else 16), (tg, reply)
+                if tg[1] == 0x07:
+                    assert reply[3] == port, (tg, reply)
+        assert ends.get(0, 0) >= 10, ends
+        b.emu.hostile = None
+        time.sleep(0.5)
+        nxt.set_timeout(fd, 2000)
+        err, reply = nxt.transact(fd, b'\x00\x0b')
+        assert err == 0 and reply[:3] == b'\x02\x0b\x00', (err, reply)
+    finally:
+        os.close(fd)
+        b.close()
+
+
 def test_link_lost_mid_transaction_is_an_unplug():
     b = Attached(hostile='noreply')
     fd = os.open(b.node, os.O_RDWR)
@@ -199,6 +233,43 @@ def test_link_lost_mid_transaction_is_an_unplug():
     finally:
         os.close(fd)
         b.emu.stop()
+
+
+def test_a_full_tty_sends_the_rest_later_or_times_out():
+    """A link that takes nothing (the brick deaf): telegrams that ask for
+    no reply fill the tty; the one that finds it full waits for room and
+    times out (the rest of its frame dropped); one that waits longer goes
+    out once the brick reads again (the tty's write_wakeup)."""
+    b = Attached()
+    fd = os.open(b.node, os.O_RDWR)
+    try:
+        nxt.set_timeout(fd, 2000)
+        # MessageWrite to inbox 0, its longest message, no reply: a
+        # 65-byte frame.
+        tg = b'\x80\x09\x00\x3b' + b'x' * 58 + b'\x00'
+        assert len(tg) == 63
+        b.emu.deaf.set()
+        sent, err = 0, 0
+        while sent < 20000:
+            err, _ = nxt.transact(fd, tg)
+            if err:
+                break
+            sent += 1
+        assert err == errno.ETIMEDOUT, (sent, err)
+        assert sent > 1000, sent        # the pty took that much first
+        nxt.set_timeout(fd, 30000)
+        result = {}
+        th = threading.Thread(target=lambda: result.update(err=nxt.transact(fd, tg)[0]))
+        th.start()
+        time.sleep(0.5)
+        assert th.is_alive(), 'sent into a full tty'
+        b.emu.deaf.clear()
+        th.join(30)
+        assert not th.is_alive() and result['err'] == 0, result
+    finally:
+        b.emu.deaf.clear()
+        os.close(fd)
+        b.close()
 
 
 def test_disconnect_lets_go():

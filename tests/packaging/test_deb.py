@@ -41,7 +41,7 @@ import debroot  # noqa: E402
 PACKAGES = ['lego-mindstorms-tools', 'lego-mindstorms-dev', 'liblegonxt-dev',
             'python3-lego-nxt-linux']
 ALL_PACKAGES = ['lego-mindstorms-dkms'] + PACKAGES
-MODULES = ['lego_ev3_uart', 'lego_nxt_usb']
+MODULES = ['lego_ev3_uart', 'lego_nxt', 'lego_nxt_usb', 'lego_nxt_serial']
 # What dpkg, its scripts and systemd-sysusers may leave after a purge.
 LEFT_BY_DPKG = ('var/lib/dpkg/', 'var/log/', 'var/cache/', 'tmp/', 'run/', 'etc/group',
                 'etc/gshadow', 'etc/.pwd.lock', 'etc/group-', 'etc/gshadow-',

@@ -74,7 +74,9 @@ def expected(tree, prefix, udevdir, unitdir, sysusersdir, src):
     kver = krelease(tree)
     exp = {
         'lib/modules/%s/updates/drivers/lego/ev3/lego_ev3_uart.ko' % kver,
+        'lib/modules/%s/updates/drivers/lego/nxt/lego_nxt.ko' % kver,
         'lib/modules/%s/updates/drivers/lego/nxt/lego_nxt_usb.ko' % kver,
+        'lib/modules/%s/updates/drivers/lego/nxt/lego_nxt_serial.ko' % kver,
         prefix + '/include/lego-mindstorms/linux/lego_ev3_uart.h',
         prefix + '/include/lego-mindstorms/linux/lego_nxt.h',
         prefix + '/share/pkgconfig/lego-mindstorms.pc',
@@ -190,7 +192,8 @@ def test_dkms_conf_names_the_built_modules(src):
         conf = f.read()
     names = re.findall(r'^BUILT_MODULE_NAME\[(\d)\]="([^"]+)"', conf, re.M)
     locs = dict(re.findall(r'^BUILT_MODULE_LOCATION\[(\d)\]="([^"]+)"', conf, re.M))
-    assert {n for _, n in names} == {'lego_ev3_uart', 'lego_nxt_usb'}
+    assert {n for _, n in names} == {'lego_ev3_uart', 'lego_nxt', 'lego_nxt_usb',
+                                     'lego_nxt_serial'}
     for i, n in names:
         # The Makefile (shared with the in-tree build) builds the module
         # when its option is set; the out-of-tree Kbuild sets it to m.
@@ -229,7 +232,8 @@ find /lib/modules -name '*.ko*'
     out = r.stdout
     status, after = out.split('status: ', 1)[1].split('after: ', 1)
     assert re.search(r'lego-mindstorms/\S+, %s, \S+: installed' % re.escape(kver), status)
-    assert 'lego_ev3_uart.ko' in status and 'lego_nxt_usb.ko' in status
+    for ko in ('lego_ev3_uart.ko', 'lego_nxt.ko', 'lego_nxt_usb.ko', 'lego_nxt_serial.ko'):
+        assert ko in status, (ko, status)
     assert '.ko' not in after and 'lego-mindstorms' not in after, after
 
 

@@ -222,8 +222,10 @@ static int attach_fd(int fd, const char *tty, int foreground)
 		if (!foreground)
 			return EXIT_OK;	/* the daemon holds the tty */
 	} else {
+		/* Nothing of the caller's held: its pipes see their end. */
 		setsid();
-		if (!freopen("/dev/null", "r", stdin) || !freopen("/dev/null", "w", stdout))
+		if (!freopen("/dev/null", "r", stdin) || !freopen("/dev/null", "w", stdout) ||
+		    !freopen("/dev/null", "w", stderr))
 			_exit(EXIT_DEVICE);
 	}
 	hold(fd, pidfile);

@@ -56,7 +56,7 @@
  * @frame_len: the frame's length (@tx_lock)
  * @frame_pos: the bytes of it the tty took (@tx_lock)
  * @tx_work: writes the rest of a frame when the tty has room again
- * @rx_lock: protects @rx, @last_rx and @rx_seen
+ * @rx_lock: protects @rx, @last_rx and @rx_seen; process context only
  * @rx: the reader of the brick's frames
  * @last_rx: jiffies when the last reply came (@rx_lock)
  * @rx_seen: a reply came (@rx_lock)
@@ -225,12 +225,12 @@ static int nxt_serial_start(struct nxt_brick *b)
 	unsigned long next = 0;
 	bool wait;
 
-	spin_lock_irq(&s->rx_lock);
+	spin_lock(&s->rx_lock);
 	nxt_bt_rx_reset(&s->rx);
 	wait = s->rx_seen;
 	if (wait)
 		next = s->last_rx + msecs_to_jiffies(NXT_SERIAL_GAP_MS);
-	spin_unlock_irq(&s->rx_lock);
+	spin_unlock(&s->rx_lock);
 	if (wait && time_before(jiffies, next))
 		msleep(jiffies_to_msecs(next - jiffies));
 	return 0;
@@ -249,6 +249,7 @@ static void nxt_serial_close_brick(struct nxt_brick *b)
 
 static void nxt_serial_release(struct nxt_brick *b)
 {
+	put_device(b->dev);
 	kfree(to_nxt_serial(b));
 }
 
@@ -345,7 +346,7 @@ static int nxt_serial_ldisc_open(struct tty_struct *tty)
 	s = kzalloc_obj(*s, GFP_KERNEL);
 	if (!s)
 		return -ENOMEM;
-	nxt_brick_init(&s->brick, &nxt_serial_ops, tty->dev, tty->name);
+	nxt_brick_init(&s->brick, &nxt_serial_ops, NULL, tty->name);
 	s->tty = tty;
 	mutex_init(&s->tx_mutex);
 	spin_lock_init(&s->tx_lock);
@@ -362,9 +363,13 @@ static int nxt_serial_ldisc_open(struct tty_struct *tty)
 		nxt_brick_put(&s->brick);
 		return ret;
 	}
-	/* A pty has no device: the log lines name the brick's node then. */
-	if (!s->brick.dev)
-		s->brick.dev = s->brick.node;
+	/*
+	 * The device the log lines name: the tty's, or the brick's node where
+	 * the tty has none (a pty). Either may go before the brick (a hung-up
+	 * RFCOMM tty, a removed node, while files keep the brick): held until
+	 * the brick is released.
+	 */
+	s->brick.dev = get_device(tty->dev ? tty->dev : s->brick.node);
 	nxt_brick_debugfs(&s->brick);
 	dev_info(s->brick.dev, "LEGO NXT brick on %s now at %s\n", tty->name,
 		 dev_name(s->brick.node));
