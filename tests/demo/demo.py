@@ -5,7 +5,9 @@ Four emulated EV3 sensors are plugged into serial lines (a colour sensor on
 a real 16550A UART, ttyS1, and an ultrasonic, a gyro and an infrared sensor
 on null-modem ttys), attached with lego-ev3-attach, and read through the
 lego-sensor class, IIO and python-ev3dev2. An emulated NXT brick is plugged
-into a USB port and driven with nxtctl. Every step checks what it shows;
+into a USB port and driven with nxtctl, and another is reached over
+Bluetooth (two virtual controllers in the VM) with nxtctl connect. Every
+step checks what it shows;
 the exit status is the number of failed steps (0: all passed).
 """
 import contextlib
@@ -20,6 +22,7 @@ import traceback
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, '..', 'guest'))
+import btlink  # noqa: E402
 import ev3  # noqa: E402
 import nxtdev as nxt  # noqa: E402
 
@@ -311,6 +314,52 @@ def _():
     check(any('now at nxt' in ln for ln in lines), 'the driver did not log the brick')
 
 
+# ---------------------------------------------------------------- Bluetooth
+
+BT = 'NXT brick over Bluetooth (lego_nxt_serial)'
+RADIO = {}
+# Where nxtctl connect's daemon leaves its file (/run/nxtctl on a real
+# system): the VM's root is the host's, read-only.
+os.environ['NXTCTL_RUNDIR'] = '/tmp/nxtctl-demo'
+
+
+@step(BT, 'Connect an emulated NXT brick over Bluetooth with nxtctl connect')
+def _():
+    if not os.path.isdir('/sys/module/lego_nxt_serial'):
+        subprocess.run(['insmod', os.path.join(os.environ.get('LEGO_BUILD', ''), 'drivers',
+                                               'lego', 'nxt', 'lego_nxt_serial.ko')], check=True)
+    RADIO['radio'] = radio = btlink.Radio()
+    say('   two virtual Bluetooth controllers: the brick at %s, this computer at %s'
+        % (radio.brick, radio.host))
+    RADIO['server'] = btlink.BrickServer(radio.brick, nxt.nxt_brick.Firmware(name='Rover'))
+    out = shell([NXTCTL, 'connect', radio.brick])
+    node = out.strip()
+    check(node.startswith('/dev/nxt') and os.path.exists(node), 'no node: %r' % out)
+    RADIO['node'] = node
+
+
+@step(BT, 'nxtctl info and tone on the Bluetooth brick, through the same kind of node')
+def _():
+    node = RADIO['node']
+    out = shell([NXTCTL, '-d', node, 'info'])
+    check('Rover' in out, 'the brick name is missing')
+    shell([NXTCTL, '-d', node, 'tone', '880', '200'])
+    fw = RADIO['server'].fw
+    with fw.lock:
+        sound = fw.sound
+    check(sound and sound[1] == 880, 'the brick is not playing 880 Hz: %r' % (sound,))
+    shell([NXTCTL, 'list'])
+
+
+@step(BT, 'nxtctl disconnect: the node and the Bluetooth link go')
+def _():
+    node = RADIO.pop('node')
+    shell([NXTCTL, '-d', node, 'disconnect'])
+    check(not os.path.exists(node), node + ' is still there')
+    srv = RADIO['server']
+    check(srv.brick.gone.wait(5), 'the link is still up')
+
+
 def cleanup():
     for label, kind, ln, emu in SENSORS:
         ln.close()
@@ -322,6 +371,12 @@ def cleanup():
             p.kill()
     if 'b' in BRICK:
         BRICK['b'].unplug()
+    if 'node' in RADIO:
+        subprocess.run([NXTCTL, '-d', RADIO['node'], 'disconnect'], capture_output=True)
+    if 'server' in RADIO:
+        RADIO['server'].close()
+    if 'radio' in RADIO:
+        RADIO['radio'].stop()
 
 
 def main():

@@ -13,7 +13,6 @@ import errno
 import os
 import random
 import re
-import socket
 import subprocess
 import sys
 import threading
@@ -21,17 +20,13 @@ import time
 
 import pytest
 
+import btlink
 import nxtdev as nxt
 from conftest import loaded, module_path, wait_for
-
-sys.path.insert(0, os.path.join(os.path.dirname(__file__), '..', 'emulator'))
-import nxt_brick  # noqa: E402
-import nxt_serial_brick as sb  # noqa: E402
 
 TOOLS_PYTHON = os.path.join(nxt.TOP, 'tools', 'python')
 NXTCTL = os.path.join(os.environ.get('LEGO_BUILD', ''), 'tools', 'nxtctl')
 RUNDIR = '/tmp/nxtctl-run'
-CHANNEL = 1
 
 
 def ctl(*args, text=True, timeout=120):
@@ -45,66 +40,20 @@ def ok(p):
     return p.stdout
 
 
-def address(hci):
-    out = subprocess.run(['hciconfig', hci], capture_output=True, text=True).stdout
-    m = re.search(r'BD Address: ([0-9A-F:]{17})', out)
-    return m.group(1) if m else None
-
-
 @pytest.fixture(scope='module')
 def radio():
-    """Two virtual controllers, up: (the brick's address, the host's)."""
+    """Two virtual controllers, up."""
     if not loaded('lego_nxt_serial'):
         subprocess.run(['insmod', module_path('lego_nxt_serial')], check=True)
-    p = subprocess.Popen(['btvirt', '-l2'], stdout=subprocess.DEVNULL,
-                         stderr=subprocess.DEVNULL)
-    try:
-        assert wait_for(lambda: all(os.path.isdir('/sys/class/bluetooth/' + h)
-                                    for h in ('hci0', 'hci1')), 15), 'btvirt made no controllers'
-        for args in (['hci0', 'up'], ['hci0', 'piscan'], ['hci1', 'up']):
-            subprocess.run(['hciconfig'] + args, check=True)
-        addrs = address('hci0'), address('hci1')
-        assert all(addrs), addrs
-        yield addrs
-    finally:
-        p.terminate()
-        p.wait(10)
-
-
-class Server:
-    """The emulated brick as an RFCOMM server on the brick's controller."""
-
-    def __init__(self, addr, hostile=None):
-        self.fw = nxt_brick.Firmware(name='BT-NXT')
-        self.hostile = hostile
-        self.brick = None
-        self.sock = socket.socket(socket.AF_BLUETOOTH, socket.SOCK_STREAM,
-                                  socket.BTPROTO_RFCOMM)
-        self.sock.bind((addr, CHANNEL))
-        self.sock.listen(1)
-        self.accepted = threading.Event()
-        threading.Thread(target=self._accept, daemon=True).start()
-
-    def _accept(self):
-        try:
-            conn, _ = self.sock.accept()
-        except OSError:
-            return
-        self.brick = sb.SerialBrick(os.dup(conn.fileno()), self.fw,
-                                    hostile=self.hostile).start()
-        conn.close()
-        self.accepted.set()
-
-    def close(self):
-        if self.brick:
-            self.brick.stop()
-        self.sock.close()
+    r = btlink.Radio()
+    yield r
+    r.stop()
 
 
 def connect(radio, hostile=None):
-    srv = Server(radio[0], hostile)
+    srv = btlink.BrickServer(radio.brick, hostile=hostile)
     t = time.monotonic()
-    p = ctl('connect', radio[0], timeout=60)
+    p = ctl('connect', radio.brick, timeout=60)
     assert p.returncode == 0 and p.stderr == '', (p.returncode, p.stdout, p.stderr, srv.close())
     node = p.stdout.strip()
     assert node.startswith('/dev/nxt') and os.path.exists(node), node
