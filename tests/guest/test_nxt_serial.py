@@ -21,7 +21,7 @@ import time
 import pytest
 
 import nxtdev as nxt
-from conftest import loaded, module_path, wait_for
+from conftest import loaded, module_path, pid_alive, wait_for
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), '..', 'emulator'))
 import nxt_brick  # noqa: E402
@@ -89,7 +89,7 @@ def test_attach_gives_a_node_with_sysfs_and_debugfs(brick):
     info = dict(line.split(': ', 1) for line in ok(brick.ctl('info')).splitlines())
     assert info['name'] == 'BT-NXT', info
     # The sysfs attributes fill from the replies that passed, as on USB.
-    with open(os.path.join(CLASS, brick.name, 'name')) as f:
+    with open(os.path.join(CLASS, brick.name, 'brick_name')) as f:
         assert f.read().strip() == 'BT-NXT'
 
 
@@ -256,7 +256,7 @@ def test_a_full_tty_sends_the_rest_later_or_times_out():
                 break
             sent += 1
         assert err == errno.ETIMEDOUT, (sent, err)
-        assert sent > 1000, sent        # the pty took that much first
+        assert sent > 50, sent          # the pty took some first (16 KiB or so)
         nxt.set_timeout(fd, 30000)
         result = {}
         th = threading.Thread(target=lambda: result.update(err=nxt.transact(fd, tg)[0]))
@@ -281,8 +281,7 @@ def test_disconnect_lets_go():
         assert out.strip() == b.tty
         assert not os.path.exists(b.node)
         assert not os.path.exists(b.pidfile)
-        assert wait_for(lambda: not os.path.exists('/proc/%d' % pid) or
-                        open('/proc/%d/stat' % pid).read().split(')')[1].split()[0] == 'Z', 5)
+        assert wait_for(lambda: not pid_alive(pid), 5), 'the daemon is still there'
         # Nothing left to disconnect.
         p = b.ctl('disconnect')
         assert p.returncode == 3 and 'was not attached' in p.stderr, p.stderr

@@ -56,10 +56,10 @@
  * @frame_len: the frame's length (@tx_lock)
  * @frame_pos: the bytes of it the tty took (@tx_lock)
  * @tx_work: writes the rest of a frame when the tty has room again
- * @rx_lock: protects @rx, @last_rx and @rx_seen; process context only
- * @rx: the reader of the brick's frames
- * @last_rx: jiffies when the last reply came (@rx_lock)
- * @rx_seen: a reply came (@rx_lock)
+ * @rx: the reader of the brick's frames (@brick.lock, which the engine's
+ *	nxt_brick_rx() wants held anyway)
+ * @last_rx: jiffies when the last reply came (@brick.lock)
+ * @rx_seen: a reply came (@brick.lock)
  */
 struct nxt_serial {
 	struct nxt_brick brick;
@@ -71,7 +71,6 @@ struct nxt_serial {
 	unsigned int frame_len;
 	unsigned int frame_pos;
 	struct work_struct tx_work;
-	spinlock_t rx_lock;	/* see above */
 	struct nxt_bt_rx rx;
 	unsigned long last_rx;
 	bool rx_seen;
@@ -225,12 +224,12 @@ static int nxt_serial_start(struct nxt_brick *b)
 	unsigned long next = 0;
 	bool wait;
 
-	spin_lock(&s->rx_lock);
+	spin_lock_irq(&b->lock);
 	nxt_bt_rx_reset(&s->rx);
 	wait = s->rx_seen;
 	if (wait)
 		next = s->last_rx + msecs_to_jiffies(NXT_SERIAL_GAP_MS);
-	spin_unlock(&s->rx_lock);
+	spin_unlock_irq(&b->lock);
 	if (wait && time_before(jiffies, next))
 		msleep(jiffies_to_msecs(next - jiffies));
 	return 0;
@@ -239,7 +238,9 @@ static int nxt_serial_start(struct nxt_brick *b)
 /* The tty delivers bytes whether a file is open or not: drain what came. */
 static int nxt_serial_open_brick(struct nxt_brick *b)
 {
+	spin_lock_irq(&b->lock);
 	nxt_brick_rx_started(b);
+	spin_unlock_irq(&b->lock);
 	return 0;
 }
 
@@ -275,9 +276,10 @@ static void nxt_serial_receive_buf(struct tty_struct *tty, const u8 *cp,
 				   const LEGO_TTY_FLAG *fp, LEGO_TTY_COUNT count)
 {
 	struct nxt_serial *s = tty->disc_data;
-	u8 reply[NXT_TELEGRAM_MAX];
+	struct nxt_brick *b = &s->brick;
 	size_t left = count;
 
+	spin_lock_irq(&b->lock);
 	while (left) {
 		unsigned int len = 0;
 		const u8 *r;
@@ -287,27 +289,24 @@ static void nxt_serial_receive_buf(struct tty_struct *tty, const u8 *cp,
 		if (!fp || fp[0] == TTY_NORMAL)
 			while (n < left && (!fp || fp[n] == TTY_NORMAL))
 				n++;
-		spin_lock(&s->rx_lock);
 		if (fp && fp[0] != TTY_NORMAL) {
 			nxt_bt_rx_reset(&s->rx);
 			s->rx.dropped++;
 			used = 1;
 		} else {
 			used = nxt_bt_rx_feed(&s->rx, cp, n, &r, &len);
-			if (len) {
-				memcpy(reply, r, len);
-				s->last_rx = jiffies;
-				s->rx_seen = true;
-			}
 		}
-		spin_unlock(&s->rx_lock);
+		if (len) {
+			s->last_rx = jiffies;
+			s->rx_seen = true;
+			nxt_brick_rx(b, r, len);
+		}
 		cp += used;
 		if (fp)
 			fp += used;
 		left -= used;
-		if (len)
-			nxt_brick_rx(&s->brick, reply, len);
 	}
+	spin_unlock_irq(&b->lock);
 }
 
 static void nxt_serial_write_wakeup(struct tty_struct *tty)
@@ -350,7 +349,6 @@ static int nxt_serial_ldisc_open(struct tty_struct *tty)
 	s->tty = tty;
 	mutex_init(&s->tx_mutex);
 	spin_lock_init(&s->tx_lock);
-	spin_lock_init(&s->rx_lock);
 	INIT_WORK(&s->tx_work, nxt_serial_tx_work);
 	tty->disc_data = s;
 	tty->receive_room = 65536;
