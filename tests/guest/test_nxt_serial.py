@@ -13,6 +13,7 @@ transaction (ENODEV for the caller, the node gone); nxtctl disconnect.
 import errno
 import os
 import random
+import signal
 import subprocess
 import sys
 import threading
@@ -257,6 +258,21 @@ def test_a_full_tty_sends_the_rest_later_or_times_out():
             sent += 1
         assert err == errno.ETIMEDOUT, (sent, err)
         assert sent > 50, sent          # the pty took some first (16 KiB or so)
+        # A signal stops a send the tty has not taken (the transport's kill).
+        code = ('import os, signal, sys; sys.path.insert(0, %r); import nxtdev\n'
+                'signal.signal(signal.SIGUSR1, lambda *a: sys.exit(7))\n'
+                'fd = os.open(%r, os.O_RDWR); nxtdev.set_timeout(fd, 30000)\n'
+                'print("go", flush=True); nxtdev.transact(fd, %r)\n'
+                % (os.path.dirname(os.path.abspath(__file__)), b.node, tg))
+        p = subprocess.Popen([sys.executable, '-c', code], stdout=subprocess.PIPE)
+        try:
+            assert p.stdout.readline() == b'go\n'
+            time.sleep(0.5)
+            p.send_signal(signal.SIGUSR1)
+            assert p.wait(10) == 7, 'the signal did not end the send'
+        finally:
+            p.kill()
+            p.wait()
         nxt.set_timeout(fd, 30000)
         result = {}
         th = threading.Thread(target=lambda: result.update(err=nxt.transact(fd, tg)[0]))
