@@ -203,13 +203,15 @@ class SerialBrick:
             delay = self.latency + self.fw.busy
             if delay > 0:
                 time.sleep(delay)
+            # The gap runs from when the reply leaves: taken before the
+            # write, since the host may have it before this thread runs on.
+            self.last_reply = self.now()
             if self.hostile == 'lying':
                 self._write(self._lies())
             if self.hostile == 'fuzz':
                 self._write(self._fuzz(reply))
             else:
                 self._write(self._frame(reply))
-            self.last_reply = self.now()
             self.log.append(('reply', self.last_reply, reply))
         self.gone.set()
 

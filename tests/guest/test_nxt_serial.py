@@ -135,6 +135,8 @@ def worker(node, seed, n):
         tg = rng.choice([b'\x00\x0b', b'\x01\x88', b'\x00\x07' + bytes([rng.randrange(4)])])
         err, reply = nxt.transact(fd, tg)
         if err or reply[:2] != bytes([2, tg[1]]) or (tg[1] == 0x07 and reply[3] != tg[2]):
+            sys.stderr.write('worker %d: %s -> %s %s\n' % (seed, tg.hex(), errno.errorcode.get(err, err),
+                                                          reply.hex()))
             bad += 1
     os.close(fd)
     return bad
@@ -151,7 +153,9 @@ def test_raw_telegrams_from_several_processes(brick):
                 os._exit(101)
         pids.append(pid)
     codes = [os.waitstatus_to_exitcode(os.waitpid(p, 0)[1]) for p in pids]
-    assert codes == [0, 0, 0, 0], codes
+    log = brick.emu.log
+    gaps = [round(b[1] - a[1], 4) for a, b in zip(log, log[1:]) if a[0] == 'reply' and b[0] == 'cmd']
+    assert codes == [0, 0, 0, 0], (codes, brick.emu.dropped, min(gaps))
     assert sum(1 for e in brick.emu.log if e[0] == 'cmd') == 60
     assert brick.emu.dropped == []
 

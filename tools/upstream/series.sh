@@ -281,9 +281,14 @@ piece_nxt_usb() {
 	commit 7-nxt-usb.txt
 }
 
-# 8. The serial (Bluetooth) transport: a line discipline.
+# 8. The serial (Bluetooth) transport: a line discipline, with its page
+# (the pages of the drivers themselves come in 9).
 piece_nxt_serial() {
+	local dst
 	put_dir drivers/lego/nxt "$NXT" nxt_serial.c Kconfig Makefile
+	dst=$("$here/places.py" Documentation/lego/nxt-bluetooth.rst)
+	put Documentation/lego/nxt-bluetooth.rst "$dst"
+	index_add "$dst"
 	commit 8-nxt-serial.txt
 }
 
@@ -294,7 +299,7 @@ piece_nxt_serial() {
 piece_docs() {
 	local src dst
 	for src in Documentation/lego/ev3-uart.rst Documentation/lego/nxt-usb.rst \
-		Documentation/lego/nxt-bluetooth.rst Documentation/lego/tracing.rst; do
+		Documentation/lego/tracing.rst; do
 		dst=$("$here/places.py" "$src")
 		put "$src" "$dst"
 		index_add "$dst"
