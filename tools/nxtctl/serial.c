@@ -22,6 +22,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/ioctl.h>
+#include <sys/signalfd.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
 #include <termios.h>
@@ -43,14 +44,14 @@
 #define AF_BLUETOOTH	31
 #endif
 #define BTPROTO_RFCOMM	3
-#define RFCOMM_REUSE_DLC	(1 << 0)	/* the tty takes the socket's link */
-#define RFCOMM_RELEASE_ONHUP	(1 << 1)	/* gone at the tty's last close */
+#define RFCOMM_REUSE_DLC	0x1	/* the tty takes the socket's link */
+#define RFCOMM_RELEASE_ONHUP	0x2	/* gone at the tty's last close */
 #define RFCOMMCREATEDEV	_IOW('R', 200, int)
 #define NXT_RFCOMM_CHANNEL	1		/* the brick's serial port */
 
 struct bt_addr {
 	unsigned char b[6];			/* least significant byte first */
-} __attribute__((packed));
+};
 
 struct sockaddr_rc {
 	sa_family_t rc_family;
@@ -65,8 +66,6 @@ struct rfcomm_dev_req {
 	struct bt_addr dst;
 	unsigned char channel;
 };
-
-static volatile sig_atomic_t stop_signal;
 
 static const char *rundir(void)
 {
@@ -133,12 +132,12 @@ static int set_ldisc(int fd, const char *tty, unsigned int *minor)
 		int err = errno;
 
 		if (err == EINVAL)
-			fprintf(stderr, "nxtctl: %s: line discipline %d unknown: is the "
-				"lego_nxt_serial module installed (modprobe lego_nxt_serial)?\n",
+			fprintf(stderr,
+				"nxtctl: %s: line discipline %d unknown: is lego_nxt_serial installed (modprobe lego_nxt_serial)?\n",
 				tty, N_LEGONXT);
 		else if (err == EPERM)
-			fprintf(stderr, "nxtctl: %s: attaching a brick takes root "
-				"(CAP_SYS_ADMIN)\n", tty);
+			fprintf(stderr,
+				"nxtctl: %s: attaching a brick takes root (CAP_SYS_ADMIN)\n", tty);
 		else
 			return sys_error(tty, err);
 		return EXIT_DEVICE;
@@ -148,34 +147,38 @@ static int set_ldisc(int fd, const char *tty, unsigned int *minor)
 	return EXIT_OK;
 }
 
-static void on_signal(int sig)
-{
-	stop_signal = sig;
-}
-
 /*
- * The daemon: holds the tty until a signal (the brick is detached, by
- * going back to N_TTY) or until the discipline is gone (a hangup, or
- * someone else's TIOCSETD).
+ * The daemon: holds the tty until SIGTERM, SIGINT or SIGHUP (read from a
+ * signalfd; the brick is detached by going back to N_TTY) or until the
+ * discipline is gone (a hangup, or someone else's TIOCSETD).
  */
 static void hold(int fd, const char *pidfile)
 {
-	struct sigaction sa = { .sa_handler = on_signal };
+	struct pollfd p[2] = { { .fd = fd, .events = POLLIN }, { .events = POLLIN } };
 	unsigned int minor;
+	int stop = 0;
+	sigset_t set;
 
-	sigaction(SIGTERM, &sa, NULL);
-	sigaction(SIGINT, &sa, NULL);
-	sigaction(SIGHUP, &sa, NULL);
-	while (!stop_signal) {
-		struct pollfd p = { .fd = fd, .events = POLLIN };
+	sigemptyset(&set);
+	sigaddset(&set, SIGTERM);
+	sigaddset(&set, SIGINT);
+	sigaddset(&set, SIGHUP);
+	sigprocmask(SIG_BLOCK, &set, NULL);
+	p[1].fd = signalfd(-1, &set, SFD_CLOEXEC);
+	for (;;) {
+		int n = poll(p, p[1].fd >= 0 ? 2 : 1, WATCH_MS);
 
+		if (n > 0 && p[1].revents) {
+			stop = 1;
+			break;
+		}
 		/* The discipline has no poll(): a hung-up tty says POLLHUP. */
-		if (poll(&p, 1, WATCH_MS) > 0 && (p.revents & (POLLHUP | POLLERR | POLLNVAL)))
+		if (n > 0 && (p[0].revents & (POLLHUP | POLLERR | POLLNVAL)))
 			break;
 		if (ioctl(fd, NXT_IOC_TTY_MINOR, &minor))
 			break;
 	}
-	if (stop_signal) {
+	if (stop) {
 		int ld = N_TTY;
 
 		ioctl(fd, TIOCSETD, &ld);
@@ -263,8 +266,8 @@ static int rfcomm_tty(const struct bt_addr *addr, unsigned int channel,
 	s = socket(AF_BLUETOOTH, SOCK_STREAM | SOCK_CLOEXEC, BTPROTO_RFCOMM);
 	if (s < 0) {
 		if (errno == EAFNOSUPPORT || errno == EPROTONOSUPPORT)
-			fprintf(stderr, "nxtctl: no Bluetooth RFCOMM in this kernel "
-				"(modprobe rfcomm)\n");
+			fputs("nxtctl: no Bluetooth RFCOMM in this kernel (modprobe rfcomm)\n",
+			      stderr);
 		else
 			sys_error("Bluetooth socket", errno);
 		return -1;
@@ -310,8 +313,9 @@ int cmd_connect(int argc, char **argv)
 	if (ret)
 		return ret;
 	if (parse_bdaddr(pos[0], &addr))
-		return usage_error("connect", "connect: '%s' is not a Bluetooth address "
-				   "(AA:BB:CC:DD:EE:FF)", pos[0]);
+		return usage_error("connect",
+				   "connect: '%s' is not a Bluetooth address (AA:BB:CC:DD:EE:FF)",
+				   pos[0]);
 	if (opts[1].set) {
 		channel = strtoul(opts[1].arg, &end, 10);
 		if (*end || channel < 1 || channel > 30)
@@ -346,8 +350,9 @@ int cmd_disconnect(int argc, char **argv)
 	snprintf(pidfile, sizeof(pidfile), "%s/%s", rundir(), name);
 	f = fopen(pidfile, "r");
 	if (!f) {
-		fprintf(stderr, "nxtctl: %s was not attached by nxtctl connect or attach "
-			"(no %s); a USB brick goes with nxtctl release\n", node, pidfile);
+		fprintf(stderr,
+			"nxtctl: %s was not attached by nxtctl connect or attach (no %s); a USB brick goes with nxtctl release\n",
+			node, pidfile);
 		return EXIT_DEVICE;
 	}
 	n = fscanf(f, "%ld %127s", &pid, tty);
