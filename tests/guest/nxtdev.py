@@ -331,6 +331,25 @@ def uapi_layout():
     return {k: int(v) for k, v in (line.split() for line in out.splitlines())}
 
 
+NXTCTL = os.path.join(os.environ.get('LEGO_BUILD', ''), 'tools', 'nxtctl')
+# Where nxtctl connect's and attach's daemons leave their files in the tests.
+NXTCTL_RUNDIR = '/tmp/nxtctl-run'
+
+
+def nxtctl(*args, text=True, timeout=120):
+    """Run the nxtctl tests/build-modules.sh built: CompletedProcess."""
+    assert os.access(NXTCTL, os.X_OK), 'nxtctl not built: ' + NXTCTL
+    env = dict(os.environ, NXTCTL_RUNDIR=NXTCTL_RUNDIR)
+    return subprocess.run([NXTCTL] + [str(a) for a in args], capture_output=True,
+                          text=text, timeout=timeout, env=env)
+
+
+def nxtctl_ok(p):
+    """The output of an nxtctl run that must have succeeded."""
+    assert p.returncode == 0, (p.args, p.returncode, p.stdout, p.stderr)
+    return p.stdout
+
+
 def load_driver():
     from conftest import module_path
     for name in ('lego_nxt', 'lego_nxt_usb'):

@@ -25,19 +25,11 @@ import nxtdev as nxt
 from conftest import loaded, module_path, wait_for
 
 TOOLS_PYTHON = os.path.join(nxt.TOP, 'tools', 'python')
-NXTCTL = os.path.join(os.environ.get('LEGO_BUILD', ''), 'tools', 'nxtctl')
-RUNDIR = '/tmp/nxtctl-run'
+RUNDIR = nxt.NXTCTL_RUNDIR
 
 
-def ctl(*args, text=True, timeout=120):
-    env = dict(os.environ, NXTCTL_RUNDIR=RUNDIR)
-    return subprocess.run([NXTCTL] + [str(a) for a in args], capture_output=True,
-                          text=text, timeout=timeout, env=env)
-
-
-def ok(p):
-    assert p.returncode == 0, (p.args, p.returncode, p.stdout, p.stderr)
-    return p.stdout
+ctl = nxt.nxtctl
+ok = nxt.nxtctl_ok
 
 
 @pytest.fixture(scope='module')

@@ -28,8 +28,7 @@ sys.path.insert(0, os.path.join(os.path.dirname(__file__), '..', 'emulator'))
 import nxt_brick  # noqa: E402
 import nxt_serial_brick as sb  # noqa: E402
 
-NXTCTL = os.path.join(os.environ.get('LEGO_BUILD', ''), 'tools', 'nxtctl')
-RUNDIR = '/tmp/nxtctl-run'
+RUNDIR = nxt.NXTCTL_RUNDIR
 CLASS = '/sys/class/lego-nxt'
 GAP = 0.030
 
@@ -60,16 +59,8 @@ class Attached:
         assert wait_for(lambda: not os.path.exists(self.node), 5), self.node + ' outlived its link'
 
 
-def ctl(*args, text=True, timeout=120):
-    assert os.access(NXTCTL, os.X_OK), 'nxtctl not built: ' + NXTCTL
-    env = dict(os.environ, NXTCTL_RUNDIR=RUNDIR)
-    return subprocess.run([NXTCTL] + [str(a) for a in args], capture_output=True,
-                          text=text, timeout=timeout, env=env)
-
-
-def ok(p):
-    assert p.returncode == 0, (p.args, p.returncode, p.stdout, p.stderr)
-    return p.stdout
+ctl = nxt.nxtctl
+ok = nxt.nxtctl_ok
 
 
 @pytest.fixture

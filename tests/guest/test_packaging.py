@@ -167,38 +167,33 @@ def kernel_modprobe(installed):
     yield log
 
 
-def test_ldisc_29_loads_lego_ev3_uart(kernel_modprobe):
-    assert not loaded('lego_ev3_uart')
+def ldisc_loads(log, number, module, also=()):
+    """TIOCSETD `number` on a pty makes the kernel load `module` (and
+    `also`) through modprobe's alias tty-ldisc-N; the modules go after."""
     master, slave = os.openpty()
     try:
-        fcntl.ioctl(slave, TIOCSETD, N_LEGOEV3.to_bytes(4, 'little'))
-        assert loaded('lego_ev3_uart'), 'TIOCSETD 29 did not load lego_ev3_uart'
+        fcntl.ioctl(slave, TIOCSETD, number.to_bytes(4, 'little'))
+        for m in (module,) + also:
+            assert loaded(m), 'TIOCSETD %d did not load %s' % (number, m)
         fcntl.ioctl(slave, TIOCSETD, (0).to_bytes(4, 'little'))    # back to N_TTY
     finally:
         os.close(slave)
         os.close(master)
-    with open(kernel_modprobe) as f:
+    with open(log) as f:
         calls = f.read()
-    assert 'tty-ldisc-29' in calls, calls
-    run(['rmmod', 'lego_ev3_uart'])
+    assert 'tty-ldisc-%d' % number in calls, calls
+    run(['rmmod', module] + list(also))
+
+
+def test_ldisc_29_loads_lego_ev3_uart(kernel_modprobe):
+    assert not loaded('lego_ev3_uart')
+    ldisc_loads(kernel_modprobe, N_LEGOEV3, 'lego_ev3_uart')
 
 
 def test_ldisc_8_loads_lego_nxt_serial(kernel_modprobe):
     """N_LEGONXT: the NXT's serial transport, with the core it uses."""
     unload('lego_nxt_serial', 'lego_nxt_usb', 'lego_nxt')
-    master, slave = os.openpty()
-    try:
-        fcntl.ioctl(slave, TIOCSETD, N_LEGONXT.to_bytes(4, 'little'))
-        assert loaded('lego_nxt_serial'), 'TIOCSETD 8 did not load lego_nxt_serial'
-        assert loaded('lego_nxt')
-        fcntl.ioctl(slave, TIOCSETD, (0).to_bytes(4, 'little'))    # back to N_TTY
-    finally:
-        os.close(slave)
-        os.close(master)
-    with open(kernel_modprobe) as f:
-        calls = f.read()
-    assert 'tty-ldisc-8' in calls, calls
-    run(['rmmod', 'lego_nxt_serial', 'lego_nxt'])
+    ldisc_loads(kernel_modprobe, N_LEGONXT, 'lego_nxt_serial', ('lego_nxt',))
 
 
 @pytest.fixture
