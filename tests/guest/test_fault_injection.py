@@ -7,8 +7,9 @@ N = 1, 2, ... until the operation completes without a failure injected
 - EV3: loading lego_ev3_uart, attaching the discipline to a null-modem
   tty, and a sensor's registration after its handshake (class device and
   IIO device);
-- NXT: loading lego_nxt_usb, the probe of an emulated brick, and an open of
-  /dev/nxtN with one transaction.
+- NXT: loading the core lego_nxt and lego_nxt_usb, the probe of an
+  emulated brick, an open of /dev/nxtN with one transaction, and attaching
+  lego_nxt_serial to a pty.
 
 Only slab allocations can fail (the test kernel has CONFIG_FAILSLAB, no
 FAIL_PAGE_ALLOC), and only those made with our code on the stack:
@@ -67,7 +68,9 @@ FAILSLAB = DEBUGFS + '/failslab'
 KMEMLEAK = DEBUGFS + '/kmemleak'
 EV3 = 'lego_ev3_uart'
 NXT = 'lego_nxt_usb'
-N_TTY, N_LEGOEV3 = 0, 29
+NXT_CORE = 'lego_nxt'
+NXT_SERIAL = 'lego_nxt_serial'
+N_TTY, N_LEGOEV3, N_LEGONXT = 0, 29, 8
 SERIAL = '0016530FA017'
 VERSIONS_REPLY = b'\x02\x88\x00\x7c\x01\x1d\x01'     # firmware 1.29
 
@@ -634,6 +637,60 @@ def test_ev3_attach(fault_setup, fail_nth, kmsg, record_property):
         os.close(fd)
 
 
+def test_nxt_serial_attach(fault_setup, fail_nth, kmsg, record_property):
+    """TIOCSETD N_LEGONXT (a brick on a pty) with the Nth allocation under
+    the discipline's open() failing: ENOMEM, the tty back on N_TTY and no
+    node, or attached without its debugfs counters; then attached again
+    and detached as usual."""
+    fs = fault_setup
+    for m in (NXT_CORE, NXT_SERIAL):
+        load(m)
+    fs.require(*module_text(NXT_SERIAL))
+    master, slave = os.openpty()
+    counters = DEBUGFS + '/lego_nxt/pts%s/counters' % os.ttyname(slave).rsplit('/', 1)[1]
+    sweep = Sweep('NXT serial attach', kmsg, record_property)
+
+    def nodes():
+        return glob.glob('/sys/class/lego-nxt/nxt*')
+    before = nodes()
+    try:
+        def attempt(n, note):
+            fail_nth.arm(n)
+            try:
+                tiocsetd(slave, N_LEGONXT)
+                err = 0
+            except OSError as e:
+                err = e.errno
+            injected = fail_nth.disarm()
+            if err:
+                assert injected, 'TIOCSETD failed with nothing injected: %s' % \
+                    errno.errorcode[err]
+                assert err == errno.ENOMEM, 'N=%d: TIOCSETD: %s' % (n, errno.errorcode[err])
+                assert tiocgetd(slave) == N_TTY
+                assert nodes() == before, 'N=%d: a node was left' % n
+                note('TIOCSETD failed with ENOMEM')
+            else:
+                assert tiocgetd(slave) == N_LEGONXT
+                assert len(nodes()) == len(before) + 1
+                if injected:
+                    note('attached, the failure absorbed by the kernel'
+                         if os.path.exists(counters) else 'attached without debugfs counters')
+                else:
+                    assert os.path.exists(counters)
+                tiocsetd(slave, N_TTY)
+            if not injected:
+                return False
+            tiocsetd(slave, N_LEGONXT)
+            assert os.path.exists(counters), 'N=%d: no counters after the failure' % n
+            tiocsetd(slave, N_TTY)
+            assert not os.path.exists(counters) and nodes() == before
+            return True
+        sweep.run(attempt)
+    finally:
+        os.close(slave)
+        os.close(master)
+
+
 # A Powered Up device as small as they come: one mode of one value with an
 # IIO type (cm: IIO_DISTANCE), which syncs fast (its handshake at 115200
 # baud, a few milliseconds) and stays at 115200.
@@ -793,6 +850,48 @@ def test_ev3_sensor_registration(fault_setup, kmsg, record_property):
 
 
 # ---- NXT ------------------------------------------------------------------
+
+def test_nxt_core_module_load(fault_setup, fail_nth, kmsg, record_property):
+    """insmod lego_nxt (the NXT core: its char device region, the class
+    lego-nxt, debugfs) with the Nth allocation of its init failing: insmod
+    fails with ENOMEM and leaves nothing (the next insmod works), or only
+    the debugfs directory is missing."""
+    fs = fault_setup
+    for m in (NXT_SERIAL, NXT, NXT_CORE):
+        if loaded(m):
+            assert delete_module(m) == 0, 'rmmod ' + m
+    fs.require(*symbol_range('do_one_initcall'))
+    sweep = Sweep('lego_nxt load', kmsg, record_property)
+    fd = module_fd(NXT_CORE)
+
+    def attempt(n, note):
+        fail_nth.arm(n)
+        err = finit_module(fd)
+        injected = fail_nth.disarm()
+        if not injected:
+            assert err == 0, 'insmod failed with nothing injected: %s' % errno.errorcode[err]
+            return False
+        if err:
+            assert err == errno.ENOMEM, 'N=%d: insmod: %s' % (n, errno.errorcode.get(err, err))
+            assert not loaded(NXT_CORE) and not os.path.isdir('/sys/class/lego-nxt')
+            note('insmod failed with ENOMEM')
+        else:
+            if os.path.isdir(DEBUGFS + '/' + NXT_CORE):
+                note('loaded, the failure absorbed by the kernel')
+            else:
+                note('loaded without debugfs')
+            assert delete_module(NXT_CORE) == 0
+        assert finit_module(fd) == 0, 'N=%d: insmod fails after the failure' % n
+        assert os.path.isdir('/sys/class/lego-nxt')
+        assert os.path.isdir(DEBUGFS + '/' + NXT_CORE)
+        assert delete_module(NXT_CORE) == 0, 'N=%d: rmmod after the failure' % n
+        return True
+    try:
+        sweep.run(attempt)
+    finally:
+        for m in (NXT_CORE, NXT, NXT_SERIAL):
+            load(m)
+
 
 def test_nxt_module_load(fault_setup, fail_nth, kmsg, record_property):
     """insmod lego_nxt_usb with the Nth allocation of its init failing
