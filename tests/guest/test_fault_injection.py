@@ -492,7 +492,7 @@ def ours(block):
 @pytest.fixture(scope='module', autouse=True)
 def fault_setup():
     """failslab set up (and put back at the end); kmemleak's earlier reports
-    put aside. At the end, with every sweep done and the brick gone: both
+    put aside. At the end, with every sweep done and the brick gone: the
     modules unload and load again, and kmemleak finds nothing of ours."""
     assert os.path.isdir(FAILSLAB), 'no failslab in the test kernel (CONFIG_FAILSLAB, ' \
         'CONFIG_FAULT_INJECTION_DEBUG_FS: tests/kernel/test.config)'
@@ -504,9 +504,11 @@ def fault_setup():
     finally:
         fs.restore()
         _write('/proc/thread-self/make-it-fail', 0)
-    for name in (EV3, NXT):
+    order = (EV3, NXT_CORE, NXT, NXT_SERIAL)
+    for name in reversed(order):
         if loaded(name):
             assert delete_module(name) == 0, '%s does not unload' % name
+    for name in order:
         assert finit_module(module_fd(name)) == 0, '%s does not load again' % name
     # kmemleak reports objects 5 s old and older. A scan takes 10 to 15 s
     # under TCG: no scan (and clear) before the sweeps, so a leak of our
