@@ -1,6 +1,7 @@
-"""The systemd unit of lego-ev3-attach (tools/systemd/lego-ev3-sensor@.service),
-on the host: its keys, and `systemd-analyze verify` of an instance with the
-tool built from this checkout (no systemd needs to run; in the emulated
+"""The systemd units of lego-ev3-attach (tools/systemd/lego-ev3-sensor@.service)
+and of nxtctl connect (lego-nxt-bluetooth@.service), on the host: their
+keys, and `systemd-analyze verify` of an instance with the tool built from
+this checkout (no systemd needs to run; in the emulated
 guest the check took twenty seconds).
 
   python3 -m pytest -v tests/packaging/test_systemd_unit.py
@@ -14,12 +15,13 @@ import pytest
 
 TOP = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
 UNIT = os.path.join(TOP, 'tools/systemd/lego-ev3-sensor@.service')
+NXT_UNIT = os.path.join(TOP, 'tools/systemd/lego-nxt-bluetooth@.service')
 
 
-def unit_keys():
+def unit_keys(unit=UNIT):
     keys = {}
     section = None
-    for line in open(UNIT):
+    for line in open(unit):
         line = line.strip()
         if not line or line.startswith('#'):
             continue
@@ -66,3 +68,37 @@ def test_unit_verifies(tmp_path):
     assert r.returncode == 0, r.stderr
     # Unknown keys and bad values are only warnings: there must be none.
     assert not re.search(r'lego-ev3-sensor@\.service:\d+', r.stderr), r.stderr
+
+
+def test_nxt_unit_keys():
+    k = unit_keys(NXT_UNIT)
+    assert k[('Service', 'Type')] == ['simple']
+    assert k[('Service', 'ExecStart')] == ['nxtctl connect --foreground %I']
+    assert k[('Service', 'Restart')] == ['always']
+    assert k[('Service', 'CapabilityBoundingSet')] == ['CAP_SYS_ADMIN']
+    # nxtctl's daemon files (/run/nxtctl), shared by the instances.
+    assert k[('Service', 'RuntimeDirectory')] == ['nxtctl']
+    assert k[('Service', 'RuntimeDirectoryPreserve')] == ['yes']
+    assert k[('Install', 'WantedBy')] == ['multi-user.target']
+
+
+def test_nxt_unit_verifies(tmp_path):
+    sa = shutil.which('systemd-analyze')
+    if not sa:
+        pytest.skip('systemd-analyze not installed')
+    r = subprocess.run(['make', '-s', '-C', os.path.join(TOP, 'tools/nxtctl'),
+                        'O=%s' % (tmp_path / 'bin')], capture_output=True, text=True)
+    assert r.returncode == 0, r.stdout + r.stderr
+    tool = tmp_path / 'bin' / 'nxtctl'
+    assert os.access(tool, os.X_OK)
+    text, n = re.subn(r'^ExecStart=nxtctl ', 'ExecStart=%s ' % tool, open(NXT_UNIT).read(),
+                      flags=re.M)
+    assert n == 1
+    (tmp_path / 'lego-nxt-bluetooth@.service').write_text(text)
+    # (An address as the instance, as users name it, reads as verify's
+    # FILE:ALIAS syntax here; the instance's value does not matter.)
+    inst = tmp_path / 'lego-nxt-bluetooth@brick.service'
+    r = subprocess.run([sa, 'verify', '--man=no', str(inst)], capture_output=True, text=True,
+                       timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert not re.search(r'lego-nxt-bluetooth@\.service:\d+', r.stderr), r.stderr
