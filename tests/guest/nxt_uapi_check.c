@@ -22,5 +22,6 @@ int main(void)
 	IOCTL(TRANSACT);
 	IOCTL(SET_TIMEOUT);
 	IOCTL(GET_TIMEOUT);
+	IOCTL(TTY_MINOR);
 	return 0;
 }

@@ -147,6 +147,8 @@ def ioctl_number(name):
         return _ioc(_IOC_WRITE, 0x01, 4)
     if name == 'GET_TIMEOUT':
         return _ioc(_IOC_READ, 0x02, 4)
+    if name == 'TTY_MINOR':          # of the tty with N_LEGONXT, not /dev/nxtN
+        return _ioc(_IOC_READ, 0x03, 4)
     raise KeyError(name)
 
 

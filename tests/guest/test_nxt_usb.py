@@ -52,7 +52,7 @@ def test_uapi_layout_matches_the_header():
     assert c.pop('transaction') == nxt.struct_size('transaction') == 136
     assert (c.pop('transaction.reply'), c.pop('transaction.length'),
             c.pop('transaction.reply_length')) == (64, 128, 132)
-    for name in ('TRANSACT', 'SET_TIMEOUT', 'GET_TIMEOUT'):
+    for name in ('TRANSACT', 'SET_TIMEOUT', 'GET_TIMEOUT', 'TTY_MINOR'):
         assert c.pop(name) == nxt.ioctl_number(name), name
     # Telegrams only: nothing typed is left in the header.
     assert not c, c
@@ -891,7 +891,8 @@ def header_ioctls():
 
 
 # The ioctls that send nothing to the brick; every other one sends a telegram.
-NO_TELEGRAM = {'SET_TIMEOUT', 'GET_TIMEOUT'}
+# TTY_MINOR is the serial discipline's, asked of its tty: ENOTTY here.
+NO_TELEGRAM = {'SET_TIMEOUT', 'GET_TIMEOUT', 'TTY_MINOR'}
 
 # Telegrams that a file opened for writing would send: EBADF, not EINVAL,
 # must stop them on a read-only one.
@@ -948,6 +949,8 @@ def test_read_only_file_cannot_make_the_brick_act():
             assert b.fw.files == files and b.fw.motors[2].power == 0
             # The timeouts send nothing, and stay the file's own.
             assert nxt.set_timeout(ro, 300) == 0 and nxt.get_timeout(ro) == 300
+            _, err, _ = nxt.raw_ioctl(ro, nxt.ioctl_number('TTY_MINOR'), bytes(4))
+            assert err == errno.ENOTTY, 'NXT_IOC_TTY_MINOR on /dev/nxtN: %s' % err
         finally:
             os.close(ro)
         # The same arguments are fine on a file opened for writing.
