@@ -593,101 +593,71 @@ def tiocsetd(fd, ldisc):
     fcntl.ioctl(fd, termios.TIOCSETD, struct.pack('i', ldisc))
 
 
+def attach_sweep(sweep, fail_nth, fd, ldisc, counters, attached=lambda: True):
+    """TIOCSETD `ldisc` on `fd` with the Nth allocation failing: ENOMEM and
+    the tty back on N_TTY, or attached without its debugfs `counters`; then
+    attached again and detached as usual. `attached()` says whether what
+    the discipline makes is there (checked both ways)."""
+    def attempt(n, note):
+        fail_nth.arm(n)
+        try:
+            tiocsetd(fd, ldisc)
+            err = 0
+        except OSError as e:
+            err = e.errno
+        injected = fail_nth.disarm()
+        if err:
+            assert injected, 'TIOCSETD failed with nothing injected: %s' % errno.errorcode[err]
+            assert err == errno.ENOMEM, 'N=%d: TIOCSETD: %s' % (n, errno.errorcode[err])
+            assert tiocgetd(fd) == N_TTY
+            assert not attached(), 'N=%d: the failed attach left its device' % n
+            note('TIOCSETD failed with ENOMEM')
+        else:
+            assert tiocgetd(fd) == ldisc and attached()
+            if injected:
+                note('attached, the failure absorbed by the kernel'
+                     if os.path.exists(counters) else 'attached without debugfs counters')
+            else:
+                assert os.path.exists(counters)
+            tiocsetd(fd, N_TTY)
+        if not injected:
+            return False
+        tiocsetd(fd, ldisc)
+        assert os.path.exists(counters), 'N=%d: no counters after the failure' % n
+        tiocsetd(fd, N_TTY)
+        assert not os.path.exists(counters) and not attached()
+        return True
+    sweep.run(attempt)
+
+
 def test_ev3_attach(fault_setup, fail_nth, kmsg, record_property):
-    """TIOCSETD N_LEGOEV3 with the Nth allocation under the discipline's
-    open() failing: ENOMEM and the tty back on N_TTY, or attached without
-    its debugfs counters; then attached again and detached as usual."""
+    """TIOCSETD N_LEGOEV3 on a null-modem tty (attach_sweep())."""
     fs = fault_setup
     load(EV3)
     ev3.load_nullmodem()
     fs.require(*module_text(EV3))
-    counters = DEBUGFS + '/lego_ev3_uart/ttyNM0/counters'
-    sweep = Sweep('EV3 attach', kmsg, record_property)
     fd = os.open('/dev/ttyNM0', os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
     try:
-        def attempt(n, note):
-            fail_nth.arm(n)
-            try:
-                tiocsetd(fd, N_LEGOEV3)
-                err = 0
-            except OSError as e:
-                err = e.errno
-            injected = fail_nth.disarm()
-            if err:
-                assert injected, 'TIOCSETD failed with nothing injected: %s' % \
-                    errno.errorcode[err]
-                assert err == errno.ENOMEM, 'N=%d: TIOCSETD: %s' % (n, errno.errorcode[err])
-                assert tiocgetd(fd) == N_TTY
-                note('TIOCSETD failed with ENOMEM')
-            else:
-                assert tiocgetd(fd) == N_LEGOEV3
-                if injected:
-                    note('attached, the failure absorbed by the kernel'
-                         if os.path.exists(counters) else 'attached without debugfs counters')
-                else:
-                    assert os.path.exists(counters)
-                tiocsetd(fd, N_TTY)
-            if not injected:
-                return False
-            tiocsetd(fd, N_LEGOEV3)
-            assert os.path.exists(counters), 'N=%d: no counters after the failure' % n
-            tiocsetd(fd, N_TTY)
-            assert not os.path.exists(counters)
-            return True
-        sweep.run(attempt)
+        attach_sweep(Sweep('EV3 attach', kmsg, record_property), fail_nth, fd, N_LEGOEV3,
+                     DEBUGFS + '/lego_ev3_uart/ttyNM0/counters')
     finally:
         os.close(fd)
 
 
 def test_nxt_serial_attach(fault_setup, fail_nth, kmsg, record_property):
-    """TIOCSETD N_LEGONXT (a brick on a pty) with the Nth allocation under
-    the discipline's open() failing: ENOMEM, the tty back on N_TTY and no
-    node, or attached without its debugfs counters; then attached again
-    and detached as usual."""
+    """TIOCSETD N_LEGONXT, a brick on a pty (attach_sweep()): a failed attach
+    leaves no node."""
     fs = fault_setup
     for m in (NXT_CORE, NXT_SERIAL):
         load(m)
     fs.require(*module_text(NXT_SERIAL))
     master, slave = os.openpty()
-    counters = DEBUGFS + '/lego_nxt/pts%s/counters' % os.ttyname(slave).rsplit('/', 1)[1]
-    sweep = Sweep('NXT serial attach', kmsg, record_property)
-
-    def nodes():
-        return glob.glob('/sys/class/lego-nxt/nxt*')
-    before = nodes()
+    before = len(glob.glob('/sys/class/lego-nxt/nxt*'))
     try:
-        def attempt(n, note):
-            fail_nth.arm(n)
-            try:
-                tiocsetd(slave, N_LEGONXT)
-                err = 0
-            except OSError as e:
-                err = e.errno
-            injected = fail_nth.disarm()
-            if err:
-                assert injected, 'TIOCSETD failed with nothing injected: %s' % \
-                    errno.errorcode[err]
-                assert err == errno.ENOMEM, 'N=%d: TIOCSETD: %s' % (n, errno.errorcode[err])
-                assert tiocgetd(slave) == N_TTY
-                assert nodes() == before, 'N=%d: a node was left' % n
-                note('TIOCSETD failed with ENOMEM')
-            else:
-                assert tiocgetd(slave) == N_LEGONXT
-                assert len(nodes()) == len(before) + 1
-                if injected:
-                    note('attached, the failure absorbed by the kernel'
-                         if os.path.exists(counters) else 'attached without debugfs counters')
-                else:
-                    assert os.path.exists(counters)
-                tiocsetd(slave, N_TTY)
-            if not injected:
-                return False
-            tiocsetd(slave, N_LEGONXT)
-            assert os.path.exists(counters), 'N=%d: no counters after the failure' % n
-            tiocsetd(slave, N_TTY)
-            assert not os.path.exists(counters) and nodes() == before
-            return True
-        sweep.run(attempt)
+        attach_sweep(Sweep('NXT serial attach', kmsg, record_property), fail_nth, slave,
+                     N_LEGONXT,
+                     DEBUGFS + '/lego_nxt/pts%s/counters' % os.ttyname(slave).rsplit('/', 1)[1],
+                     lambda: len(glob.glob('/sys/class/lego-nxt/nxt*')) == before + 1)
     finally:
         os.close(slave)
         os.close(master)

@@ -48,26 +48,33 @@ def test_unit_keys():
     assert k[('Install', 'WantedBy')] == ['multi-user.target']
 
 
-def test_unit_verifies(tmp_path):
+def verify(unit, tool_dir, tool, instance, tmp_path):
+    """`systemd-analyze verify` of an instance of `unit`, whose ExecStart
+    names `tool` bare (systemd's fixed search path), pointed at the one
+    built from tools/`tool_dir` (not installed here): no error, no warning
+    about the unit's lines (unknown keys and bad values are only warnings)."""
     sa = shutil.which('systemd-analyze')
     if not sa:
         pytest.skip('systemd-analyze not installed')
-    r = subprocess.run(['make', '-s', '-C', os.path.join(TOP, 'tools/ev3-attach'),
+    r = subprocess.run(['make', '-s', '-C', os.path.join(TOP, 'tools', tool_dir),
                         'O=%s' % (tmp_path / 'bin')], capture_output=True, text=True)
     assert r.returncode == 0, r.stdout + r.stderr
-    tool = tmp_path / 'bin' / 'lego-ev3-attach'
-    assert os.access(tool, os.X_OK)
-    # ExecStart names the program bare (systemd's fixed search path): point
-    # it at the built one, which is not installed here.
-    text = open(UNIT).read()
-    text, n = re.subn(r'^ExecStart=lego-ev3-attach ', 'ExecStart=%s ' % tool, text, flags=re.M)
+    built = tmp_path / 'bin' / tool
+    assert os.access(built, os.X_OK)
+    name = os.path.basename(unit)
+    text, n = re.subn(r'^ExecStart=%s ' % re.escape(tool), 'ExecStart=%s ' % built,
+                      open(unit).read(), flags=re.M)
     assert n == 1
-    (tmp_path / 'lego-ev3-sensor@.service').write_text(text)
-    r = subprocess.run([sa, 'verify', '--man=no', str(tmp_path / 'lego-ev3-sensor@ttyS1.service')],
-                       capture_output=True, text=True, timeout=120)
+    (tmp_path / name).write_text(text)
+    inst = tmp_path / name.replace('@.', '@%s.' % instance)
+    r = subprocess.run([sa, 'verify', '--man=no', str(inst)], capture_output=True, text=True,
+                       timeout=120)
     assert r.returncode == 0, r.stderr
-    # Unknown keys and bad values are only warnings: there must be none.
-    assert not re.search(r'lego-ev3-sensor@\.service:\d+', r.stderr), r.stderr
+    assert not re.search(r'%s:\d+' % re.escape(name), r.stderr), r.stderr
+
+
+def test_unit_verifies(tmp_path):
+    verify(UNIT, 'ev3-attach', 'lego-ev3-attach', 'ttyS1', tmp_path)
 
 
 def test_nxt_unit_keys():
@@ -83,22 +90,6 @@ def test_nxt_unit_keys():
 
 
 def test_nxt_unit_verifies(tmp_path):
-    sa = shutil.which('systemd-analyze')
-    if not sa:
-        pytest.skip('systemd-analyze not installed')
-    r = subprocess.run(['make', '-s', '-C', os.path.join(TOP, 'tools/nxtctl'),
-                        'O=%s' % (tmp_path / 'bin')], capture_output=True, text=True)
-    assert r.returncode == 0, r.stdout + r.stderr
-    tool = tmp_path / 'bin' / 'nxtctl'
-    assert os.access(tool, os.X_OK)
-    text, n = re.subn(r'^ExecStart=nxtctl ', 'ExecStart=%s ' % tool, open(NXT_UNIT).read(),
-                      flags=re.M)
-    assert n == 1
-    (tmp_path / 'lego-nxt-bluetooth@.service').write_text(text)
     # (An address as the instance, as users name it, reads as verify's
     # FILE:ALIAS syntax here; the instance's value does not matter.)
-    inst = tmp_path / 'lego-nxt-bluetooth@brick.service'
-    r = subprocess.run([sa, 'verify', '--man=no', str(inst)], capture_output=True, text=True,
-                       timeout=120)
-    assert r.returncode == 0, r.stderr
-    assert not re.search(r'lego-nxt-bluetooth@\.service:\d+', r.stderr), r.stderr
+    verify(NXT_UNIT, 'nxtctl', 'nxtctl', 'brick', tmp_path)
