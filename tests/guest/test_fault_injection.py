@@ -593,11 +593,17 @@ def tiocsetd(fd, ldisc):
     fcntl.ioctl(fd, termios.TIOCSETD, struct.pack('i', ldisc))
 
 
-def attach_sweep(sweep, fail_nth, fd, ldisc, counters, attached=lambda: True):
+def attach_sweep(sweep, fail_nth, fd, ldisc, counters, attached=None):
     """TIOCSETD `ldisc` on `fd` with the Nth allocation failing: ENOMEM and
     the tty back on N_TTY, or attached without its debugfs `counters`; then
-    attached again and detached as usual. `attached()` says whether what
-    the discipline makes is there (checked both ways)."""
+    attached again and detached as usual. `attached()`, if given, says
+    whether what the discipline makes is there (checked both ways)."""
+    def made():
+        return attached is None or attached()
+
+    def gone():
+        return attached is None or not attached()
+
     def attempt(n, note):
         fail_nth.arm(n)
         try:
@@ -610,10 +616,10 @@ def attach_sweep(sweep, fail_nth, fd, ldisc, counters, attached=lambda: True):
             assert injected, 'TIOCSETD failed with nothing injected: %s' % errno.errorcode[err]
             assert err == errno.ENOMEM, 'N=%d: TIOCSETD: %s' % (n, errno.errorcode[err])
             assert tiocgetd(fd) == N_TTY
-            assert not attached(), 'N=%d: the failed attach left its device' % n
+            assert gone(), 'N=%d: the failed attach left its device' % n
             note('TIOCSETD failed with ENOMEM')
         else:
-            assert tiocgetd(fd) == ldisc and attached()
+            assert tiocgetd(fd) == ldisc and made()
             if injected:
                 note('attached, the failure absorbed by the kernel'
                      if os.path.exists(counters) else 'attached without debugfs counters')
@@ -625,7 +631,7 @@ def attach_sweep(sweep, fail_nth, fd, ldisc, counters, attached=lambda: True):
         tiocsetd(fd, ldisc)
         assert os.path.exists(counters), 'N=%d: no counters after the failure' % n
         tiocsetd(fd, N_TTY)
-        assert not os.path.exists(counters) and not attached()
+        assert not os.path.exists(counters) and gone()
         return True
     sweep.run(attempt)
 
