@@ -82,20 +82,20 @@ static struct nxt_serial *to_nxt_serial(struct nxt_brick *b)
 }
 
 /*
- * Takes the send of @x out of @s: returns @x if it was still going out, so
- * that the caller tells the engine (once, and without @tx_lock).
+ * Ends the send going out, if any, with @err: the engine is told once,
+ * without @tx_lock. Any context.
  */
-static struct nxt_xfer *nxt_serial_take(struct nxt_serial *s, struct nxt_xfer *x)
+static void nxt_serial_end(struct nxt_serial *s, int err)
 {
+	struct nxt_xfer *x;
 	unsigned long flags;
 
 	spin_lock_irqsave(&s->tx_lock, flags);
-	if (s->tx_x != x || !x)
-		x = NULL;
-	else
-		s->tx_x = NULL;
+	x = s->tx_x;
+	s->tx_x = NULL;
 	spin_unlock_irqrestore(&s->tx_lock, flags);
-	return x;
+	if (x)
+		nxt_brick_sent(&s->brick, x, err);
 }
 
 /*
@@ -119,9 +119,7 @@ static void nxt_serial_write(struct nxt_serial *s)
 	if (!x)
 		return;
 	if (!tty) {
-		done = nxt_serial_take(s, x);
-		if (done)
-			nxt_brick_sent(&s->brick, done, -ENODEV);
+		nxt_serial_end(s, -ENODEV);
 		return;
 	}
 
@@ -196,16 +194,7 @@ static void *nxt_serial_send(struct nxt_brick *b, struct nxt_xfer *x)
  */
 static void nxt_serial_unlink(void *handle)
 {
-	struct nxt_serial *s = handle;
-	struct nxt_xfer *x;
-	unsigned long flags;
-
-	spin_lock_irqsave(&s->tx_lock, flags);
-	x = s->tx_x;
-	spin_unlock_irqrestore(&s->tx_lock, flags);
-	x = nxt_serial_take(s, x);
-	if (x)
-		nxt_brick_sent(&s->brick, x, -EINTR);
+	nxt_serial_end(handle, -EINTR);
 }
 
 static void nxt_serial_kill(void *handle)
@@ -378,7 +367,6 @@ static int nxt_serial_ldisc_open(struct tty_struct *tty)
 static void nxt_serial_ldisc_close(struct tty_struct *tty)
 {
 	struct nxt_serial *s = tty->disc_data;
-	struct nxt_xfer *x;
 
 	/* No new opens; then no new sends; then none going out. */
 	nxt_node_remove(&s->brick);
@@ -389,9 +377,7 @@ static void nxt_serial_ldisc_close(struct tty_struct *tty)
 	mutex_unlock(&s->tx_mutex);
 	mutex_unlock(&s->brick.tx_lock);
 	cancel_work_sync(&s->tx_work);
-	x = nxt_serial_take(s, READ_ONCE(s->tx_x));
-	if (x)
-		nxt_brick_sent(&s->brick, x, -ENODEV);
+	nxt_serial_end(s, -ENODEV);
 	clear_bit(TTY_DO_WRITE_WAKEUP, &tty->flags);
 	nxt_brick_shutdown(&s->brick);
 
