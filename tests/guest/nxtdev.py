@@ -282,6 +282,50 @@ def mixed_request(fd, index, i):
     return kind, 0, len(reply) == 25 and reply[:4] == bytes([0x02, 0x06, 0x00, port])
 
 
+def mixed_client(node, index, count, start, out):
+    """A client process of the many-clients tests: once `start` is set,
+    `count` mixed_request()s on its own open file of `node`; puts (index,
+    mismatches, or the exception's repr) in the queue `out`.
+
+    Runs at a lower priority than the emulated brick, which shares the
+    guest's CPUs with it (a real brick does not), and with a long timeout:
+    this is about replies never crossing, not about latency under TCG.
+    """
+    os.nice(5)
+    f = os.open(node, os.O_RDWR)
+    bad = 0
+    start.wait()
+    try:
+        assert set_timeout(f, 5000) == 0
+        for i in range(count):
+            _, err, ok = mixed_request(f, index, i)
+            if err or not ok:
+                bad += 1
+    except Exception as e:          # reported, not lost with the process
+        bad = repr(e)
+    finally:
+        os.close(f)
+    out.put((index, bad))
+
+
+def mixed_clients(node, clients, count, timeout=600):
+    """`clients` processes of mixed_client() at once: [(index, mismatches)]."""
+    import multiprocessing
+    ctx = multiprocessing.get_context('fork')
+    q = ctx.Queue()
+    start = ctx.Event()
+    procs = [ctx.Process(target=mixed_client, args=(node, i, count, start, q))
+             for i in range(clients)]
+    for p in procs:
+        p.start()
+    start.set()
+    results = sorted(q.get(timeout=timeout) for _ in procs)
+    for p in procs:
+        p.join(30)
+        assert p.exitcode == 0, p.exitcode
+    return results
+
+
 def wait_versions(fd, timeout):
     """GetVersions until the brick answers (after a reset, say): (errno, reply)."""
     deadline = time.monotonic() + timeout

@@ -547,15 +547,12 @@ def ev3_unloaded():
         assert delete_module(EV3) == 0, 'lego_ev3_uart does not unload'
 
 
-def test_ev3_module_load(fault_setup, fail_nth, kmsg, record_property):
-    """insmod lego_ev3_uart with the Nth allocation of its init failing:
-    insmod fails with ENOMEM and leaves nothing (the next insmod works), or
-    only the debugfs directory is missing (the driver goes on without it)."""
-    fs = fault_setup
-    ev3_unloaded()
-    fs.require(*symbol_range('do_one_initcall'))
-    sweep = Sweep('lego_ev3_uart load', kmsg, record_property)
-    fd = module_fd(EV3)
+def load_sweep(sweep, fail_nth, name, class_dir):
+    """insmod `name` with the Nth allocation of its init failing: insmod
+    fails with ENOMEM and leaves nothing (no `class_dir`; the next insmod
+    works), or only the module's debugfs directory is missing (the driver
+    goes on without it). The module is loaded at the end."""
+    fd = module_fd(name)
 
     def attempt(n, note):
         fail_nth.arm(n)
@@ -563,26 +560,35 @@ def test_ev3_module_load(fault_setup, fail_nth, kmsg, record_property):
         injected = fail_nth.disarm()
         if not injected:
             assert err == 0, 'insmod failed with nothing injected: %s' % errno.errorcode[err]
-            assert os.path.isdir(DEBUGFS + '/' + EV3)
+            assert os.path.isdir(DEBUGFS + '/' + name)
             return False
         if err:
             assert err == errno.ENOMEM, 'N=%d: insmod: %s' % (n, errno.errorcode.get(err, err))
-            assert not loaded(EV3)
+            assert not loaded(name) and not os.path.isdir(class_dir)
             note('insmod failed with ENOMEM')
         else:
             # debugfs_create_dir() may fail: the driver goes on without.
-            if os.path.isdir(DEBUGFS + '/' + EV3):
+            if os.path.isdir(DEBUGFS + '/' + name):
                 note('loaded, the failure absorbed by the kernel')
             else:
                 note('loaded without debugfs')
-            assert delete_module(EV3) == 0
+            assert delete_module(name) == 0
         assert finit_module(fd) == 0, 'N=%d: insmod fails after the failure' % n
-        assert os.path.isdir('/sys/class/lego-sensor')
-        assert os.path.isdir(DEBUGFS + '/' + EV3)
-        assert delete_module(EV3) == 0, 'N=%d: rmmod after the failure' % n
+        assert os.path.isdir(class_dir)
+        assert os.path.isdir(DEBUGFS + '/' + name)
+        assert delete_module(name) == 0, 'N=%d: rmmod after the failure' % n
         return True
     sweep.run(attempt)
-    assert loaded(EV3)
+    assert loaded(name)
+
+
+def test_ev3_module_load(fault_setup, fail_nth, kmsg, record_property):
+    """lego_ev3_uart's load (load_sweep())."""
+    fs = fault_setup
+    ev3_unloaded()
+    fs.require(*symbol_range('do_one_initcall'))
+    load_sweep(Sweep('lego_ev3_uart load', kmsg, record_property), fail_nth, EV3,
+               '/sys/class/lego-sensor')
 
 
 def tiocgetd(fd):
@@ -830,42 +836,17 @@ def test_ev3_sensor_registration(fault_setup, kmsg, record_property):
 # ---- NXT ------------------------------------------------------------------
 
 def test_nxt_core_module_load(fault_setup, fail_nth, kmsg, record_property):
-    """insmod lego_nxt (the NXT core: its char device region, the class
-    lego-nxt, debugfs) with the Nth allocation of its init failing: insmod
-    fails with ENOMEM and leaves nothing (the next insmod works), or only
-    the debugfs directory is missing."""
+    """lego_nxt's load, the NXT core: its char device region, the class
+    lego-nxt, debugfs (load_sweep()); its transports go first and come back
+    after."""
     fs = fault_setup
     for m in (NXT_SERIAL, NXT, NXT_CORE):
         if loaded(m):
             assert delete_module(m) == 0, 'rmmod ' + m
     fs.require(*symbol_range('do_one_initcall'))
-    sweep = Sweep('lego_nxt load', kmsg, record_property)
-    fd = module_fd(NXT_CORE)
-
-    def attempt(n, note):
-        fail_nth.arm(n)
-        err = finit_module(fd)
-        injected = fail_nth.disarm()
-        if not injected:
-            assert err == 0, 'insmod failed with nothing injected: %s' % errno.errorcode[err]
-            return False
-        if err:
-            assert err == errno.ENOMEM, 'N=%d: insmod: %s' % (n, errno.errorcode.get(err, err))
-            assert not loaded(NXT_CORE) and not os.path.isdir('/sys/class/lego-nxt')
-            note('insmod failed with ENOMEM')
-        else:
-            if os.path.isdir(DEBUGFS + '/' + NXT_CORE):
-                note('loaded, the failure absorbed by the kernel')
-            else:
-                note('loaded without debugfs')
-            assert delete_module(NXT_CORE) == 0
-        assert finit_module(fd) == 0, 'N=%d: insmod fails after the failure' % n
-        assert os.path.isdir('/sys/class/lego-nxt')
-        assert os.path.isdir(DEBUGFS + '/' + NXT_CORE)
-        assert delete_module(NXT_CORE) == 0, 'N=%d: rmmod after the failure' % n
-        return True
     try:
-        sweep.run(attempt)
+        load_sweep(Sweep('lego_nxt load', kmsg, record_property), fail_nth, NXT_CORE,
+                   '/sys/class/lego-nxt')
     finally:
         for m in (NXT_CORE, NXT, NXT_SERIAL):
             load(m)

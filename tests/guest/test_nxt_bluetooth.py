@@ -75,27 +75,7 @@ def test_connect_and_use_the_brick(radio, tmp_path):
         ok(ctl('-d', node, 'download', 'bt.dat', dst))
         assert dst.read_bytes() == data
         # Raw telegrams from several processes, each its own replies.
-        pids = []
-        for k in range(3):
-            pid = os.fork()
-            if pid == 0:
-                code = 101
-                try:
-                    rng = random.Random(k)
-                    fd = os.open(node, os.O_RDWR)
-                    bad = 0
-                    for _ in range(10):
-                        port = rng.randrange(4)
-                        tg = rng.choice([b'\x00\x0b', b'\x00\x07' + bytes([port])])
-                        err, reply = nxt.transact(fd, tg)
-                        if err or reply[1] != tg[1] or (tg[1] == 7 and reply[3] != port):
-                            bad += 1
-                    code = bad
-                finally:
-                    os._exit(code)
-            pids.append(pid)
-        codes = [os.waitstatus_to_exitcode(os.waitpid(p, 0)[1]) for p in pids]
-        assert codes == [0, 0, 0], codes
+        assert nxt.mixed_clients(node, 3, 10) == [(i, 0) for i in range(3)]
         assert srv.brick.dropped == []
         # nxt-python through the backend, on the Bluetooth node.
         r = subprocess.run([sys.executable, '-c', (

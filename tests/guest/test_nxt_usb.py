@@ -554,37 +554,14 @@ def test_waiters_get_the_brick_in_order(brick, fd):
     assert order == [0, 1, 2, 3]
 
 
-def worker(node, index, count, start, out):
-    """Transactions whose replies depend on what was asked; counts mismatches.
-
-    Runs at a lower priority than the emulated brick, which shares the
-    guest's CPUs with it (a real brick does not), and with a long timeout:
-    this is about replies never crossing, not about latency under TCG.
-    """
-    os.nice(5)
-    f = os.open(node, os.O_RDWR)
-    bad = 0
-    start.wait()
-    try:
-        assert nxt.set_timeout(f, 5000) == 0
-        for i in range(count):
-            _, err, ok = nxt.mixed_request(f, index, i)
-            if err or not ok:
-                bad += 1
-    except Exception as e:          # reported, not lost with the process
-        bad = repr(e)
-    finally:
-        os.close(f)
-    out.put((index, bad))
-
-
 def test_eight_processes_thousand_transactions_each(brick):
     import multiprocessing
     ctx = multiprocessing.get_context('fork')
     q = ctx.Queue()
     start = ctx.Event()
     n = int(os.environ.get('LEGO_NXT_TRANSACTIONS', '1000'))
-    procs = [ctx.Process(target=worker, args=(brick.node, i, n, start, q)) for i in range(8)]
+    procs = [ctx.Process(target=nxt.mixed_client, args=(brick.node, i, n, start, q))
+             for i in range(8)]
     for p in procs:
         p.start()
     # Let the children settle (copy-on-write faults are slow under TCG).
