@@ -314,6 +314,35 @@ def test_the_wire_checks_can_fail():
     assert any('overflowed' in e for e in wire.check(recs, 0, end, lost=True)[0])
 
 
+def test_keep_alives_go_to_the_connection_that_wrote_them():
+    """A sensor at 2400 baud lost (its keep-alives stop, no probe follows),
+    then another handshake 5 s later: its first keep-alive is written 1 ms
+    after its ACK, before the ACK is on the wire (4 ms a byte). It belongs
+    to the second connection, not to a 5 s period of the first."""
+    recs = []
+
+    def add(ns, port, kind, byte, baud=2400):
+        recs.append((len(recs), ns, port, baud, kind, byte))
+
+    def host(ns, byte, wire_delay=5 * MS):
+        add(ns, 0, 'w', byte)
+        add(ns + wire_delay, 0, 'b', byte)
+    for first in (1000 * MS, 6000 * MS):
+        add(first - 15 * MS, 1, 'a', wire.SYS_ACK)
+        host(first, wire.SYS_ACK)
+        for k in range(8):
+            host(first + MS + k * 100 * MS, wire.SYS_NACK)
+    end = 6000 * MS + 750 * MS
+    errors, conns = wire.check(recs, 0, end)
+    assert errors == [] and len(conns) == 2, (errors, conns)
+    assert [len(c.nacks) for c in conns] == [8, 8], conns
+    assert conns[1].nacks[0] == 6001 * MS, conns
+    # The check still sees a keep-alive missing in either.
+    for gone in (1401 * MS, 6401 * MS):
+        errs = wire.check([r for r in recs if r[1] not in (gone, gone + 5 * MS)], 0, end)[0]
+        assert any('periods out of' in e for e in errs), (gone, errs)
+
+
 def test_only_a_stall_of_the_guest_excuses_a_late_keep_alive():
     """A keep-alive 100 ms late passes only when the null modem's stall
     records cover enough of the gap: a stall elsewhere, or one too short,

@@ -201,12 +201,30 @@ def connections(recs, port):
             cur.end_ns, cur.end_why = ns, 'probe'
     # The keep-alives as the discipline wrote them, where the log has that:
     # the null modem's pacing (a late tick sends two at once) is not the
-    # discipline's doing.
-    written = [ns for ns, _, msg in host_messages(recs, port, 'w') if msg == bytes([SYS_NACK])]
-    if written:
+    # discipline's doing. They go to the connection whose ACK was written
+    # before them, by the times the ACK and the end were written too: the
+    # first keep-alive is written as soon as the ACK is, before the ACK is
+    # on the wire (a byte at 2400 baud takes 4 ms), and after a sensor lost
+    # at 2400 baud no probe ends the connection, the next ACK does.
+    written = host_messages(recs, port, 'w')
+    nacks = [ns for ns, _, msg in written if msg == bytes([SYS_NACK])]
+    if nacks:
+        def written_at(ns, ends):
+            """When the message on the wire at ns (an ACK or a SPEED) was
+            written: the last one of its kind written by then."""
+            ts = [t for t, _, msg in written if t <= ns and ends(msg)]
+            return ts[-1] if ts else ns
+
+        def is_ack(msg):
+            return msg == bytes([SYS_ACK])
+
+        def is_speed(msg):
+            return msg[0] & 0xc7 == 0x42
         for c in conns:
-            c.nacks = [t for t in written
-                       if t > c.ack_ns and (c.end_ns is None or t < c.end_ns)]
+            start = written_at(c.ack_ns, is_ack)
+            end = None if c.end_ns is None else \
+                written_at(c.end_ns, is_ack if c.end_why == 'next ACK' else is_speed)
+            c.nacks = [t for t in nacks if t > start and (end is None or t < end)]
     return conns
 
 
