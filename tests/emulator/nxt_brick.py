@@ -112,6 +112,8 @@ import sys
 import threading
 import time
 
+from stop_signals import StopSignals
+
 # ---------------------------------------------------------------------------
 # Telegrams, opcodes and status codes
 
@@ -1618,9 +1620,7 @@ def main():
                     'MS ms (the real brick: 1); default 0, as fast as possible')
     args = ap.parse_args()
 
-    done = threading.Event()
-    for sig in (signal.SIGTERM, signal.SIGINT):
-        signal.signal(sig, lambda signum, frame: done.set())
+    stop = StopSignals()
     brick = RawGadgetBrick(udc=args.udc, driver=args.driver, serial=args.serial,
                            name=args.name, hostile=args.hostile, verbose=args.verbose,
                            tick=args.tick_ms / 1000 if args.tick_ms > 0 else None)
@@ -1629,7 +1629,7 @@ def main():
     except OSError as e:
         sys.exit('nxt_brick: cannot start on %s: %s' % (args.udc, e))
     announced = False
-    while not done.wait(0.1):
+    while not stop.wait(0.1):
         if not announced and brick.configured.is_set():
             print('nxt_brick: configured on %s, serial %s' % (args.udc, args.serial), flush=True)
             announced = True

@@ -48,12 +48,12 @@ Usage: python3 tests/emulator/nxt_hostile.py [--udc dummy_udc.0]
 import argparse
 import collections
 import random
-import signal
 import sys
 import threading
 import time
 
 import nxt_brick as nb
+from stop_signals import StopSignals
 
 DIRECT_OPS = list(range(0x00, 0x12)) + [0x13] + list(range(0x19, 0x22))
 SYSTEM_OPS = [0x80, 0x81, 0x82, 0x83, 0x84, 0x85, 0x86, 0x87, 0x88, 0x89, 0x8b, 0x8c,
@@ -304,14 +304,12 @@ def main():
     ap.add_argument('--seed', type=lambda s: int(s, 0), default=1)
     ap.add_argument('--verbose', action='store_true')
     args = ap.parse_args()
-    done = threading.Event()
-    for sig in (signal.SIGTERM, signal.SIGINT):
-        signal.signal(sig, lambda signum, frame: done.set())
+    stop = StopSignals()
     brick = HostileBrick(profile=args.profile, seed=args.seed, udc=args.udc,
                          driver=args.driver, serial=args.serial, verbose=args.verbose)
     brick.start()
     announced = False
-    while not done.wait(0.1):
+    while not stop.wait(0.1):
         if not announced and brick.configured.is_set():
             print('nxt_hostile: configured on %s (NOT a real brick: profile %s, seed %d)'
                   % (args.udc, args.profile, args.seed), flush=True)

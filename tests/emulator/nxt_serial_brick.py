@@ -38,7 +38,6 @@ import errno
 import os
 import random
 import select
-import signal
 import struct
 import sys
 import threading
@@ -46,6 +45,7 @@ import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import nxt_brick  # noqa: E402
+from stop_signals import StopSignals  # noqa: E402
 
 TELEGRAM_MAX = 64
 LATENCY = 0.030
@@ -236,16 +236,14 @@ def main():
     ap.add_argument('--gap-ms', type=float, default=GAP * 1000)
     ap.add_argument('--hostile', choices=HOSTILE)
     args = ap.parse_args()
+    stop = StopSignals()
     master, path = open_pty()
     brick = SerialBrick(master, nxt_brick.Firmware(name=args.name),
                         latency=args.latency_ms / 1000, gap=args.gap_ms / 1000,
                         hostile=args.hostile).start()
     print(path, flush=True)
-    done = threading.Event()
-    signal.signal(signal.SIGTERM, lambda *_: done.set())
-    signal.signal(signal.SIGINT, lambda *_: done.set())
-    while not done.is_set() and not brick.gone.is_set():
-        done.wait(0.2)
+    while not stop.wait(0.2) and not brick.gone.is_set():
+        pass
     brick.stop()
 
 

@@ -310,6 +310,28 @@ def test_unplug_closes_files_opened_over_usb(usb0, brick0):
     assert usb0.cmd(bytes([1, 0x82, handle, 4, 0]))[2] == 0x93
 
 
+def stop_program(proc, timeout=30):
+    """SIGTERM, then status 0 within `timeout` s. An emulator that does not
+    stop is killed, after its threads' kernel stacks are taken for the
+    report: it holds its UDC, which every later test needs."""
+    proc.terminate()
+    try:
+        status = proc.wait(timeout)
+    except subprocess.TimeoutExpired:
+        stacks = []
+        for task in sorted(glob.glob('/proc/%d/task/*' % proc.pid)):
+            try:
+                with open(task + '/comm') as f, open(task + '/stack') as g:
+                    stacks.append('%s %s\n%s' % (task, f.read().strip(), g.read()))
+            except OSError as e:
+                stacks.append('%s: %s' % (task, e))
+        proc.kill()
+        proc.wait(30)
+        raise AssertionError('%s did not stop in %d s after SIGTERM; its threads:\n%s'
+                             % (proc.args, timeout, '\n'.join(stacks)))
+    assert status == 0, (proc.args, status)
+
+
 def test_two_bricks_at_once(usb0):
     proc = subprocess.Popen([sys.executable, os.path.join(EMULATOR, 'nxt_brick.py'),
                              '--udc', 'dummy_udc.1', '--serial', SERIAL1, '--name', 'Second'],
@@ -329,8 +351,7 @@ def test_two_bricks_at_once(usb0):
         finally:
             usb1.close()
     finally:
-        proc.terminate()
-        assert proc.wait(30) == 0
+        stop_program(proc)
     assert wait_gone(SERIAL1)
     assert find_device(SERIAL0)
 
