@@ -66,11 +66,13 @@ class Radio:
 
 class BrickServer:
     """The emulated brick on RFCOMM channel 1 of `addr`: `brick` is its
-    SerialBrick once a host has connected (`accepted`)."""
+    SerialBrick once a host has connected (`accepted`); brick_args go to
+    SerialBrick (latency, gap)."""
 
-    def __init__(self, addr, fw=None, hostile=None):
+    def __init__(self, addr, fw=None, hostile=None, **brick_args):
         self.fw = fw or nxt_brick.Firmware(name='BT-NXT')
         self.hostile = hostile
+        self.brick_args = brick_args
         self.brick = None
         self.accepted = threading.Event()
         self.sock = socket.socket(socket.AF_BLUETOOTH, socket.SOCK_STREAM,
@@ -85,7 +87,7 @@ class BrickServer:
         except OSError:
             return
         self.brick = sb.SerialBrick(os.dup(conn.fileno()), self.fw,
-                                    hostile=self.hostile).start()
+                                    hostile=self.hostile, **self.brick_args).start()
         conn.close()
         self.accepted.set()
 
