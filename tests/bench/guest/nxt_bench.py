@@ -141,45 +141,52 @@ def run_nxt_python(clients, seconds):
     try:
         for _ in range(3):                  # warm up
             b.get_battery_level()
-        cpu0 = cpu_seconds(resource.RUSAGE_SELF)
-        lat = [[] for _ in range(clients)]
-        errors = [0] * clients
-        first = ['']
-        barrier = threading.Barrier(clients + 1)
-        stop_at = [0.0]
-
-        def worker(i):
-            barrier.wait()
-            while True:
-                t0 = time.perf_counter()
-                if t0 >= stop_at[0]:
-                    return
-                try:
-                    mv = b.get_battery_level()
-                    ok = mv == BATTERY_MV
-                    why = '%r mV' % mv
-                except Exception as e:      # any failure is an error of the run
-                    ok, why = False, '%s: %s' % (type(e).__name__, e)
-                t1 = time.perf_counter()
-                if ok:
-                    lat[i].append(t1 - t0)
-                else:
-                    errors[i] += 1
-                    first[0] = first[0] or why
-
-        threads = [threading.Thread(target=worker, args=(i,)) for i in range(clients)]
-        for t in threads:
-            t.start()
-        start = time.perf_counter()
-        stop_at[0] = start + seconds
-        barrier.wait()
-        for t in threads:
-            t.join()
-        elapsed = time.perf_counter() - start
-        cpu = cpu_seconds(resource.RUSAGE_SELF) - cpu0
+        return threaded_battery_levels(b, clients, seconds)
     finally:
         b.close()
         usb.util.dispose_resources(dev)
+
+
+def threaded_battery_levels(b, clients, seconds):
+    """`clients` threads calling nxt-python's b.get_battery_level() for
+    `seconds`: the result as run_client()'s, every reply checked (an
+    exception or another value than BATTERY_MV is an error of the run)."""
+    cpu0 = cpu_seconds(resource.RUSAGE_SELF)
+    lat = [[] for _ in range(clients)]
+    errors = [0] * clients
+    first = ['']
+    barrier = threading.Barrier(clients + 1)
+    stop_at = [0.0]
+
+    def worker(i):
+        barrier.wait()
+        while True:
+            t0 = time.perf_counter()
+            if t0 >= stop_at[0]:
+                return
+            try:
+                mv = b.get_battery_level()
+                ok = mv == BATTERY_MV
+                why = '%r mV' % mv
+            except Exception as e:      # any failure is an error of the run
+                ok, why = False, '%s: %s' % (type(e).__name__, e)
+            t1 = time.perf_counter()
+            if ok:
+                lat[i].append(t1 - t0)
+            else:
+                errors[i] += 1
+                first[0] = first[0] or why
+
+    threads = [threading.Thread(target=worker, args=(i,)) for i in range(clients)]
+    for t in threads:
+        t.start()
+    start = time.perf_counter()
+    stop_at[0] = start + seconds
+    barrier.wait()
+    for t in threads:
+        t.join()
+    elapsed = time.perf_counter() - start
+    cpu = cpu_seconds(resource.RUSAGE_SELF) - cpu0
     all_lat = sorted(x for li in lat for x in li)
     return {'clients': clients, 'ok': len(all_lat), 'errors': sum(errors),
             'seconds': round(elapsed, 3), 'tps': round(len(all_lat) / elapsed, 2),
@@ -444,38 +451,53 @@ def data_notes(results, args):
     return notes
 
 
-def main():
-    ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
-    ap.add_argument('--out', help='directory for nxt.json')
+RUNS = 5
+
+
+def arguments(doc, out_name, runs):
+    """The options the NXT benchmarks share (argparse)."""
+    ap = argparse.ArgumentParser(description=doc.split('\n')[0])
+    ap.add_argument('--out', help='directory for ' + out_name)
     ap.add_argument('--quick', action='store_true',
                     help='short run (2 rounds of 2 s per measurement)')
     ap.add_argument('--seconds', type=float, help='seconds per measurement (default 5)')
-    ap.add_argument('--runs', type=int, help='rounds (default 5)')
+    ap.add_argument('--runs', type=int, help='rounds (default %d)' % runs)
     ap.add_argument('--clients', default='1,4,8', help='concurrent clients (default 1,4,8)')
     ap.add_argument('--client', default=DEFAULT_CLIENT, help='the C client binary')
+    ap.add_argument('--nxt-python', type=int, metavar='N', help=argparse.SUPPRESS)
+    return ap
+
+
+def settle(ap, args, prog, runs):
+    """The shared options' defaults, and the checks before a run: the C
+    client built, inside the VM, the output directory made."""
+    if not args.out:
+        ap.error('--out is required')
+    args.seconds = args.seconds or (2.0 if args.quick else 5.0)
+    args.runs = args.runs or (2 if args.quick else runs)
+    args.clients = [int(c) for c in args.clients.split(',')]
+    if not os.access(args.client, os.X_OK):
+        sys.exit('%s: %s missing: build it on the host with make -C tests/bench/nxt'
+                 % (prog, args.client))
+    if os.environ.get('LEGO_IN_VM') != '1':
+        sys.exit('%s: run it inside the test VM (tests/vm-run)' % prog)
+    os.makedirs(args.out, exist_ok=True)
+
+
+def main():
+    ap = arguments(__doc__, 'nxt.json', RUNS)
     ap.add_argument('--models', default='fast,tick',
                     help='the emulated brick\'s models to run: fast (as fast as it goes), '
                     'tick (the 1 ms firmware tick); default both')
-    ap.add_argument('--nxt-python', type=int, metavar='N', help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.nxt_python:
         # One nxt-python measurement, in a process of its own: JSON on stdout.
         print(json.dumps(run_nxt_python(args.nxt_python, args.seconds or 5.0)))
         return
-    if not args.out:
-        ap.error('--out is required')
     args.models = [m for m in args.models.split(',') if m]
     if not args.models or set(args.models) - {m for m, _ in MODELS}:
         sys.exit('nxt_bench: --models takes fast and tick')
-    args.seconds = args.seconds or (2.0 if args.quick else 5.0)
-    args.runs = args.runs or (2 if args.quick else 5)
-    args.clients = [int(c) for c in args.clients.split(',')]
-    if not os.access(args.client, os.X_OK):
-        sys.exit('nxt_bench: %s missing: build it on the host with make -C tests/bench/nxt'
-                 % args.client)
-    if os.environ.get('LEGO_IN_VM') != '1':
-        sys.exit('nxt_bench: run it inside the test VM (tests/vm-run)')
-    os.makedirs(args.out, exist_ok=True)
+    settle(ap, args, 'nxt_bench', RUNS)
     started = time.monotonic()
     try:
         results = measure(args)

@@ -39,7 +39,6 @@ measurements ran, whatever the figures.
 import argparse
 import json
 import os
-import resource
 import socket
 import subprocess
 import sys
@@ -59,6 +58,7 @@ LATENCY, GAP = sb.LATENCY, sb.GAP
 CEILING_GAP = 1 / (LATENCY + GAP)
 CEILING_NO_GAP = 1 / LATENCY
 LOSS_SOCKET_TIMEOUT = 2.0
+RUNS = 3
 
 
 def log(msg):
@@ -139,8 +139,11 @@ def run_nxt_python(radio, fw, n, seconds, gap, timeout=None):
 class RfcommShim:
     """What nxt.backend.bluetooth takes from PyBluez, from the standard
     library: an RFCOMM stream socket and the error it raises."""
-    RFCOMM = socket.BTPROTO_RFCOMM
     BluetoothError = OSError
+
+    def __init__(self):
+        # Looked up here: a Python built without Bluetooth lacks them.
+        self.RFCOMM = socket.BTPROTO_RFCOMM
 
     @staticmethod
     def BluetoothSocket(proto):
@@ -155,50 +158,9 @@ def nxt_python_measure(host, clients, seconds, timeout):
     if timeout:
         b._sock._sock.settimeout(timeout)
     try:
-        lat = [[] for _ in range(clients)]
-        errors = [0] * clients
-        first = ['']
-        barrier = threading.Barrier(clients + 1)
-        stop_at = [0.0]
-
-        def worker(i):
-            barrier.wait()
-            while True:
-                t0 = time.perf_counter()
-                if t0 >= stop_at[0]:
-                    return
-                try:
-                    mv = b.get_battery_level()
-                    ok, why = mv == nb.BATTERY_MV, '%r mV' % mv
-                except Exception as e:      # any failure is an error of the run
-                    ok, why = False, '%s: %s' % (type(e).__name__, e)
-                t1 = time.perf_counter()
-                if ok:
-                    lat[i].append(t1 - t0)
-                else:
-                    errors[i] += 1
-                    first[0] = first[0] or why
-
-        threads = [threading.Thread(target=worker, args=(i,)) for i in range(clients)]
-        for t in threads:
-            t.start()
-        cpu0 = nb.cpu_seconds(resource.RUSAGE_SELF)
-        start = time.perf_counter()
-        stop_at[0] = start + seconds
-        barrier.wait()
-        for t in threads:
-            t.join()
-        elapsed = time.perf_counter() - start
-        cpu = nb.cpu_seconds(resource.RUSAGE_SELF) - cpu0
+        return nb.threaded_battery_levels(b, clients, seconds)
     finally:
         b.close()
-    all_lat = sorted(x for li in lat for x in li)
-    return {'clients': clients, 'ok': len(all_lat), 'errors': sum(errors),
-            'seconds': round(elapsed, 3), 'tps': round(len(all_lat) / elapsed, 2),
-            'p50_us': round(nb.percentile(all_lat, 50) * 1e6),
-            'p99_us': round(nb.percentile(all_lat, 99) * 1e6),
-            'max_us': round(all_lat[-1] * 1e6) if all_lat else 0, 'first_error': first[0],
-            'cpu_us': cpu / max(len(all_lat), 1) * 1e6}
 
 
 def measure(args):
@@ -323,15 +285,7 @@ def data_notes(results, args):
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
-    ap.add_argument('--out', help='directory for nxt_bt.json')
-    ap.add_argument('--quick', action='store_true',
-                    help='short run (2 rounds of 2 s per measurement)')
-    ap.add_argument('--seconds', type=float, help='seconds per measurement (default 5)')
-    ap.add_argument('--runs', type=int, help='rounds (default 3)')
-    ap.add_argument('--clients', default='1,4,8', help='concurrent clients (default 1,4,8)')
-    ap.add_argument('--client', default=nb.DEFAULT_CLIENT, help='the C client binary')
-    ap.add_argument('--nxt-python', type=int, metavar='N', help=argparse.SUPPRESS)
+    ap = nb.arguments(__doc__, 'nxt_bt.json', RUNS)
     ap.add_argument('--host', help=argparse.SUPPRESS)
     ap.add_argument('--timeout', type=float, help=argparse.SUPPRESS)
     args = ap.parse_args()
@@ -339,17 +293,7 @@ def main():
         print(json.dumps(nxt_python_measure(args.host, args.nxt_python, args.seconds or 5.0,
                                             args.timeout)))
         return
-    if not args.out:
-        ap.error('--out is required')
-    args.seconds = args.seconds or (2.0 if args.quick else 5.0)
-    args.runs = args.runs or (2 if args.quick else 3)
-    args.clients = [int(c) for c in args.clients.split(',')]
-    if not os.access(args.client, os.X_OK):
-        sys.exit('nxt_bt_bench: %s missing: build it on the host with make -C tests/bench/nxt'
-                 % args.client)
-    if os.environ.get('LEGO_IN_VM') != '1':
-        sys.exit('nxt_bt_bench: run it inside the test VM (tests/vm-run)')
-    os.makedirs(args.out, exist_ok=True)
+    nb.settle(ap, args, 'nxt_bt_bench', RUNS)
     started = time.monotonic()
     try:
         results = measure(args)
