@@ -282,8 +282,9 @@ step_build() {
 		for d in "${dirs[@]}"; do
 			[ -s "$out/${d}built-in.a" ] || { echo "${d}built-in.a is empty"; return 1; }
 		done
-		# Linked in: both drivers' init functions are in vmlinux.
-		for k in ev3_uart_init nxt_usb_init; do
+		# Linked in: the init functions of all four modules (the EV3
+		# discipline, the NXT core, its USB and serial transports).
+		for k in ev3_uart_init nxt_init nxt_usb_driver_init nxt_serial_init; do
 			nm "$out/vmlinux" | grep " $k\$" >/dev/null || { echo "$k is not in vmlinux"; return 1; }
 		done
 	fi
