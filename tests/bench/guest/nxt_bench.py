@@ -538,10 +538,16 @@ def main():
                 if 'jiffies' in clock else ''),
         ],
     }
-    path = os.path.join(args.out, 'nxt.json')
+    write_section(args.out, 'nxt.json', out)
+
+
+def write_section(directory, name, section):
+    """The section as tests/bench/report.py reads it: DIRECTORY/NAME."""
+    path = os.path.join(directory, name)
     with open(path, 'w') as f:
-        json.dump(out, f, indent=1)
-    log('wrote %s' % path)
+        json.dump(section, f, indent=1)
+    print('%s: wrote %s' % (os.path.splitext(os.path.basename(sys.argv[0]))[0], path),
+          file=sys.stderr, flush=True)
 
 
 if __name__ == '__main__':

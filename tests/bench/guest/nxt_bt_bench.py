@@ -326,10 +326,7 @@ def main():
                args.seconds, time.monotonic() - started, nb.guest_cpus()),
         ],
     }
-    path = os.path.join(args.out, 'nxt_bt.json')
-    with open(path, 'w') as f:
-        json.dump(out, f, indent=1)
-    log('wrote %s' % path)
+    nb.write_section(args.out, 'nxt_bt.json', out)
 
 
 if __name__ == '__main__':
