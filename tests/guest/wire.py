@@ -180,13 +180,26 @@ def summary(periods):
                                                 max(periods))
 
 
+def is_ack(msg):
+    return msg == bytes([SYS_ACK])
+
+
+def is_speed(msg):
+    """A SPEED message: the discipline's next probe."""
+    return msg[0] & 0xc7 == 0x42
+
+
+# What ends a connection in connections(), by its end_why.
+ENDED_BY = {'next ACK': is_ack, 'probe': is_speed}
+
+
 def connections(recs, port):
     """The handshakes the discipline on `port` answered, in order."""
     conns = []
     sensor_acks = [ns for _, ns, p, _, kind, _ in recs if p == port + 1 and kind == 'a']
     cur = None
     for ns, baud, msg in host_messages(recs, port):
-        if msg == bytes([SYS_ACK]):
+        if is_ack(msg):
             if cur:
                 cur.end_ns, cur.end_why = ns, 'next ACK'
             cur = Connection(port, ns, baud)
@@ -197,7 +210,7 @@ def connections(recs, port):
             continue
         elif msg == bytes([SYS_NACK]):
             cur.nacks.append(ns)
-        elif msg[0] & 0xc7 == 0x42:             # SPEED: the next probe
+        elif is_speed(msg):
             cur.end_ns, cur.end_why = ns, 'probe'
     # The keep-alives as the discipline wrote them, where the log has that:
     # the null modem's pacing (a late tick sends two at once) is not the
@@ -209,21 +222,14 @@ def connections(recs, port):
     written = host_messages(recs, port, 'w')
     nacks = [ns for ns, _, msg in written if msg == bytes([SYS_NACK])]
     if nacks:
-        def written_at(ns, ends):
-            """When the message on the wire at ns (an ACK or a SPEED) was
-            written: the last one of its kind written by then."""
-            ts = [t for t, _, msg in written if t <= ns and ends(msg)]
+        def written_at(ns, kind):
+            """When the message of `kind` on the wire at ns was written: the
+            last one of its kind written by then."""
+            ts = [t for t, _, msg in written if t <= ns and kind(msg)]
             return ts[-1] if ts else ns
-
-        def is_ack(msg):
-            return msg == bytes([SYS_ACK])
-
-        def is_speed(msg):
-            return msg[0] & 0xc7 == 0x42
         for c in conns:
             start = written_at(c.ack_ns, is_ack)
-            end = None if c.end_ns is None else \
-                written_at(c.end_ns, is_ack if c.end_why == 'next ACK' else is_speed)
+            end = None if c.end_ns is None else written_at(c.end_ns, ENDED_BY[c.end_why])
             c.nacks = [t for t in nacks if t > start and (end is None or t < end)]
     return conns
 
