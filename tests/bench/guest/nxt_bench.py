@@ -120,12 +120,13 @@ def cpu_seconds(who):
     return ru.ru_utime + ru.ru_stime
 
 
-def run_nxt_python_process(clients, seconds):
+def run_nxt_python_process(clients, seconds, script=__file__, extra=()):
     """run_nxt_python() in a process of its own: pyusb's libusb context,
     kept in a long-lived process, would still list the brick of an emulator
-    that has been stopped and started again since (ENODEV)."""
-    cmd = [sys.executable, os.path.abspath(__file__), '--nxt-python', str(clients),
-           '--seconds', str(seconds)]
+    that has been stopped and started again since (ENODEV). `script`
+    --nxt-python N with `extra` options: another benchmark's measurement."""
+    cmd = [sys.executable, os.path.abspath(script), '--nxt-python', str(clients),
+           '--seconds', str(seconds)] + list(extra)
     res = subprocess.run(cmd, capture_output=True, text=True, timeout=seconds + 120)
     if res.returncode != 0:
         raise SetupError('%s failed (%d): %s' % (' '.join(cmd), res.returncode,
@@ -538,16 +539,15 @@ def main():
                 if 'jiffies' in clock else ''),
         ],
     }
-    write_section(args.out, 'nxt.json', out)
+    log('wrote %s' % write_section(args.out, 'nxt.json', out))
 
 
 def write_section(directory, name, section):
-    """The section as tests/bench/report.py reads it: DIRECTORY/NAME."""
+    """The section as tests/bench/report.py reads it: DIRECTORY/NAME, its path."""
     path = os.path.join(directory, name)
     with open(path, 'w') as f:
         json.dump(section, f, indent=1)
-    print('%s: wrote %s' % (os.path.splitext(os.path.basename(sys.argv[0]))[0], path),
-          file=sys.stderr, flush=True)
+    return path
 
 
 if __name__ == '__main__':

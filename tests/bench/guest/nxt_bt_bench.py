@@ -42,7 +42,6 @@ import os
 import socket
 import subprocess
 import sys
-import threading
 import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -101,36 +100,15 @@ def run_dev(args, radio, fw, n):
         brick.close()
 
 
-def run_nxt_python_process(radio, n, seconds, timeout=None):
-    cmd = [sys.executable, os.path.abspath(__file__), '--nxt-python', str(n),
-           '--seconds', str(seconds), '--host', radio.brick]
-    if timeout:
-        cmd += ['--timeout', str(timeout)]
-    res = subprocess.run(cmd, capture_output=True, text=True, timeout=seconds + 120)
-    if res.returncode != 0:
-        raise nb.SetupError('%s failed (%d): %s' % (' '.join(cmd), res.returncode,
-                                                     res.stderr.strip()[-2000:]))
-    return json.loads(res.stdout)
-
-
 def run_nxt_python(radio, fw, n, seconds, gap, timeout=None):
+    """nxt_python_measure() in a process of its own, against a brick that
+    drops commands `gap` s after a reply (0: none); its result, with the
+    commands the brick dropped."""
     brick = Brick(radio, fw, gap)
     try:
-        box = {}
-
-        def measure():
-            try:
-                box['r'] = run_nxt_python_process(radio, n, seconds, timeout)
-            except (nb.SetupError, subprocess.SubprocessError) as e:
-                box['e'] = e
-        t = threading.Thread(target=measure)
-        t.start()
-        sbrick = brick.wait()
-        t.join()
-        if 'e' in box:
-            raise box['e']
-        r = box['r']
-        r['dropped'] = len(sbrick.dropped)
+        extra = ['--host', radio.brick] + (['--timeout', str(timeout)] if timeout else [])
+        r = nb.run_nxt_python_process(n, seconds, __file__, extra)
+        r['dropped'] = len(brick.wait().dropped)     # it connected: accepted
         return r
     finally:
         brick.close()
@@ -326,7 +304,7 @@ def main():
                args.seconds, time.monotonic() - started, nb.guest_cpus()),
         ],
     }
-    nb.write_section(args.out, 'nxt_bt.json', out)
+    log('wrote %s' % nb.write_section(args.out, 'nxt_bt.json', out))
 
 
 if __name__ == '__main__':
