@@ -116,6 +116,16 @@
 #endif
 
 /*
+ * 6.8: struct i2c_algorithm's master_xfer became xfer; the old name is
+ * deprecated. An algorithm names its member LEGO_I2C_XFER.
+ */
+#ifdef LEGO_HAVE_I2C_ALGO_XFER
+#define LEGO_I2C_XFER	xfer
+#else
+#define LEGO_I2C_XFER	master_xfer
+#endif
+
+/*
  * 6.12: iio_for_each_active_channel(); the mask's length became private.
  * As the kernel has it (checkpatch's MACRO_ARG_REUSE is ignored for this
  * file, whose shims keep the shape of the kernel's own macros).

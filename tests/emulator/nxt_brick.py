@@ -375,6 +375,8 @@ class Firmware:
         self.inputs = [InputPort(sensors.get(i)) for i in range(4)]
         self.analog = {'touch': 1023, 'sound': 900, 'light': 520, 'ultrasonic': 1023, None: 1023}
         self.ultrasonic = Ultrasonic()
+        # Commands handled, by (type without the no-reply bit, opcode).
+        self.handled = collections.Counter()
         self.mailboxes = [collections.deque(maxlen=MAILBOX_DEPTH) for _ in range(MAILBOXES)]
         self.datalog = collections.deque()
         self.poll_buffers = [bytearray(), bytearray()]
@@ -441,6 +443,7 @@ class Firmware:
             self._tick()
             kind = self.rx[0]
             op = self.rx[1]
+            self.handled[kind & 0x7F, op] += 1
             if kind & 0x7F == DIRECT:
                 reply = self._direct(op, len(packet))
                 if kind == NO_REPLY | DIRECT:

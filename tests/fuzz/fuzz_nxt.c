@@ -1,16 +1,18 @@
 // SPDX-License-Identifier: GPL-2.0
 /*
  * libFuzzer target: the NXT telegram core (nxt_proto.c) as nxt_usb.c,
- * nxt_cdev.c and nxt_sysfs.c use it: a telegram from userspace is checked
- * (nxt_telegram_check), a reply packet from the brick is matched to it
- * (nxt_reply_check), and what the reply says about the brick is noted for
- * sysfs (nxt_info_note_sent, nxt_info_note_reply).
+ * nxt_cdev.c, nxt_sysfs.c and nxt_i2c.c use it: a telegram from userspace
+ * is checked (nxt_telegram_check), a reply packet from the brick is matched
+ * to it (nxt_reply_check), what the reply says about the brick is noted for
+ * sysfs (nxt_info_note_sent, nxt_info_note_reply), and an I2C adapter reads
+ * its count and bytes (nxt_ls_ready, nxt_ls_read_data).
  *
  * Input: a flags byte, the telegram's length - 2 (mod 64), the telegram,
  * then the reply (the rest of the input). The flags say which values of the
  * brick's information are known before the telegram (bits 0 to 2: the
- * versions, the device information, the battery voltage); the other bits
- * are not used but bit 7: with it, the rest of the input is what a serial
+ * versions, the device information, the battery voltage) and how many
+ * bytes an LSRead asked for, less one (bits 3 to 6); with bit 7, the rest
+ * of the input is what a serial
  * link (Bluetooth) brought, read by nxt_bt_rx_feed() once a byte at a
  * time and once in batches whose sizes the flags seed; both must give the
  * same replies, each a well-formed one, and account for every byte. Replies
@@ -37,6 +39,8 @@
 #define OP_GET_INPUT_VALUES	0x07	/* direct */
 #define OP_GET_BATTERY_LEVEL	0x0b	/* direct */
 #define OP_MESSAGE_READ		0x13	/* direct */
+#define OP_LS_GET_STATUS	0x0e	/* direct */
+#define OP_LS_READ		0x10	/* direct */
 #define OP_GET_VERSIONS		0x88	/* system */
 #define OP_GET_DEVICE_INFO	0x9b	/* system */
 #define OP_DELETE_USER_FLASH	0xa0	/* system */
@@ -279,6 +283,39 @@ static void bt_stream(struct nxt_brick_info *info, const u8 *tg, size_t tg_len,
 	CHECK(batch.have == 0 && batch.dropped == one.dropped + one.have);
 }
 
+/*
+ * What the I2C adapters (nxt_i2c.c) read out of a reply to LSGetStatus or
+ * LSRead, for any packet: a count within what one LSWrite can read, or an
+ * errno; the bytes of a read only from a whole reply whose count is the one
+ * asked for, and never a byte past them.
+ */
+static void check_ls(const u8 *reply, size_t len, size_t want)
+{
+	u8 buf[NXT_LS_MAX + 1];
+	int ret;
+
+	ret = nxt_ls_ready(reply, len);
+	CHECK((ret >= 0 && ret <= NXT_LS_MAX) || ret == -EPROTO || ret == -EINPROGRESS ||
+	      ret == -EAGAIN || ret == -ENXIO || ret == -EINVAL || ret == -EIO);
+	if (ret >= 0)
+		CHECK(len >= 4 && reply[0] == NXT_REPLY && reply[1] == OP_LS_GET_STATUS &&
+		      reply[2] == STATUS_SUCCESS && reply[3] == ret);
+	if (ret != -EPROTO)
+		CHECK(len >= NXT_REPLY_MIN && reply[1] == OP_LS_GET_STATUS);
+
+	memset(buf, 0xa5, sizeof(buf));
+	ret = nxt_ls_read_data(reply, len, buf, want);
+	CHECK(ret == 0 || ret == -EPROTO || ret == -EINPROGRESS || ret == -EAGAIN ||
+	      ret == -ENXIO || ret == -EINVAL || ret == -EIO);
+	if (!ret) {
+		CHECK(len >= 4 + NXT_LS_MAX && reply[1] == OP_LS_READ && reply[3] == want);
+		CHECK(!memcmp(buf, reply + 4, want));
+	} else if (ret != -EPROTO) {
+		CHECK(reply[1] == OP_LS_READ && reply[2] != STATUS_SUCCESS);
+	}
+	CHECK(buf[want] == 0xa5);
+}
+
 int LLVMFuzzerTestOneInput(const unsigned char *data, size_t size)
 {
 	u8 tg[NXT_TELEGRAM_MAX + 1] = { };
@@ -315,6 +352,8 @@ int LLVMFuzzerTestOneInput(const unsigned char *data, size_t size)
 	reply = malloc(len ? len : 1);
 	CHECK(reply);
 	memcpy(reply, data, len);
+	/* Bits 3 to 6 of the flags: the bytes an LSRead asks for, less one. */
+	check_ls(reply, len, 1 + ((flags >> 3) & 0x0f));
 	if (check_reply(tg, tg_len, reply, len) >= 0) {
 		decode_sysfs(reply, len);
 		check_note_reply(&info, tg, tg_len, reply, len);

@@ -19,6 +19,7 @@ PLACES = (
     ('Documentation/lego/ev3-uart.rst', 'Documentation/iio/lego_ev3_uart.rst'),
     ('Documentation/lego/nxt-usb.rst', 'Documentation/usb/lego_nxt.rst'),
     ('Documentation/lego/nxt-bluetooth.rst', 'Documentation/usb/lego_nxt_bluetooth.rst'),
+    ('Documentation/lego/nxt-i2c.rst', 'Documentation/usb/lego_nxt_i2c.rst'),
     ('Documentation/lego/tracing.rst', 'Documentation/trace/events-lego.rst'),
 )
 

@@ -260,15 +260,22 @@ piece_nxt_proto() {
 piece_nxt_usb() {
 	put_dir drivers/lego/nxt "$NXT" nxt_views.h nxt_main.c nxt_usb.c nxt_cdev.c \
 		nxt_sysfs.c nxt_usb_trace.h nxt_usb_trace.c Kconfig Makefile .kunitconfig
-	awk '/^config LEGO_NXT_SERIAL$/ { skip = 1; next }
-	     skip && /^config / { skip = 0 }
-	     !skip' "$tree/$NXT/Kconfig" >"$tree/$NXT/Kconfig.new"
-	mv "$tree/$NXT/Kconfig.new" "$tree/$NXT/Kconfig"
-	sed -i -e '/LEGO_NXT_SERIAL/d' -e '/lego_nxt_serial/d' "$tree/$NXT/Makefile"
-	! grep -q -e LEGO_NXT_SERIAL -e nxt_serial "$tree/$NXT/Kconfig" "$tree/$NXT/Makefile" ||
-		die "$NXT: the serial transport is left in Kconfig or Makefile"
+	kconfig_drop LEGO_NXT_SERIAL
+	kconfig_drop LEGO_NXT_I2C
+	sed -i -e '/LEGO_NXT_SERIAL/d' -e '/lego_nxt_serial/d' -e '/LEGO_NXT_I2C/d' \
+		"$tree/$NXT/Makefile"
+	! grep -q -e LEGO_NXT_SERIAL -e nxt_serial -e LEGO_NXT_I2C -e nxt_i2c \
+		"$tree/$NXT/Kconfig" "$tree/$NXT/Makefile" ||
+		die "$NXT: the serial transport or the I2C adapters are left in Kconfig or Makefile"
 	put Documentation/ABI/testing/sysfs-class-lego-nxt \
 		Documentation/ABI/testing/sysfs-class-lego-nxt
+	# The adapters' entry comes with them (9).
+	awk '/^What:/ { skip = $2 ~ /\/i2c-/ } !skip' \
+		"$tree/Documentation/ABI/testing/sysfs-class-lego-nxt" \
+		>"$tree/Documentation/ABI/testing/sysfs-class-lego-nxt.new"
+	mv "$tree/Documentation/ABI/testing/sysfs-class-lego-nxt.new" \
+		"$tree/Documentation/ABI/testing/sysfs-class-lego-nxt"
+	sed -i -e '${/^$/d}' "$tree/Documentation/ABI/testing/sysfs-class-lego-nxt"
 	# Beside the LEGO USB tower's entries.
 	insert_before drivers/usb/misc/Kconfig "config USB_LCD" "source \"$NXT/Kconfig\"
 "
@@ -286,13 +293,35 @@ piece_nxt_usb() {
 piece_nxt_serial() {
 	local dst
 	put_dir drivers/lego/nxt "$NXT" nxt_serial.c Kconfig Makefile
+	kconfig_drop LEGO_NXT_I2C
+	sed -i -e '/LEGO_NXT_I2C/d' "$tree/$NXT/Makefile"
 	dst=$("$here/places.py" Documentation/lego/nxt-bluetooth.rst)
 	put Documentation/lego/nxt-bluetooth.rst "$dst"
 	index_add "$dst"
 	commit 8-nxt-serial.txt
 }
 
-# 9. The documentation: each driver's page in its subsystem's guide, the
+# 9. The sensor ports as I2C adapters, their option, ABI entry and page.
+piece_nxt_i2c() {
+	local dst
+	put_dir drivers/lego/nxt "$NXT" nxt_i2c.c Kconfig Makefile
+	put Documentation/ABI/testing/sysfs-class-lego-nxt \
+		Documentation/ABI/testing/sysfs-class-lego-nxt
+	dst=$("$here/places.py" Documentation/lego/nxt-i2c.rst)
+	put Documentation/lego/nxt-i2c.rst "$dst"
+	index_add "$dst"
+	commit 9-nxt-i2c.txt
+}
+
+# kconfig_drop OPTION: the entry of OPTION out of the NXT Kconfig.
+kconfig_drop() {
+	awk -v opt="config $1" '$0 == opt { skip = 1; next }
+	     skip && /^config / { skip = 0 }
+	     !skip' "$tree/$NXT/Kconfig" >"$tree/$NXT/Kconfig.new"
+	mv "$tree/$NXT/Kconfig.new" "$tree/$NXT/Kconfig"
+}
+
+# 10. The documentation: each driver's page in its subsystem's guide, the
 # trace events' page, and the userspace API guide's page with the uapi
 # headers' kernel-doc. Each page goes into its directory's index, sorted
 # among the pages there.
@@ -307,7 +336,7 @@ piece_docs() {
 	put tools/upstream/doc/lego.rst Documentation/userspace-api/lego.rst
 	# Last in the toctree of media/index ("Devices and I/O" since 6.8).
 	toctree_append Documentation/userspace-api/index.rst media/index lego
-	commit 9-docs.txt
+	commit 10-docs.txt
 }
 
 # index_add PAGE: PAGE's entry in the toctree of its directory's index.rst,
@@ -342,6 +371,7 @@ piece_ev3_class
 piece_nxt_proto
 piece_nxt_usb
 piece_nxt_serial
+piece_nxt_i2c
 piece_docs
 
 # Nothing of this checkout's drivers or their ABI may be left out of the series.

@@ -384,6 +384,8 @@ int nxt_node_add(struct nxt_brick *b, struct device *parent)
 	}
 	b->minor = minor;
 	b->node = dev;
+	/* Its sensor ports' I2C adapters, children of the node. */
+	nxt_i2c_add(b);
 	return 0;
 }
 EXPORT_SYMBOL_GPL(nxt_node_add);
@@ -394,10 +396,13 @@ EXPORT_SYMBOL_GPL(nxt_node_add);
  *
  * No open() finds the brick once this returns, and none is running; the
  * files already open keep the brick until they are closed. A sysfs read
- * in progress is waited for.
+ * in progress is waited for, and so are the sensor ports' I2C transfers
+ * and, as for any I2C adapter, the files that hold a port's /dev/i2c-N
+ * open (nxt_i2c_remove()).
  */
 void nxt_node_remove(struct nxt_brick *b)
 {
+	nxt_i2c_remove(b);
 	/*
 	 * No open() finds the brick from here on, but its minor stays taken
 	 * until its device is gone (NULL stored in an allocating XArray

@@ -85,6 +85,7 @@
 #define NXT_UNPLUG_GRACE_MS	1000
 
 struct nxt_brick;
+struct nxt_i2c;
 struct nxt_xfer;
 
 /**
@@ -194,9 +195,13 @@ struct nxt_transport_ops {
  *	passed (@lock): what the sysfs attributes show
  * @stats: counters (@lock)
  * @debugfs: the brick's directory in debugfs, or NULL
+ * @serial: its serial number, which the transport sets before it adds the
+ *	brick's node (USB: the brick's iSerial, its Bluetooth address in hex),
+ *	or empty: the views name the brick by it
  * @minor: the minor of its /dev/nxtN (nxt_cdev.c)
  * @node: the device of its /dev/nxtN, with the sysfs attributes
  *	(nxt_cdev.c); NULL when it has none
+ * @i2c: the I2C adapters of its sensor ports (nxt_i2c.c), or NULL
  */
 struct nxt_brick {
 	struct kref kref;
@@ -224,8 +229,10 @@ struct nxt_brick {
 	struct nxt_brick_info info;
 	struct nxt_stats stats;
 	struct dentry *debugfs;
+	char serial[32];
 	int minor;
 	struct device *node;
+	struct nxt_i2c *i2c;
 };
 
 /**

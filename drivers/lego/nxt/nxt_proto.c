@@ -699,3 +699,171 @@ unsigned int nxt_bt_frame(u8 *frame, const u8 *tg, size_t len)
 	return NXT_BT_PREFIX + len;
 }
 EXPORT_SYMBOL_GPL(nxt_bt_frame);
+
+/*
+ * Low-speed (I2C) sensor ports: the telegrams the I2C adapters send and
+ * what their replies say (nxt_i2c.c). The replies are the brick's, so each
+ * is checked for its shape before a byte of it is used.
+ */
+
+/**
+ * nxt_ls_mode_tg() - SetInputMode: a port to low-speed mode with 9 V
+ * @tg: the telegram, at least 5 bytes
+ * @port: the input port, 0 to 3
+ *
+ * 9 V is what LEGO's ultrasonic sensor needs; other I2C sensors take the
+ * same mode.
+ *
+ * Return: the telegram's length.
+ */
+unsigned int nxt_ls_mode_tg(u8 *tg, u8 port)
+{
+	tg[0] = NXT_DIRECT_CMD;
+	tg[1] = NXT_SET_INPUT_MODE;
+	tg[2] = port;
+	tg[3] = NXT_SENSOR_LOWSPEED_9V;
+	tg[4] = NXT_SENSOR_MODE_RAW;
+	return 5;
+}
+EXPORT_SYMBOL_IF_KUNIT(nxt_ls_mode_tg);
+
+/**
+ * nxt_ls_write_tg() - LSWrite: one I2C transaction on a port
+ * @tg: the telegram, at least NXT_LS_TG_MAX bytes
+ * @port: the input port, 0 to 3
+ * @addr: the device's 7-bit address
+ * @buf: the bytes to write after the address
+ * @len: their number, 0 to NXT_LS_WRITE_MAX
+ * @rx_len: the bytes to read after them, 0 to NXT_LS_MAX
+ *
+ * Return: the telegram's length, or -%EINVAL for what the brick cannot do.
+ */
+int nxt_ls_write_tg(u8 *tg, u8 port, u16 addr, const u8 *buf, size_t len,
+		    size_t rx_len)
+{
+	if (port >= NXT_INPUT_PORTS || addr > 0x7f || len > NXT_LS_WRITE_MAX ||
+	    rx_len > NXT_LS_MAX)
+		return -EINVAL;
+	tg[0] = NXT_DIRECT_CMD;
+	tg[1] = NXT_LS_WRITE;
+	tg[2] = port;
+	tg[3] = len + 1;
+	tg[4] = rx_len;
+	tg[5] = addr << 1;
+	if (len)
+		memcpy(tg + 6, buf, len);
+	return 6 + len;
+}
+EXPORT_SYMBOL_IF_KUNIT(nxt_ls_write_tg);
+
+/**
+ * nxt_ls_port_tg() - LSGetStatus or LSRead of a port
+ * @tg: the telegram, at least 3 bytes
+ * @opcode: %NXT_LS_GET_STATUS or %NXT_LS_READ
+ * @port: the input port, 0 to 3
+ *
+ * Return: the telegram's length.
+ */
+unsigned int nxt_ls_port_tg(u8 *tg, u8 opcode, u8 port)
+{
+	tg[0] = NXT_DIRECT_CMD;
+	tg[1] = opcode;
+	tg[2] = port;
+	return 3;
+}
+EXPORT_SYMBOL_IF_KUNIT(nxt_ls_port_tg);
+
+/**
+ * nxt_ls_errno() - the errno of a low-speed port's status byte
+ * @status: the status byte of a reply
+ *
+ * Return: 0 for success; -%EINPROGRESS while the port's transaction runs;
+ * -%EAGAIN when the port is not ready (not in low-speed mode, settling
+ * after SetInputMode, or busy); -%ENXIO for a bus error (what the brick
+ * says when no device acknowledged its address); -%EINVAL for values the
+ * brick refused; -%EIO for any other error.
+ */
+int nxt_ls_errno(u8 status)
+{
+	switch (status) {
+	case NXT_STATUS_SUCCESS:
+		return 0;
+	case NXT_STATUS_PENDING:
+		return -EINPROGRESS;
+	case NXT_STATUS_NOT_READY:
+		return -EAGAIN;
+	case NXT_STATUS_BUS_ERROR:
+		return -ENXIO;
+	case 0xc0:	/* a value out of range */
+	case 0xed:	/* an illegal size */
+	case 0xff:	/* bad arguments */
+		return -EINVAL;
+	default:
+		return -EIO;
+	}
+}
+EXPORT_SYMBOL_IF_KUNIT(nxt_ls_errno);
+
+/**
+ * nxt_ls_status() - the status byte of a reply to a low-speed telegram
+ * @reply: the reply
+ * @len: its length
+ * @opcode: the telegram's opcode
+ *
+ * Return: the status byte, or -%EPROTO if @reply is not a reply to @opcode.
+ */
+int nxt_ls_status(const u8 *reply, size_t len, u8 opcode)
+{
+	if (len < NXT_REPLY_MIN || reply[0] != NXT_REPLY || reply[1] != opcode)
+		return -EPROTO;
+	return reply[2];
+}
+EXPORT_SYMBOL_IF_KUNIT(nxt_ls_status);
+
+/**
+ * nxt_ls_ready() - what a reply to LSGetStatus says
+ * @reply: the reply
+ * @len: its length
+ *
+ * Return: the number of bytes read and ready (0 to NXT_LS_MAX) once the
+ * port's transaction is over, -%EPROTO for a malformed reply, or the
+ * status byte's nxt_ls_errno().
+ */
+int nxt_ls_ready(const u8 *reply, size_t len)
+{
+	int status = nxt_ls_status(reply, len, NXT_LS_GET_STATUS);
+
+	if (status < 0)
+		return status;
+	if (status != NXT_STATUS_SUCCESS)
+		return nxt_ls_errno(status);
+	if (len < 4 || reply[3] > NXT_LS_MAX)
+		return -EPROTO;
+	return reply[3];
+}
+EXPORT_SYMBOL_IF_KUNIT(nxt_ls_ready);
+
+/**
+ * nxt_ls_read_data() - the bytes of a reply to LSRead
+ * @reply: the reply: status, count, then 16 bytes
+ * @len: its length
+ * @buf: where the bytes go
+ * @want: how many were asked for, 1 to NXT_LS_MAX
+ *
+ * Return: 0 with @want bytes in @buf; -%EPROTO for a malformed reply or
+ * a count other than @want; or the status byte's nxt_ls_errno().
+ */
+int nxt_ls_read_data(const u8 *reply, size_t len, u8 *buf, size_t want)
+{
+	int status = nxt_ls_status(reply, len, NXT_LS_READ);
+
+	if (status < 0)
+		return status;
+	if (status != NXT_STATUS_SUCCESS)
+		return nxt_ls_errno(status);
+	if (len < 4 + NXT_LS_MAX || want > NXT_LS_MAX || reply[3] != want)
+		return -EPROTO;
+	memcpy(buf, reply + 4, want);
+	return 0;
+}
+EXPORT_SYMBOL_IF_KUNIT(nxt_ls_read_data);

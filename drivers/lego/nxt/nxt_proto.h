@@ -125,6 +125,38 @@ size_t nxt_bt_rx_feed(struct nxt_bt_rx *rx, const u8 *data, size_t len,
 		      const u8 **reply, unsigned int *reply_len);
 unsigned int nxt_bt_frame(u8 *frame, const u8 *tg, size_t len);
 
+/*
+ * A sensor port in low-speed (I2C) mode: the brick runs one I2C transaction
+ * per LSWrite, whose first byte is the device's address in 8-bit form (the
+ * 7-bit address shifted left, as LEGO writes it: 0x02 for the ultrasonic
+ * sensor), followed by up to 15 bytes to write, then, if bytes are to be
+ * read, a repeated start and up to 16 bytes read. LSGetStatus says whether
+ * that transaction is still running and how many bytes it read; LSRead
+ * returns them.
+ */
+#define NXT_INPUT_PORTS		4
+#define NXT_LS_MAX		16
+#define NXT_LS_WRITE_MAX	(NXT_LS_MAX - 1)
+/* The sensor types and mode of SetInputMode that a low-speed port needs. */
+#define NXT_SENSOR_LOWSPEED_9V	0x0b
+#define NXT_SENSOR_MODE_RAW	0x00
+/* The status bytes of a low-speed port the driver tells apart. */
+#define NXT_STATUS_PENDING	0x20	/* the I2C transaction is still running */
+#define NXT_STATUS_BUS_ERROR	0xdd	/* nothing acknowledged, or the bus failed */
+#define NXT_STATUS_NOT_READY	0xe0	/* not in low-speed mode, or settling, or busy */
+
+/* The longest telegram of a low-speed transaction: LSWrite with 16 bytes. */
+#define NXT_LS_TG_MAX		(5 + NXT_LS_MAX)
+
+unsigned int nxt_ls_mode_tg(u8 *tg, u8 port);
+int nxt_ls_write_tg(u8 *tg, u8 port, u16 addr, const u8 *buf, size_t len,
+		    size_t rx_len);
+unsigned int nxt_ls_port_tg(u8 *tg, u8 opcode, u8 port);
+int nxt_ls_errno(u8 status);
+int nxt_ls_status(const u8 *reply, size_t len, u8 opcode);
+int nxt_ls_ready(const u8 *reply, size_t len);
+int nxt_ls_read_data(const u8 *reply, size_t len, u8 *buf, size_t want);
+
 int nxt_telegram_check(const u8 *tg, size_t len);
 unsigned int nxt_reply_length(const u8 *tg, size_t len);
 int nxt_reply_check(const u8 *tg, size_t tg_len, const u8 *reply, size_t len);

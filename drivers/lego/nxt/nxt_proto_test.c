@@ -571,6 +571,90 @@ static void nxt_test_bt_lying_prefixes(struct kunit *test)
 	KUNIT_EXPECT_EQ(test, rx.dropped, 2U);
 }
 
+/* The low-speed (I2C) telegrams of the adapters, and their replies. */
+static void nxt_test_ls_telegrams(struct kunit *test)
+{
+	static const u8 wr[] = { 0x42, 0x01, 0x02 };
+	u8 tg[NXT_LS_TG_MAX + 4], big[NXT_LS_MAX];
+
+	memset(big, 0x5a, sizeof(big));
+	KUNIT_EXPECT_EQ(test, nxt_ls_mode_tg(tg, 3), 5U);
+	KUNIT_EXPECT_MEMEQ(test, tg, ((u8[]){ 0x00, 0x05, 0x03, 0x0b, 0x00 }), 5);
+	KUNIT_EXPECT_EQ(test, nxt_telegram_check(tg, 5), 1);
+
+	/* The ultrasonic sensor at 0x01 is 0x02 on the brick's bus. */
+	KUNIT_EXPECT_EQ(test, nxt_ls_write_tg(tg, 3, 0x01, wr, 1, 1), 7);
+	KUNIT_EXPECT_MEMEQ(test, tg, ((u8[]){ 0x00, 0x0f, 0x03, 0x02, 0x01, 0x02, 0x42 }), 7);
+	KUNIT_EXPECT_EQ(test, nxt_telegram_check(tg, 7), 1);
+	KUNIT_EXPECT_EQ(test, nxt_reply_length(tg, 7), 3U);
+	/* A quick write: the address alone, nothing read. */
+	KUNIT_EXPECT_EQ(test, nxt_ls_write_tg(tg, 0, 0x7f, NULL, 0, 0), 6);
+	KUNIT_EXPECT_MEMEQ(test, tg, ((u8[]){ 0x00, 0x0f, 0x00, 0x01, 0x00, 0xfe }), 6);
+	KUNIT_EXPECT_EQ(test, nxt_telegram_check(tg, 6), 1);
+	/* The most: 15 bytes and the address, and 16 read; the telegram is whole. */
+	KUNIT_EXPECT_EQ(test, nxt_ls_write_tg(tg, 1, 0x08, big, NXT_LS_WRITE_MAX, NXT_LS_MAX),
+			NXT_LS_TG_MAX);
+	KUNIT_EXPECT_EQ(test, tg[3], NXT_LS_MAX);
+	KUNIT_EXPECT_EQ(test, tg[4], NXT_LS_MAX);
+	KUNIT_EXPECT_EQ(test, nxt_telegram_check(tg, NXT_LS_TG_MAX), 1);
+	KUNIT_EXPECT_TRUE(test, nxt_request_complete(tg, NXT_LS_TG_MAX));
+	KUNIT_EXPECT_FALSE(test, nxt_request_complete(tg, NXT_LS_TG_MAX - 1));
+	/* What one LSWrite cannot carry. */
+	KUNIT_EXPECT_EQ(test, nxt_ls_write_tg(tg, 1, 0x08, big, NXT_LS_MAX, 0), -EINVAL);
+	KUNIT_EXPECT_EQ(test, nxt_ls_write_tg(tg, 1, 0x08, big, 1, NXT_LS_MAX + 1), -EINVAL);
+	KUNIT_EXPECT_EQ(test, nxt_ls_write_tg(tg, 4, 0x08, big, 1, 1), -EINVAL);
+	KUNIT_EXPECT_EQ(test, nxt_ls_write_tg(tg, 0, 0x80, big, 1, 1), -EINVAL);
+
+	KUNIT_EXPECT_EQ(test, nxt_ls_port_tg(tg, NXT_LS_GET_STATUS, 2), 3U);
+	KUNIT_EXPECT_MEMEQ(test, tg, ((u8[]){ 0x00, 0x0e, 0x02 }), 3);
+	KUNIT_EXPECT_EQ(test, nxt_reply_length(tg, 3), 4U);
+	KUNIT_EXPECT_EQ(test, nxt_ls_port_tg(tg, NXT_LS_READ, 2), 3U);
+	KUNIT_EXPECT_EQ(test, nxt_reply_length(tg, 3), 20U);
+}
+
+static void nxt_test_ls_replies(struct kunit *test)
+{
+	u8 reply[20] = { 0x02, 0x10, 0x00, 4, 'L', 'E', 'G', 'O' };
+	u8 buf[NXT_LS_MAX + 1];
+
+	KUNIT_EXPECT_EQ(test, nxt_ls_errno(0x00), 0);
+	KUNIT_EXPECT_EQ(test, nxt_ls_errno(0x20), -EINPROGRESS);
+	KUNIT_EXPECT_EQ(test, nxt_ls_errno(0xe0), -EAGAIN);
+	KUNIT_EXPECT_EQ(test, nxt_ls_errno(0xdd), -ENXIO);
+	KUNIT_EXPECT_EQ(test, nxt_ls_errno(0xc0), -EINVAL);
+	KUNIT_EXPECT_EQ(test, nxt_ls_errno(0xed), -EINVAL);
+	KUNIT_EXPECT_EQ(test, nxt_ls_errno(0xde), -EIO);
+
+	KUNIT_EXPECT_EQ(test, nxt_ls_status((u8[]){ 0x02, 0x0f, 0xe0 }, 3, NXT_LS_WRITE), 0xe0);
+	KUNIT_EXPECT_EQ(test, nxt_ls_status((u8[]){ 0x02, 0x0e, 0x00 }, 3, NXT_LS_WRITE), -EPROTO);
+	KUNIT_EXPECT_EQ(test, nxt_ls_status((u8[]){ 0x01, 0x0f, 0x00 }, 3, NXT_LS_WRITE), -EPROTO);
+	KUNIT_EXPECT_EQ(test, nxt_ls_status((u8[]){ 0x02, 0x0f }, 2, NXT_LS_WRITE), -EPROTO);
+
+	KUNIT_EXPECT_EQ(test, nxt_ls_ready((u8[]){ 0x02, 0x0e, 0x00, 0x07 }, 4), 7);
+	KUNIT_EXPECT_EQ(test, nxt_ls_ready((u8[]){ 0x02, 0x0e, 0x00, 0x10 }, 4), 16);
+	KUNIT_EXPECT_EQ(test, nxt_ls_ready((u8[]){ 0x02, 0x0e, 0x00, 0x11 }, 4), -EPROTO);
+	KUNIT_EXPECT_EQ(test, nxt_ls_ready((u8[]){ 0x02, 0x0e, 0x00 }, 3), -EPROTO);
+	KUNIT_EXPECT_EQ(test, nxt_ls_ready((u8[]){ 0x02, 0x0e, 0x20, 0x00 }, 4), -EINPROGRESS);
+	KUNIT_EXPECT_EQ(test, nxt_ls_ready((u8[]){ 0x02, 0x0e, 0xdd, 0x00 }, 4), -ENXIO);
+	/* A bad port: three bytes, no count. */
+	KUNIT_EXPECT_EQ(test, nxt_ls_ready((u8[]){ 0x02, 0x0e, 0xc0 }, 3), -EINVAL);
+
+	memset(buf, 0xa5, sizeof(buf));
+	KUNIT_EXPECT_EQ(test, nxt_ls_read_data(reply, sizeof(reply), buf, 4), 0);
+	KUNIT_EXPECT_MEMEQ(test, buf, "LEGO", 4);
+	KUNIT_EXPECT_EQ(test, buf[4], 0xa5);
+	/* The count must be what was asked for, and the reply whole. */
+	KUNIT_EXPECT_EQ(test, nxt_ls_read_data(reply, sizeof(reply), buf, 3), -EPROTO);
+	KUNIT_EXPECT_EQ(test, nxt_ls_read_data(reply, sizeof(reply) - 1, buf, 4), -EPROTO);
+	reply[3] = NXT_LS_MAX + 1;
+	KUNIT_EXPECT_EQ(test, nxt_ls_read_data(reply, sizeof(reply), buf, NXT_LS_MAX + 1),
+			-EPROTO);
+	reply[2] = 0xdd;
+	KUNIT_EXPECT_EQ(test, nxt_ls_read_data(reply, sizeof(reply), buf, 4), -ENXIO);
+	reply[1] = 0x0e;
+	KUNIT_EXPECT_EQ(test, nxt_ls_read_data(reply, sizeof(reply), buf, 4), -EPROTO);
+}
+
 static struct kunit_case nxt_proto_cases[] = {
 	KUNIT_CASE(nxt_test_telegram_types),
 	KUNIT_CASE(nxt_test_telegram_lengths),
@@ -586,6 +670,8 @@ static struct kunit_case nxt_proto_cases[] = {
 	KUNIT_CASE(nxt_test_versions_and_device_info),
 	KUNIT_CASE(nxt_test_bt_frames),
 	KUNIT_CASE(nxt_test_bt_lying_prefixes),
+	KUNIT_CASE(nxt_test_ls_telegrams),
+	KUNIT_CASE(nxt_test_ls_replies),
 	{}
 };
 

@@ -26,6 +26,7 @@
 #include <linux/limits.h>
 #include <linux/module.h>
 #include <linux/slab.h>
+#include <linux/string.h>
 #include <linux/usb.h>
 
 #include "lego_compat.h"
@@ -466,6 +467,9 @@ static int nxt_usb_probe(struct usb_interface *intf,
 	if (ret)
 		goto err_put;
 	usb_set_intfdata(intf, nxt);
+	/* The brick's iSerial is its Bluetooth address, twelve hex digits. */
+	if (nxt->udev->serial)
+		strscpy(nxt->brick.serial, nxt->udev->serial, sizeof(nxt->brick.serial));
 
 	ret = nxt_node_add(&nxt->brick, &intf->dev);
 	if (ret) {
