@@ -14,6 +14,7 @@ import contextlib
 import io
 import os
 import re
+import shlex
 import signal
 import subprocess
 import sys
@@ -69,7 +70,8 @@ def check(cond, what):
 
 def shell(argv, expect=0):
     """Run a command as a user would, echoing it and its output."""
-    say('   $ ' + ' '.join(os.path.basename(a) if a in (NXTCTL, ATTACH) else a for a in argv))
+    say('   $ ' + ' '.join(os.path.basename(a) if a in (NXTCTL, ATTACH) else shlex.quote(a)
+                           for a in argv))
     r = subprocess.run(argv, capture_output=True, text=True, timeout=60)
     for line in (r.stdout + r.stderr).splitlines():
         say('     ' + line)
@@ -304,6 +306,18 @@ def _():
     check(got == 360, 'motor A stopped at %s degrees, not 360' % got)
     out = shell([NXTCTL, '-d', node, 'motor-state', 'A'])
     check('run_state: idle' in out, 'motor A still running after its tacho limit')
+
+
+@step(NXT, 'i2cget: the ultrasonic sensor on port 4, through the port\'s I2C adapter')
+def _():
+    b = BRICK['b']
+    shell(['i2cdetect', '-l'])
+    adapter = 'NXT %s port 4' % b.serial
+    for cm in (42, 17):
+        b.fw.ultrasonic.distance = cm
+        out = shell(['i2cget', '-y', '-a', adapter, '0x01', '0x42'])
+        check(out.strip() == '0x%02x' % cm, 'read %r, the sensor says %d cm' % (out.strip(), cm))
+        say('   %d cm' % int(out, 16))
 
 
 @step(NXT, 'What the driver logged (dmesg)')
