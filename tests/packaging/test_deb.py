@@ -162,6 +162,7 @@ def test_install_the_other_packages(root):
     for path in ('/usr/bin/nxtctl', '/usr/sbin/lego-ev3-attach',
                  '/usr/lib/udev/rules.d/70-lego-nxt.rules',
                  '/usr/lib/udev/rules.d/70-lego-ev3-iio.rules',
+                 '/usr/lib/udev/rules.d/90-lego-ev3-iiod.rules',
                  '/usr/share/doc/lego-mindstorms-tools/README.md.gz',
                  '/usr/share/doc/lego-mindstorms-tools/ev3-attach.rst.gz',
                  '/usr/share/doc/lego-mindstorms-tools/examples/nxt-ioctl.c',

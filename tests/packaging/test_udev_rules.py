@@ -14,6 +14,8 @@
    (and the check is shown to catch a bad file);
  - every `groupadd` the README, the documentation and the Makefile tell a
    user to run makes a system group;
+ - 90-lego-ev3-iiod.rules restarts iiod.service, when it is enabled, as a
+   sensor's IIO device (and no other) comes or goes;
  - an EV3 sensor's IIO node gets the group and the seat's access, and the
    rules' commands, run on a copy of a sensor's sysfs directories, make
    every attribute the driver lets userspace write (DEVICE_ATTR_RW/WO,
@@ -196,6 +198,89 @@ def test_rules_open_every_writable_sensor_attribute(tmp_path):
         assert group_writable(iio / name, gid), 'IIO attribute %s: not for the group' % name
     for name in readonly:
         assert not os.stat(iio / name).st_mode & 0o022, name
+
+
+IIOD_RULES = os.path.join(TOP, 'tools/udev/90-lego-ev3-iiod.rules')
+
+
+def rule_keys(line):
+    """[(key, operator, value)] of a rule line."""
+    return re.findall(r'([A-Z_]+(?:\{[^}]*\})?)\s*(==|!=|\+=|:=|=)\s*"([^"]*)"', line)
+
+
+def iiod_rule_fires(action, subsystem, devpath):
+    """Whether 90-lego-ev3-iiod.rules reaches its RUN for an event: each
+    line "KEY!="VALUE", GOTO=end" skips it when KEY matches VALUE (udev's
+    patterns: fnmatch, | between alternatives)."""
+    from fnmatch import fnmatchcase
+    event = {'ACTION': action, 'SUBSYSTEM': subsystem, 'DEVPATH': devpath}
+    for line in rule_lines(IIOD_RULES):
+        keys = rule_keys(line)
+        if keys[0][0] == 'LABEL':
+            continue
+        if any(k == 'RUN' for k, _, _ in keys):
+            return True
+        (key, op, value), (goto, _, _) = keys
+        assert op == '!=' and goto == 'GOTO', line
+        if not any(fnmatchcase(event[key], alt) for alt in value.split('|')):
+            return False
+    return False
+
+
+@pytest.mark.parametrize('action,devpath,fires', [
+    ('add', '/devices/platform/soc/fe201000.serial/tty/ttyAMA0/iio:device0', True),
+    ('remove', '/devices/platform/soc/fe201000.serial/tty/ttyAMA0/iio:device0', True),
+    ('add', '/devices/pci0000:00/0000:00:14.0/usb1/1-1/1-1:1.0/ttyUSB0/tty/ttyUSB0/'
+     'iio:device2', True),
+    ('remove', '/devices/virtual/tty/ttyNM0/iio:device1', True),
+    ('change', '/devices/virtual/tty/ttyNM0/iio:device1', False),
+    ('bind', '/devices/virtual/tty/ttyNM0/iio:device1', False),
+    # Another driver's IIO device (an I2C IMU): iiod is not restarted for it.
+    ('add', '/devices/platform/soc/fe804000.i2c/i2c-1/1-0068/iio:device0', False),
+    ('add', '/devices/platform/soc/fe804000.i2c/i2c-1/1-0068/trigger0', False),
+])
+def test_iiod_rule_fires_for_sensors_only(action, devpath, fires):
+    assert iiod_rule_fires(action, 'iio', devpath) == fires
+    assert not iiod_rule_fires(action, 'tty', devpath)
+
+
+FAKE_SYSTEMCTL = """#!/bin/sh
+echo "$*" >> "$SYSTEMCTL_LOG"
+case "$*" in
+*is-enabled*) exit "$IIOD_ENABLED_STATUS" ;;
+esac
+exit 0
+"""
+
+
+@pytest.mark.parametrize('enabled', [True, False])
+def test_iiod_rule_restarts_an_enabled_iiod(tmp_path, enabled):
+    """The rule's RUN command, with a systemctl that logs its arguments:
+    iiod.service is restarted without waiting for the job (udev must not
+    block) if it is enabled, else left alone; the command succeeds
+    either way."""
+    cmds = [c for line in rule_lines(IIOD_RULES) for c in re.findall(r'RUN\+="([^"]*)"', line)]
+    assert len(cmds) == 1, cmds
+    fake = tmp_path / 'systemctl'
+    fake.write_text(FAKE_SYSTEMCTL)
+    os.chmod(fake, 0o755)
+    # systemctl by its full path: udev gives the command no PATH.
+    assert cmds[0].count('/bin/systemctl ') == 2, cmds
+    argv = shlex.split(cmds[0].replace('$$', '$').replace('/bin/systemctl ', '%s ' % fake))
+    assert argv[:2] == ['/bin/sh', '-c'], argv
+    log = tmp_path / 'log'
+    # What udev gives it: the device's properties, no PATH.
+    env = {'ACTION': 'add', 'SUBSYSTEM': 'iio',
+           'DEVPATH': '/devices/virtual/tty/ttyNM0/iio:device0',
+           'SYSTEMCTL_LOG': str(log), 'IIOD_ENABLED_STATUS': '0' if enabled else '1'}
+    r = subprocess.run(argv, env=env, capture_output=True, text=True, timeout=30)
+    assert r.returncode == 0, r.stdout + r.stderr
+    calls = log.read_text().splitlines()
+    assert calls[0] == '-q is-enabled iiod.service', calls
+    if enabled:
+        assert calls[1:] == ['--no-block restart iiod.service'], calls
+    else:
+        assert calls[1:] == [], calls
 
 
 def test_groups_of_the_rules_are_made_by_sysusers():
