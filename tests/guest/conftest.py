@@ -73,8 +73,8 @@ def unload(*names):
 
 @contextlib.contextmanager
 def udevd_with_rules(work, rules):
-    """systemd-udevd with the rule files RULES of tools/udev in
-    /run/udev/rules.d and a group lego (added to a private copy of
+    """systemd-udevd with the rule files RULES of tools/udev (or given by
+    their absolute paths) in /run/udev/rules.d and a group lego (added to a private copy of
     /etc/group, bind-mounted, when the system has none); yields its GID.
     udevadm control refuses to act in a chroot, as the tests run: the
     daemon is stopped with signals."""
@@ -111,7 +111,7 @@ def udevd_with_rules(work, rules):
                     os.kill(pid, signal.SIGKILL)
         for r in rules:
             with contextlib.suppress(FileNotFoundError):
-                os.unlink(os.path.join(rules_dir, r))
+                os.unlink(os.path.join(rules_dir, os.path.basename(r)))
         if mounted:
             subprocess.run(['umount', '/etc/group'])
 
