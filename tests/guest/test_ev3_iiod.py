@@ -379,6 +379,25 @@ def test_iio_readdev_captures_values_and_timestamps(served):
     assert proc.poll() is None, 'iiod ended'
 
 
+def test_iiod_serves_only_the_devices_it_found_when_it_started(line, tmp_path):
+    """Why 90-lego-ev3-iiod.rules restarts iiod: a sensor that connects
+    while iiod runs is not served until iiod is started again (libiio 0.24;
+    a later iiod that finds new devices by itself makes this fail, and the
+    rule can go)."""
+    with loopback():
+        with iiod(tmp_path):
+            emu = line.plug('us')
+            emu.set_values(0, [263])
+            assert find_sensor(line.address, timeout=15), 'no sensor (emulator: %s)' % emu.events
+            dev = iio_device(DEVICE)
+            assert dev and wait_attr_int(dev, 'in_distance0_raw', 263) == 263
+            devid, _ = device_section(tool('iio_info'), DEVICE)
+            assert devid is None, 'iiod found the new sensor (%s) by itself' % devid
+        with iiod(tmp_path):
+            devid, _ = device_section(tool('iio_info'), DEVICE)
+            assert devid == os.path.basename(dev)
+
+
 FAKE_SYSTEMCTL = """#!/bin/sh
 echo "$*" >> %s
 exit 0
