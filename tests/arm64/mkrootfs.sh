@@ -30,10 +30,11 @@ mirror=${LEGO_DEBIAN_MIRROR:-http://deb.debian.org/debian}
 suite=bookworm
 # What the guest tests run: python3 and pytest, pyusb and libusb (nxt-python),
 # udevadm and systemd-udevd (test_ev3_attach, the udev tests), iio_info and iio_readdev
-# (libiio-utils, test_ev3_iio), libiio's daemon (iiod, test_ev3_iiod), kmod (insmod, modprobe,
+# (libiio-utils, test_ev3_iio), libiio's daemon (iiod, test_ev3_iiod), i2c-tools
+# (test_nxt_i2c), kmod (insmod, modprobe,
 # rmmod), util-linux (ldattach), iproute2, procps, and a static busybox for
 # the initramfs. python3-pil is python-ev3dev2's Pillow (compiled code).
-packages=python3,python3-pytest,python3-usb,python3-pil,libusb-1.0-0,libiio-utils,iiod,udev,systemd,kmod,iproute2,util-linux,procps,busybox-static
+packages=python3,python3-pytest,python3-usb,python3-pil,libusb-1.0-0,libiio-utils,iiod,i2c-tools,udev,systemd,kmod,iproute2,util-linux,procps,busybox-static
 # Bump when the steps below change in a way that changes the result.
 recipe=1
 key=$( { echo "$suite arm64 $packages recipe $recipe"; cat "$top/tests/requirements.txt"; } |
