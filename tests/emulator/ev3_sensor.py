@@ -17,6 +17,11 @@ ev3dev.md):
   no NACK came for a second;
 - SELECT switches mode after the sensor's own delay; WRITE 0x11 resets the
   gyro angle;
+- Powered Up devices take values for a mode that takes them (MAPPING out
+  flags: a light's brightness) as EXT_MODE + DATA, in the mode they are in
+  (Pybricks sends them only then), and then send those values in that
+  mode's DATA; values for another mode are ignored (lump_writes has them
+  all, lump_write_modes the mode the device was in);
 - Powered Up devices that can (the SPIKE colour and distance sensors, not
   the BOOST colour and distance sensor) listen at 115200 baud while they
   hold TX low after a reset, and answer the host's fast sync probe (SPEED
@@ -520,6 +525,7 @@ class EmulatedSensor(threading.Thread):
         self.frames_sent = 0
         self.writes = []
         self.lump_writes = []       # (mode, payload) a Powered Up host sent
+        self.lump_write_modes = []  # the mode the device was in for each
         self.changed = True
         self.stale_until = 0.0
         self.fd = None
@@ -967,7 +973,7 @@ class EmulatedSensor(threading.Thread):
                     if len(buf) < size + 2:
                         break
                     if checksum(buf[:size + 1]) == buf[size + 1]:
-                        self.lump_writes.append(((b & 7) + host_ext, bytes(buf[1:size + 1])))
+                        self.on_lump_data((b & 7) + host_ext, bytes(buf[1:size + 1]))
                     buf = buf[size + 2:]
                 elif b & 0xc7 == 0x44:      # WRITE
                     size = 1 << ((b >> 3) & 7)
@@ -995,6 +1001,22 @@ class EmulatedSensor(threading.Thread):
         req['result'] = (req['mode'], req['start'], t0, t1)
         req['done'].set()
         return True
+
+    def on_lump_data(self, mode, payload):
+        """Values a Powered Up host sent for `mode`: taken if the device is
+        in that mode and it takes values (MAPPING out flags)."""
+        self.lump_writes.append((mode, payload))
+        self.lump_write_modes.append(self.mode)
+        if mode >= len(self.sdef.modes) or mode != self.mode:
+            self.log('values for mode %d ignored in mode %d' % (mode, self.mode))
+            return
+        m = self.sdef.modes[mode]
+        size = {S8: 1, S16: 2, S32: 4, FLOAT: 4}[m.t]
+        if not m.mapping or not m.mapping[1] or len(payload) < m.n * size:
+            return
+        fmt = {S8: 'b', S16: 'h', S32: 'i', FLOAT: 'f'}[m.t]
+        self.set_values(mode, struct.unpack_from('<%d%s' % (m.n, fmt), payload))
+        self.log('values for mode %d' % mode)
 
     def on_write(self, payload):
         self.writes.append(bytes(payload))

@@ -30,7 +30,7 @@ MAX_LINES = 60
 DRIVERS = {
     # The discipline's structure is private to ev3_uart_ldisc.c: it has no
     # header a view could include.
-    'ev3': {'views': ['ev3_uart_class.c', 'ev3_uart_iio.c'], 'transport': ['ev3_uart_ldisc.h'],
+    'ev3': {'views': ['ev3_uart_class.c', 'ev3_uart_iio.c', 'ev3_uart_leds.c'], 'transport': ['ev3_uart_ldisc.h'],
             'transport_objs': ['ev3_uart_ldisc.o'],
             # (owner, a use of a field, what): struct ev3_uart_parser's
             # fields are read through its accessors outside its own file.

@@ -223,7 +223,7 @@ piece_ev3_proto() {
 # without the lego-sensor class (5), the ABI of the IIO channels.
 piece_ev3_ldisc() {
 	put_dir drivers/lego/ev3 "$EV3" ev3_uart_core.h ev3_uart_core.c ev3_uart_views.h \
-		ev3_uart_ldisc.c ev3_uart_iio.c ev3_uart_trace.h ev3_uart_trace.c Kconfig \
+		ev3_uart_ldisc.c ev3_uart_iio.c ev3_uart_leds.c ev3_uart_trace.h ev3_uart_trace.c Kconfig \
 		Makefile .kunitconfig
 	# The class's option and object come with the class.
 	awk '/^config LEGO_EV3_UART_CLASS$/ { skip = 1; next }
@@ -233,7 +233,8 @@ piece_ev3_ldisc() {
 	sed -i '/ev3_uart_class\.o/d' "$tree/$EV3/Makefile"
 	! grep -q -e LEGO_EV3_UART_CLASS -e ev3_uart_class "$tree/$EV3/Kconfig" "$tree/$EV3/Makefile" ||
 		die "$EV3: the class is left in Kconfig or Makefile"
-	put_dir Documentation/ABI/testing Documentation/ABI/testing sysfs-bus-iio-lego-ev3-uart
+	put_dir Documentation/ABI/testing Documentation/ABI/testing sysfs-bus-iio-lego-ev3-uart \
+		sysfs-class-led-lego-ev3-uart
 	insert_sorted drivers/iio/common/Kconfig '^source "drivers/iio/common/' \
 		"source \"$EV3/Kconfig\""
 	insert_sorted drivers/iio/common/Makefile '^obj-y \+= ' 'obj-y += lego_ev3_uart/'

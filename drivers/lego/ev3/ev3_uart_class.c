@@ -10,8 +10,10 @@
 #include <linux/device.h>
 #include <linux/idr.h>
 #include <linux/jiffies.h>
+#include <linux/kernel.h>
 #include <linux/kobject.h>
 #include <linux/slab.h>
+#include <linux/string.h>
 #include <linux/sysfs.h>
 
 #include "lego_compat.h"
@@ -126,6 +128,56 @@ static ssize_t mode_store(struct device *dev, struct device_attribute *attr,
 	return ret ? ret : count;
 }
 static DEVICE_ATTR_RW(mode);
+
+/* The modes that take values from the host (Powered Up devices only). */
+static ssize_t mode_data_show(struct device *dev, struct device_attribute *attr,
+			      char *buf)
+{
+	struct ev3_uart_sensor_dev *sd = to_sensor(dev);
+	char tok[EV3_UART_TOKEN_LEN + 1];
+	int i, len = 0;
+
+	for (i = 0; i < sd->desc.num_modes; i++) {
+		if (ev3_uart_lump_data_len(&sd->desc, i) < 0 ||
+		    ev3_uart_mode_token(&sd->desc, i, tok, sizeof(tok)) < 0)
+			continue;
+		len += sysfs_emit_at(buf, len, "%s%s", len ? " " : "", tok);
+	}
+	return len + sysfs_emit_at(buf, len, "\n");
+}
+
+/* "MODE V0 V1 ...": the values sent to the mode (ev3_uart_set_mode_data()). */
+static ssize_t mode_data_store(struct device *dev, struct device_attribute *attr,
+			       const char *buf, size_t count)
+{
+	struct ev3_uart_sensor_dev *sd = to_sensor(dev);
+	u8 data[EV3_UART_MAX_PAYLOAD];
+	s32 v[EV3_UART_MAX_PAYLOAD];
+	char *copy, *p, *t;
+	int mode, ret;
+	unsigned int n = 0;
+
+	copy = kstrndup(buf, count, GFP_KERNEL);
+	if (!copy)
+		return -ENOMEM;
+	p = strim(copy);
+	t = strsep(&p, " ");
+	mode = ev3_uart_find_mode(&sd->desc, t);
+	ret = mode < 0 ? mode : 0;
+	while (!ret && p) {
+		t = strsep(&p, " ");
+		if (!*t)
+			continue;
+		ret = n < ARRAY_SIZE(v) ? kstrtos32(t, 0, &v[n++]) : -EINVAL;
+	}
+	if (!ret)
+		ret = ev3_uart_pack_values(&sd->desc, mode, v, n, data);
+	if (ret > 0)
+		ret = ev3_uart_set_mode_data(sd, mode, data, ret);
+	kfree(copy);
+	return ret ? ret : count;
+}
+static DEVICE_ATTR_RW(mode_data);
 
 static ssize_t commands_show(struct device *dev, struct device_attribute *attr,
 			     char *buf)
@@ -296,6 +348,7 @@ static LEGO_ATTR_CONST struct attribute *LEGO_ATTR_CONST ev3_uart_sensor_attrs[]
 	&dev_attr_driver_name.attr,
 	&dev_attr_modes.attr,
 	&dev_attr_mode.attr,
+	&dev_attr_mode_data.attr,
 	&dev_attr_commands.attr,
 	&dev_attr_command.attr,
 	&dev_attr_num_values.attr,

@@ -200,6 +200,25 @@ static u8 ev3_uart_data_hdr(const struct ev3_uart_event *ev)
 }
 
 /*
+ * A DATA message of the mode a write of values borrows the sensor in
+ * (ev3_uart_set_mode_data()): it confirms the SELECT of that mode, but
+ * the user's mode and values stay. Return: true if @ev was one. @lock held.
+ */
+static bool ev3_uart_lent_data(struct ev3_uart_port *port,
+			       struct ev3_uart_sensor_dev *sd,
+			       const struct ev3_uart_event *ev)
+{
+	if (sd->lent_mode == EV3_UART_NO_MODE || ev->mode != sd->lent_mode)
+		return false;
+	if (port->select_mode == ev->mode &&
+	    ev3_uart_parser_pending(&port->parser) == EV3_UART_NO_MODE) {
+		port->select_mode = EV3_UART_NO_MODE;
+		complete(&port->select_done);
+	}
+	return true;
+}
+
+/*
  * A DATA message: the sensor's values, pushed to the views, and the
  * confirmation of a SELECT. @lock held.
  */
@@ -216,7 +235,7 @@ static void ev3_uart_data_event(struct ev3_uart_port *port,
 		trace_ev3_uart_rx(port->name, EV3_UART_TRACE_DATA,
 				  ev3_uart_data_hdr(ev), ev->mode, 0, ev->len,
 				  ev3_uart_accepted_by(port, ev), ev->mode_changed);
-	if (!sd)
+	if (!sd || ev3_uart_lent_data(port, sd, ev))
 		return;
 	/*
 	 * Not only on ev->mode_changed: a SELECT written through sysfs
@@ -622,6 +641,7 @@ ev3_uart_sensor_create(struct ev3_uart_port *port,
 	sd->port = port;
 	sd->desc = *desc;
 	sd->held_mode = EV3_UART_NO_MODE;
+	sd->lent_mode = EV3_UART_NO_MODE;
 	sd->settle_until = jiffies;
 	if (name)
 		strscpy(sd->driver_name, name, sizeof(sd->driver_name));
@@ -1382,6 +1402,111 @@ int ev3_uart_write(struct ev3_uart_sensor_dev *sd, const u8 *data, size_t len)
 	if (READ_ONCE(sd->gone))
 		return -ENODEV;
 	return sd->port->ops->send(sd->port, msg, n);
+}
+
+/* ---- Powered Up: values for a mode ---- */
+
+/*
+ * SELECT @mode whatever mode the parser thinks the sensor is in, and wait
+ * for its confirmation; the user's choice of a mode (restored after a
+ * reconnect) stays. select_mutex held.
+ */
+static int ev3_uart_select_force(struct ev3_uart_sensor_dev *sd, u8 mode)
+{
+	unsigned long wait = msecs_to_jiffies(EV3_UART_SELECT_WAIT_MS);
+	struct ev3_uart_port *port = sd->port;
+	unsigned long settle;
+	u8 rq_type, rq_mode;
+	bool rq_lump;
+	int ret;
+
+	spin_lock(&port->lock);
+	rq_type = port->requested_type;
+	rq_lump = port->requested_lump;
+	rq_mode = port->requested_mode;
+	ret = sd->gone ? -ENODEV : ev3_uart_parser_select(&port->parser, mode);
+	if (!ret) {
+		port->select_mode = mode;
+		reinit_completion(&port->select_done);
+	}
+	spin_unlock(&port->lock);
+	if (!ret)
+		ret = ev3_uart_select_send(sd, mode, wait, &settle);
+
+	spin_lock(&port->lock);
+	port->requested_type = rq_type;
+	port->requested_lump = rq_lump;
+	port->requested_mode = rq_mode;
+	spin_unlock(&port->lock);
+	return ret;
+}
+
+/**
+ * ev3_uart_set_mode_data() - give a Powered Up device's mode its values
+ * @sd: the sensor
+ * @mode: a mode that takes values (ev3_uart_lump_data_len())
+ * @data: the values, as the mode's FORMAT lays them out
+ * @len: their size, exactly the mode's
+ *
+ * Pybricks sends values (EXT_MODE, then a DATA message of @mode) only once
+ * the device sends DATA of @mode, and selects it first if need be
+ * (lib/pbio/src/port_lump.c, pbio_port_lump_set_mode_with_data()): so does
+ * this, and then selects the mode the sensor was in back. Meanwhile the
+ * user's mode and values stay as they were: the DATA of @mode only confirm
+ * the SELECT (ev3_uart_lent_data()). Waits for both confirmations.
+ *
+ * Return: 0, -%EINVAL if @mode takes no values or not @len bytes, -%EBUSY
+ * while an IIO buffer captures another mode, -%ENODEV if the sensor is gone,
+ * -%ETIMEDOUT if it did not confirm a SELECT, -%EINTR or the tty's error.
+ */
+int ev3_uart_set_mode_data(struct ev3_uart_sensor_dev *sd, u8 mode,
+			   const u8 *data, size_t len)
+{
+	struct ev3_uart_port *port = sd->port;
+	u8 msg[EV3_UART_MAX_PAYLOAD + 5], back;
+	int n, ret, ret2;
+
+	n = ev3_uart_lump_data_len(&sd->desc, mode);
+	if (n < 0 || n != len)
+		return -EINVAL;
+	n = ev3_uart_build_lump_data(msg, mode, data, len);
+	if (n < 0)
+		return n;
+	if (mutex_lock_interruptible(&port->select_mutex))
+		return -EINTR;
+
+	spin_lock(&port->lock);
+	back = sd->mode;
+	if (sd->gone)
+		ret = -ENODEV;
+	else if (sd->held_mode != EV3_UART_NO_MODE && sd->held_mode != mode)
+		ret = -EBUSY;
+	else
+		ret = 0;
+	if (!ret && back != mode)
+		sd->lent_mode = mode;
+	spin_unlock(&port->lock);
+
+	if (!ret && back != mode)
+		ret = ev3_uart_select_force(sd, mode);
+	if (!ret)
+		ret = port->ops->send(port, msg, n);
+	if (back != mode && sd->lent_mode == mode) {
+		ret2 = ev3_uart_select_force(sd, back);
+		spin_lock(&port->lock);
+		sd->lent_mode = EV3_UART_NO_MODE;
+		spin_unlock(&port->lock);
+		if (!ret)
+			ret = ret2;
+	}
+	mutex_unlock(&port->select_mutex);
+	if (ret == -ERESTARTSYS)
+		ret = -EINTR;
+	if (ret && ret != -ENODEV)
+		pr_warn_ratelimited("%s: %s: values for mode %s not sent: %d\n",
+				    sd->address, ev3_uart_sensor_name(sd),
+				    sd->desc.modes[mode].name, ret);
+	return ret;
 }
 
 /**

@@ -88,8 +88,8 @@
 #define EV3_UART_ADDRESS_LEN	(EV3_UART_PORT_NAME_LEN + EV3_UART_LABEL_LEN)
 /* What a view calls the sensor in the log, e.g. "sensor3". */
 #define EV3_UART_DEV_NAME_LEN	32
-/* The views a sensor can have: the lego-sensor class and IIO. */
-#define EV3_UART_MAX_VIEWS	2
+/* The views a sensor can have: the lego-sensor class, IIO and its lights. */
+#define EV3_UART_MAX_VIEWS	3
 
 /* ev3_uart_port_receive()'s flags: a byte received without error is 0. */
 #define EV3_UART_RX_OK		0
@@ -99,6 +99,7 @@ struct device;
 struct ev3_uart_port;
 struct ev3_uart_iio;
 struct ev3_uart_class_dev;
+struct ev3_uart_leds;
 
 /**
  * struct ev3_uart_stats - a port's protocol counters (since the port was
@@ -176,8 +177,12 @@ struct ev3_uart_transport_ops {
  *	(under @port->lock)
  * @held_mode: the mode an IIO buffer holds the sensor to, or
  *	%EV3_UART_NO_MODE (under @port->lock and &ev3_uart_port.select_mutex)
+ * @lent_mode: the mode ev3_uart_set_mode_data() switched the sensor to for
+ *	a moment, or %EV3_UART_NO_MODE: its DATA change neither @mode nor
+ *	@data (under @port->lock and &ev3_uart_port.select_mutex)
  * @iio: the IIO view's, or NULL: the core never looks at it
  * @cls: the class view's, or NULL: the core never looks at it
+ * @leds: the LED view's, or NULL: the core never looks at it
  */
 struct ev3_uart_sensor_dev {
 	struct ev3_uart_port *port;
@@ -192,8 +197,10 @@ struct ev3_uart_sensor_dev {
 	u8 data_len;
 	unsigned long settle_until;
 	u8 held_mode;
+	u8 lent_mode;
 	struct ev3_uart_iio *iio;
 	struct ev3_uart_class_dev *cls;
+	struct ev3_uart_leds *leds;
 };
 
 /**
@@ -352,5 +359,7 @@ void ev3_uart_release_mode(struct ev3_uart_sensor_dev *sd);
 int ev3_uart_show_modes(struct ev3_uart_sensor_dev *sd, char *buf);
 int ev3_uart_show_mode(struct ev3_uart_sensor_dev *sd, char *buf);
 int ev3_uart_write(struct ev3_uart_sensor_dev *sd, const u8 *data, size_t len);
+int ev3_uart_set_mode_data(struct ev3_uart_sensor_dev *sd, u8 mode,
+			   const u8 *data, size_t len);
 
 #endif /* _EV3_UART_CORE_H */

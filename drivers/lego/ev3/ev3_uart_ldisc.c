@@ -568,7 +568,7 @@ static struct tty_ldisc_ops ev3_uart_ldisc = {
 
 /*
  * The views, the class first: its add names the sensor ("sensorN") for
- * the log lines of the ones after it.
+ * the log lines and the LED names of the ones after it.
  */
 static int ev3_uart_views_init(void)
 {
@@ -578,12 +578,22 @@ static int ev3_uart_views_init(void)
 		return ret;
 	ret = ev3_uart_iio_init();
 	if (ret)
-		ev3_uart_class_exit();
+		goto class_exit;
+	ret = ev3_uart_leds_init();
+	if (ret)
+		goto iio_exit;
+	return 0;
+
+iio_exit:
+	ev3_uart_iio_exit();
+class_exit:
+	ev3_uart_class_exit();
 	return ret;
 }
 
 static void ev3_uart_views_exit(void)
 {
+	ev3_uart_leds_exit();
 	ev3_uart_iio_exit();
 	ev3_uart_class_exit();
 }

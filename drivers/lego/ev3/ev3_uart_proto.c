@@ -561,6 +561,110 @@ int ev3_uart_build_lump_data(u8 *buf, u8 mode, const u8 *data, size_t len)
 }
 EXPORT_SYMBOL_IF_KUNIT(ev3_uart_build_lump_data);
 
+/**
+ * ev3_uart_lump_data_len() - the size of the values a mode takes
+ * @s: a Powered Up device's description
+ * @mode: the mode
+ *
+ * A mode takes values from the host when its MAPPING INFO has output
+ * flags (Pybricks, lib/pbio/src/port_lump.c: "writable"), and the host
+ * sends exactly the mode's values, laid out as its FORMAT says (Pybricks
+ * refuses any other size).
+ *
+ * Return: their size in bytes (1 to %EV3_UART_MAX_PAYLOAD), or -%EINVAL if
+ * @mode takes no values (an EV3 sensor's modes take none).
+ */
+int ev3_uart_lump_data_len(const struct ev3_uart_sensor *s, u8 mode)
+{
+	const struct ev3_uart_mode *m;
+	unsigned int len;
+
+	if (!s->lump || mode >= s->num_modes || mode >= EV3_UART_MAX_MODES)
+		return -EINVAL;
+	m = &s->modes[mode];
+	len = m->num_values * ev3_uart_data_size(m->data_type);
+	if (!m->mapping_out || !len || len > EV3_UART_MAX_PAYLOAD)
+		return -EINVAL;
+	return len;
+}
+EXPORT_SYMBOL_IF_KUNIT(ev3_uart_lump_data_len);
+
+/**
+ * ev3_uart_lump_lights() - the lights of a Powered Up device
+ * @s: the device's description
+ * @mode: set to the mode that drives them, if there are any
+ *
+ * The SPIKE colour sensor's three lights and the SPIKE ultrasonic
+ * sensor's four are the values of their mode "LIGHT" (mode 3 and mode 5:
+ * Pybricks, lib/lego/lego/device.h), one signed byte each, a brightness in
+ * percent (Pybricks, pybricks/common/pb_type_lightarray.c). Any device's
+ * first mode of that name that takes 1 to %EV3_UART_MAX_LIGHTS such
+ * values is taken as its lights.
+ *
+ * Return: the number of lights, 0 if the device has none.
+ */
+unsigned int ev3_uart_lump_lights(const struct ev3_uart_sensor *s, u8 *mode)
+{
+	unsigned int i, n = min_t(unsigned int, s->num_modes, EV3_UART_MAX_MODES);
+
+	for (i = 0; i < n; i++) {
+		const struct ev3_uart_mode *m = &s->modes[i];
+
+		if (strcmp(m->name, "LIGHT") || m->data_type != EV3_UART_DATA_S8 ||
+		    m->num_values > EV3_UART_MAX_LIGHTS ||
+		    ev3_uart_lump_data_len(s, i) < 0)
+			continue;
+		*mode = i;
+		return m->num_values;
+	}
+	return 0;
+}
+EXPORT_SYMBOL_IF_KUNIT(ev3_uart_lump_lights);
+
+/**
+ * ev3_uart_pack_values() - values for a mode, laid out as its FORMAT says
+ * @s: a Powered Up device's description
+ * @mode: a mode that takes values (ev3_uart_lump_data_len())
+ * @v: the values
+ * @n: their number, the mode's number of values
+ * @buf: room for %EV3_UART_MAX_PAYLOAD bytes
+ *
+ * Return: their size in bytes, -%EINVAL if @mode takes no values, not @n
+ * of them or floats, -%ERANGE if a value does not fit the mode's type.
+ */
+int ev3_uart_pack_values(const struct ev3_uart_sensor *s, u8 mode,
+			 const s32 *v, unsigned int n, u8 *buf)
+{
+	int len = ev3_uart_lump_data_len(s, mode);
+	const struct ev3_uart_mode *m;
+	unsigned int i;
+
+	if (len < 0)
+		return len;
+	m = &s->modes[mode];
+	if (n != m->num_values || m->data_type == EV3_UART_DATA_FLOAT)
+		return -EINVAL;
+	for (i = 0; i < n; i++) {
+		switch (m->data_type) {
+		case EV3_UART_DATA_S8:
+			if (v[i] < S8_MIN || v[i] > S8_MAX)
+				return -ERANGE;
+			buf[i] = (u8)v[i];
+			break;
+		case EV3_UART_DATA_S16:
+			if (v[i] < S16_MIN || v[i] > S16_MAX)
+				return -ERANGE;
+			put_unaligned_le16((u16)v[i], buf + 2 * i);
+			break;
+		default:
+			put_unaligned_le32((u32)v[i], buf + 4 * i);
+			break;
+		}
+	}
+	return len;
+}
+EXPORT_SYMBOL_IF_KUNIT(ev3_uart_pack_values);
+
 /* ---- the parser ---- */
 
 static void ev3_uart_set_mode_defaults(struct ev3_uart_parser *p)

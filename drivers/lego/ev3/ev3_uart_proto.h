@@ -454,6 +454,15 @@ size_t ev3_uart_build_speed(u8 *buf, u32 speed);
 int ev3_uart_build_write(u8 *buf, const u8 *data, size_t len);
 int ev3_uart_build_lump_data(u8 *buf, u8 mode, const u8 *data, size_t len);
 
+/* Powered Up lights: at most this many in a "LIGHT" mode (ev3_uart_lump_lights()). */
+#define EV3_UART_MAX_LIGHTS		8
+/* A light's brightness, in percent (the values of a "LIGHT" mode). */
+#define EV3_UART_LIGHT_MAX		100
+int ev3_uart_lump_data_len(const struct ev3_uart_sensor *s, u8 mode);
+unsigned int ev3_uart_lump_lights(const struct ev3_uart_sensor *s, u8 *mode);
+int ev3_uart_pack_values(const struct ev3_uart_sensor *s, u8 mode,
+			 const s32 *v, unsigned int n, u8 *buf);
+
 int ev3_uart_f32_to_fixed(u32 bits, unsigned int decimals, s32 *out);
 int ev3_uart_read_value(const struct ev3_uart_mode *mode, const u8 *data,
 			size_t len, unsigned int index, s32 *out);

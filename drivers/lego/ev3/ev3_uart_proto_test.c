@@ -1149,6 +1149,93 @@ static void test_build_lump_data(struct kunit *test)
 	KUNIT_EXPECT_EQ(test, ev3_uart_build_lump_data(buf, 0, buf, 33), -EINVAL);
 }
 
+/*
+ * Powered Up lights: the values of a mode "LIGHT" that takes values, one
+ * s8 per light (the SPIKE colour sensor's mode 3, 3 lights; the
+ * ultrasonic sensor's mode 5, 4 lights); which modes take values at all.
+ */
+static void test_lump_lights(struct kunit *test)
+{
+	struct ev3_uart_sensor *s = kunit_kzalloc(test, sizeof(*s), GFP_KERNEL);
+	struct ctx *c = new_ctx(test);
+	u8 mode = 0xee;
+
+	KUNIT_ASSERT_NOT_NULL(test, s);
+	s->lump = true;
+	s->num_modes = 6;
+	strscpy(s->modes[3].name, "LIGHT", sizeof(s->modes[3].name));
+	s->modes[3].num_values = 3;
+	s->modes[3].data_type = EV3_UART_DATA_S8;
+	s->modes[3].mapping_out = 0x04;
+	KUNIT_EXPECT_EQ(test, ev3_uart_lump_lights(s, &mode), 3U);
+	KUNIT_EXPECT_EQ(test, mode, 3);
+	KUNIT_EXPECT_EQ(test, ev3_uart_lump_data_len(s, 3), 3);
+	KUNIT_EXPECT_EQ(test, ev3_uart_lump_data_len(s, 2), -EINVAL);
+	KUNIT_EXPECT_EQ(test, ev3_uart_lump_data_len(s, 6), -EINVAL);
+	KUNIT_EXPECT_EQ(test, ev3_uart_lump_data_len(s, 0xff), -EINVAL);
+
+	/* Too many values, another type, no MAPPING out, an EV3 sensor: none. */
+	s->modes[3].num_values = EV3_UART_MAX_LIGHTS + 1;
+	KUNIT_EXPECT_EQ(test, ev3_uart_lump_lights(s, &mode), 0U);
+	s->modes[3].num_values = 4;
+	s->modes[3].data_type = EV3_UART_DATA_S16;
+	KUNIT_EXPECT_EQ(test, ev3_uart_lump_lights(s, &mode), 0U);
+	KUNIT_EXPECT_EQ(test, ev3_uart_lump_data_len(s, 3), 8);
+	s->modes[3].data_type = EV3_UART_DATA_S8;
+	s->modes[3].mapping_out = 0;
+	KUNIT_EXPECT_EQ(test, ev3_uart_lump_lights(s, &mode), 0U);
+	s->modes[3].mapping_out = 0x04;
+	s->lump = false;
+	KUNIT_EXPECT_EQ(test, ev3_uart_lump_lights(s, &mode), 0U);
+	KUNIT_EXPECT_EQ(test, ev3_uart_lump_data_len(s, 3), -EINVAL);
+	s->lump = true;
+	KUNIT_EXPECT_EQ(test, ev3_uart_lump_lights(s, &mode), 4U);
+
+	/* The BOOST sensor: COL O (1 byte) and IR Tx (s16) take values. */
+	feed(&c->p, boost_cds_handshake, sizeof(boost_cds_handshake),
+	     sizeof(boost_cds_handshake), &c->r);
+	KUNIT_ASSERT_EQ(test, last(&c->r)->type, EV3_UART_EV_HANDSHAKE);
+	KUNIT_EXPECT_EQ(test, ev3_uart_lump_lights(&c->p.sensor, &mode), 0U);
+	KUNIT_EXPECT_EQ(test, ev3_uart_lump_data_len(&c->p.sensor, 5), 1);
+	KUNIT_EXPECT_EQ(test, ev3_uart_lump_data_len(&c->p.sensor, 7), 2);
+	KUNIT_EXPECT_EQ(test, ev3_uart_lump_data_len(&c->p.sensor, 0), -EINVAL);
+}
+
+/* Values for a mode that takes them, packed as its FORMAT says. */
+static void test_pack_values(struct kunit *test)
+{
+	static const s32 ir[] = { -2 }, light[] = { 100, -128, 127 };
+	static const s32 big[] = { 32768 }, wide[] = { 128, 0, 0 };
+	struct ev3_uart_sensor *s = kunit_kzalloc(test, sizeof(*s), GFP_KERNEL);
+	u8 buf[EV3_UART_MAX_PAYLOAD];
+
+	KUNIT_ASSERT_NOT_NULL(test, s);
+	s->lump = true;
+	s->num_modes = 3;
+	s->modes[0].num_values = 1;
+	s->modes[0].data_type = EV3_UART_DATA_S16;
+	s->modes[0].mapping_out = 0x04;
+	s->modes[1].num_values = 3;
+	s->modes[1].data_type = EV3_UART_DATA_S8;
+	s->modes[1].mapping_out = 0x04;
+	s->modes[2].num_values = 1;
+	s->modes[2].data_type = EV3_UART_DATA_FLOAT;
+	s->modes[2].mapping_out = 0x04;
+	KUNIT_ASSERT_EQ(test, ev3_uart_pack_values(s, 0, ir, 1, buf), 2);
+	KUNIT_EXPECT_EQ(test, buf[0], 0xfe);
+	KUNIT_EXPECT_EQ(test, buf[1], 0xff);
+	KUNIT_ASSERT_EQ(test, ev3_uart_pack_values(s, 1, light, 3, buf), 3);
+	KUNIT_EXPECT_EQ(test, buf[0], 100);
+	KUNIT_EXPECT_EQ(test, buf[1], 0x80);
+	KUNIT_EXPECT_EQ(test, buf[2], 0x7f);
+	KUNIT_EXPECT_EQ(test, ev3_uart_pack_values(s, 0, big, 1, buf), -ERANGE);
+	KUNIT_EXPECT_EQ(test, ev3_uart_pack_values(s, 1, wide, 3, buf), -ERANGE);
+	KUNIT_EXPECT_EQ(test, ev3_uart_pack_values(s, 1, light, 2, buf), -EINVAL);
+	KUNIT_EXPECT_EQ(test, ev3_uart_pack_values(s, 2, ir, 1, buf), -EINVAL);
+	s->modes[0].mapping_out = 0;
+	KUNIT_EXPECT_EQ(test, ev3_uart_pack_values(s, 0, ir, 1, buf), -EINVAL);
+}
+
 /* The fast sync probe: SPEED 115200, as Pybricks sends it at 115200. */
 static void test_build_speed(struct kunit *test)
 {
@@ -2591,6 +2678,8 @@ static struct kunit_case ev3_uart_proto_cases[] = {
 	KUNIT_CASE(test_boost_cds_channels),
 	KUNIT_CASE(test_data_ext_mode),
 	KUNIT_CASE(test_build_lump_data),
+	KUNIT_CASE(test_lump_lights),
+	KUNIT_CASE(test_pack_values),
 	KUNIT_CASE(test_build_speed),
 	KUNIT_CASE(test_fast_sync_answered),
 	KUNIT_CASE(test_fast_sync_unanswered),

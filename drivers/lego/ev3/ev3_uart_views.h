@@ -7,6 +7,8 @@
 #ifndef _EV3_UART_VIEWS_H
 #define _EV3_UART_VIEWS_H
 
+#include <linux/kconfig.h>
+
 /* ev3_uart_class.c: the lego-sensor class, which can be left out */
 #if IS_ENABLED(CONFIG_LEGO_EV3_UART_CLASS)
 int ev3_uart_class_init(void);
@@ -18,6 +20,21 @@ static inline int ev3_uart_class_init(void)
 }
 
 static inline void ev3_uart_class_exit(void)
+{
+}
+#endif
+
+/* ev3_uart_leds.c: Powered Up lights, when the LED class is reachable */
+#if IS_REACHABLE(CONFIG_LEDS_CLASS)
+int ev3_uart_leds_init(void);
+void ev3_uart_leds_exit(void);
+#else
+static inline int ev3_uart_leds_init(void)
+{
+	return 0;
+}
+
+static inline void ev3_uart_leds_exit(void)
 {
 }
 #endif

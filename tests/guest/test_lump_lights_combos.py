@@ -1,0 +1,134 @@
+"""Powered Up lights and values for modes, through the real line
+discipline over the null-modem line:
+
+- the SPIKE colour sensor's three lights are LED class devices
+  (sensorN:white:light-0..2, max_brightness 100): a brightness written
+  reaches the device as the LIGHT mode's values (EXT_MODE + DATA, sent
+  while the device is in LIGHT, as Pybricks does), the user's mode and
+  values stay, and the timer trigger blinks a light;
+- the BOOST sensor's COL O and IR Tx take values through mode_data.
+"""
+import errno
+import glob
+import os
+import time
+
+import pytest
+
+from ev3 import plug, read_attr, wait_value, write_attr
+
+LEDS = '/sys/class/leds'
+
+
+def _leds(path):
+    return sorted(glob.glob('%s/%s:*' % (LEDS, os.path.basename(path))))
+
+
+def _wait(cond, timeout=3.0):
+    deadline = time.monotonic() + timeout
+    while not cond():
+        if time.monotonic() >= deadline:
+            return False
+        time.sleep(0.02)
+    return True
+
+
+def test_spike_color_lights_are_leds(line):
+    emu, path = plug(line, 'spike-color')
+    name = os.path.basename(path)
+    leds = _leds(path)
+    assert [os.path.basename(d) for d in leds] == \
+        ['%s:white:light-%d' % (name, i) for i in range(3)]
+    for d in leds:
+        assert read_attr(d, 'max_brightness') == '100'
+        assert read_attr(d, 'brightness') == '0'
+    # The user reads REFLT: it stays while the lights are set.
+    emu.set_values(1, [33])
+    write_attr(path, 'mode', 'REFLT')
+    assert wait_value(path, 0, 33) == 33
+
+    write_attr(leds[1], 'brightness', '40')
+    # EXT_MODE 0, DATA of mode 3: the three values padded to four bytes,
+    # sent while the device was in LIGHT.
+    assert emu.lump_writes[-1] == (3, bytes([0, 40, 0, 0]))
+    assert emu.lump_write_modes[-1] == 3
+    assert emu.values[3] == [0, 40, 0]
+    assert read_attr(path, 'mode') == 'REFLT'
+    assert _wait(lambda: emu.mode == 1), emu.events[-10:]
+    emu.set_values(1, [34])
+    assert wait_value(path, 0, 34) == 34
+
+    write_attr(leds[0], 'brightness', '100')
+    assert emu.lump_writes[-1] == (3, bytes([100, 40, 0, 0]))
+    # Above max_brightness: the LED core makes it 100.
+    write_attr(leds[2], 'brightness', '255')
+    assert emu.lump_writes[-1] == (3, bytes([100, 40, 100, 0]))
+    assert read_attr(leds[1], 'brightness') == '40'
+    write_attr(leds[1], 'brightness', '0')
+    assert emu.lump_writes[-1] == (3, bytes([100, 0, 100, 0]))
+    assert all(m == 3 for m in emu.lump_write_modes)
+    assert read_attr(path, 'mode') == 'REFLT'
+
+
+def test_spike_color_light_timer_trigger(line):
+    emu, path = plug(line, 'spike-color')
+    led = _leds(path)[2]
+    if 'timer' not in read_attr(led, 'trigger'):
+        pytest.skip('no timer trigger in this kernel')
+    write_attr(led, 'brightness', '70')
+    n0 = len(emu.lump_writes)
+    write_attr(led, 'trigger', 'timer')
+    write_attr(led, 'delay_on', '150')
+    write_attr(led, 'delay_off', '150')
+    time.sleep(2.0)
+    write_attr(led, 'trigger', 'none')
+    time.sleep(0.5)
+    blinks = [p[2] for _, p in emu.lump_writes[n0:]]
+    # Light 2 went on and off, again and again; the other two stayed off.
+    changes = sum(1 for a, b in zip(blinks, blinks[1:]) if (a == 0) != (b == 0))
+    assert changes >= 4, blinks
+    assert all(p[0] == 0 and p[1] == 0 for _, p in emu.lump_writes[n0:])
+    assert set(blinks) <= {0, 70, 100}, blinks
+    # Stopped: no more writes.
+    n1 = len(emu.lump_writes)
+    time.sleep(0.6)
+    assert len(emu.lump_writes) == n1
+    assert read_attr(path, 'mode') == 'COLOR'
+
+
+def test_no_leds_without_lights(line):
+    emu, path = plug(line, 'boost-cds')
+    assert _leds(path) == []
+
+
+def test_mode_data_attribute(line):
+    """The BOOST sensor's COL O and IR Tx take values through mode_data:
+    sent in their mode, as the lights' are; the user's mode stays."""
+    emu, path = plug(line, 'boost-cds')
+    assert read_attr(path, 'mode_data') == 'COL_O IR_Tx'
+    emu.set_values(3, [55])
+    write_attr(path, 'mode', 'REFLT')
+    write_attr(path, 'mode_data', 'IR_Tx -2\n')
+    assert emu.lump_writes[-1] == (7, bytes([0xfe, 0xff]))
+    assert emu.lump_write_modes[-1] == 7
+    write_attr(path, 'mode_data', 'COL_O 9')
+    assert emu.lump_writes[-1] == (5, bytes([9]))
+    assert emu.values[5] == [9]
+    assert read_attr(path, 'mode') == 'REFLT'
+    assert wait_value(path, 0, 55) == 55
+    for bad, err in (('COL_O 1 2', errno.EINVAL), ('REFLT 1', errno.EINVAL),
+                     ('COL_O x', errno.EINVAL), ('IR_Tx 40000', errno.ERANGE),
+                     ('NOSUCH 1', errno.EINVAL)):
+        with pytest.raises(OSError) as e:
+            write_attr(path, 'mode_data', bad)
+        assert e.value.errno == err, bad
+    assert len(emu.lump_writes) == 2
+
+
+def test_mode_data_ev3_sensor(line):
+    emu, path = plug(line, 'color')
+    assert read_attr(path, 'mode_data') == ''
+    with pytest.raises(OSError) as e:
+        write_attr(path, 'mode_data', 'COL-REFLECT 1')
+    assert e.value.errno == errno.EINVAL
+    assert _leds(path) == []
