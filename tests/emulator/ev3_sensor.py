@@ -21,7 +21,13 @@ ev3dev.md):
   flags: a light's brightness) as EXT_MODE + DATA, in the mode they are in
   (Pybricks sends them only then), and then send those values in that
   mode's DATA; values for another mode are ignored (lump_writes has them
-  all, lump_write_modes the mode the device was in);
+  all, lump_write_modes the mode the device was in). A WRITE of
+  0x20 + n, a combination index and n mode/value bytes sets up a combined
+  mode, if the device offers that combination (MODE_COMBOS): the device
+  answers with the same WRITE, then sends the values one after the other
+  in DATA messages with the header of the mode it is in, continuously,
+  until a SELECT ends it (recorded from a Technic Large motor: Pybricks,
+  lib/pbio/test/src/uartdev.c before commit ae927acbd);
 - Powered Up devices that can (the SPIKE colour and distance sensors, not
   the BOOST colour and distance sensor) listen at 115200 baud while they
   hold TX low after a reset, and answer the host's fast sync probe (SPEED
@@ -323,11 +329,49 @@ SPIKE_DIST = SensorDef(62, 'lego-spike-ultrasonic', 8, [
     _spike('CALIB', 'PCT', 7, S16, (0, 65535), fig=5, cadence='nack'),
 ], speed=115200, lump=True, version=(0x10000000, 0x10000000), fast_sync=True)
 
+# The Technic Large motor (type 46): the handshake a logic analyser recorded
+# (Pybricks, lib/pbio/test/src/uartdev.c before commit ae927acbd, "info
+# messages captured from Technic Large Linear Motor"), sent as it is; the
+# modes below are what it says (tests/emulator/test_lump_defs.py checks).
+TECHNIC_L_RECORDED = bytes.fromhex(
+    '402e91490503b05200c201006e5f0400000000000010b4a50053544154530000'
+    '0000000504000000001a9d010000000000ff7f47a49d02000000000000c842ea'
+    '9d030000000000ff7f47a695044d494e00248d0500007795800e010500e0a400'
+    '43414c494200224000000504000000007d9c010000000000006145469c020000'
+    '00000000c842eb9c03000000000000614544940443414c00218c050000769480'
+    '02010500eda30041504f53000022000000050400000000729b01000034c30000'
+    '3343e29b02000048c300004843e69b03000034c300003343e09304444547002e'
+    '8b05323271938001010300efa200504f5300000024000000050400000000349a'
+    '010000b4c30000b443e49a020000c8c20000c842e79a030000b4c30000b443e6'
+    '9204444547002f8a05286830928001020b00e5a1005350454544002100000005'
+    '04000000003999010000c8c20000c842e799020000c8c20000c842e499030000'
+    'c8c20000c842e59104504354002d8905307033918001000400eba000504f5745'
+    '5200300000000504000000003198010000c8c20000c842e698020000c8c20000'
+    'c842e598030000c8c20000c842e49004504354002c8805005022908001000400'
+    'ea88060e007fa0080040002e0947383336363630000000007aa00988130000fa'
+    '00000010270000be050000bba00a983a000096000000983a000000000000c398'
+    '0b00000000000000006c900c000000006304')
+
+TECHNIC_L = SensorDef(46, 'lego-technic-l-motor', 4, [
+    Mode('POWER', (-100, 100), (-100, 100), 'PCT', 1, S8, 4, 0, pct=(-100, 100),
+         mapping=(0x00, 0x50)),
+    Mode('SPEED', (-100, 100), (-100, 100), 'PCT', 1, S8, 4, 0, pct=(-100, 100),
+         mapping=(0x30, 0x70), cadence='continuous', period=0.02),
+    Mode('POS', (-360, 360), (-360, 360), 'DEG', 1, S32, 11, 0, pct=(-100, 100),
+         mapping=(0x28, 0x68), cadence='continuous', period=0.02),
+    Mode('APOS', (-180, 179), (-180, 179), 'DEG', 1, S16, 3, 0, pct=(-200, 200),
+         mapping=(0x32, 0x32), cadence='continuous', period=0.02),
+    Mode('CALIB', (0, 3600), (0, 3600), 'CAL', 2, S16, 5, 0, pct=(0, 100), mapping=(0, 0)),
+    Mode('STATS', (0, 65535), (0, 65535), 'MIN', 14, S16, 5, 0, pct=(0, 100), mapping=(0, 0)),
+], speed=115200, raw_handshake=TECHNIC_L_RECORDED, lump=True, combos=(0x000e,))
+
 SENSORS = {'color': COLOR, 'us': US, 'gyro': GYRO, 'gyro-old': GYRO_OLD, 'ir': IR,
            'fcl-humidity': FCL_HUMIDITY, 'boost-cds': BOOST_CDS, 'spike-color': SPIKE_COLOR,
-           'spike-dist': SPIKE_DIST}
+           'spike-dist': SPIKE_DIST, 'technic-l': TECHNIC_L}
 
 IR_STALE_TIME = 1.1
+# A combined mode's DATA messages come continuously, this often.
+COMBO_PERIOD = 0.01
 # The `rude` option's behaviours (see the top of the file).
 RUDE_OLD_MODE, RUDE_GLITCH, RUDE_GARBAGE = 'old-mode', 'glitch', 'garbage'
 RUDE_ALL = (RUDE_OLD_MODE, RUDE_GLITCH, RUDE_GARBAGE)
@@ -526,6 +570,8 @@ class EmulatedSensor(threading.Thread):
         self.writes = []
         self.lump_writes = []       # (mode, payload) a Powered Up host sent
         self.lump_write_modes = []  # the mode the device was in for each
+        self.combo = None           # ((mode, index), ...) of a combined mode
+        self.combo_setups = []      # the combined modes set up
         self.changed = True
         self.stale_until = 0.0
         self.fd = None
@@ -535,6 +581,14 @@ class EmulatedSensor(threading.Thread):
     def set_values(self, mode, values):
         with self.lock:
             self.values[mode] = list(values)
+            self.changed = True
+
+    def set_many(self, by_mode):
+        """Set the values of several modes at once ({mode: values}): a
+        combined DATA message has all or none of them."""
+        with self.lock:
+            for mode, values in by_mode.items():
+                self.values[mode] = list(values)
             self.changed = True
 
     def stop(self):
@@ -686,6 +740,7 @@ class EmulatedSensor(threading.Thread):
         fast sync probe); True once the host ACKed."""
         with self.lock:
             self.mode = 0
+            self.combo = None
         delay = self.boot_delay
         if self.attempts and self.retry_delay is not None:
             delay = self.retry_delay
@@ -851,6 +906,15 @@ class EmulatedSensor(threading.Thread):
         with self.lock:
             values = list(self.values[mode])
             stale = self.stale_until > time.monotonic() and self.sdef.quirks
+            combo = self.combo
+            if combo:
+                payload = b''.join(pack_values(self.sdef.modes[cm], [self.values[cm][ci]])
+                                   for cm, ci in combo)
+        if combo:
+            msg = data_frame(self.sdef, mode, payload)
+            self.send(msg)
+            self.frames_sent += 1
+            return
         if stale:
             # IR: leftovers of the previous mode until it settles.
             values = [self.rng.randrange(-128, 127) if m.t == S8 else self.rng.randrange(0, 3000)
@@ -925,6 +989,10 @@ class EmulatedSensor(threading.Thread):
                 next_spont = now + m.period * self.period_scale
             elif self.stream_req is not None and not deaf and not pending:
                 quiet = self.send_stream(self.stream_req)
+            elif self.combo and not deaf and not pending:
+                if now >= next_spont:
+                    self.frame(mode, True)
+                    next_spont = now + COMBO_PERIOD * self.period_scale
             elif not deaf and (not pending or old):
                 if m.cadence == 'continuous' and now >= next_spont:
                     self.frame(mode, True, old=bool(pending))
@@ -939,7 +1007,7 @@ class EmulatedSensor(threading.Thread):
                 wait = pending[0] - now
                 if old and m.cadence == 'continuous' and not deaf:
                     wait = min(wait, next_spont - now)
-            elif m.cadence == 'continuous' and not deaf:
+            elif (m.cadence == 'continuous' or self.combo) and not deaf:
                 wait = next_spont - now
             buf += self.read(min(wait, 0.05))
             while buf:
@@ -956,6 +1024,8 @@ class EmulatedSensor(threading.Thread):
                     if checksum(buf[:2]) == buf[2] and buf[1] < len(self.sdef.modes) and \
                             not self.ignore_select:
                         new = buf[1]
+                        with self.lock:
+                            self.combo = None       # a SELECT ends a combined mode
                         pending = (time.monotonic() + self.sdef.modes[new].first_reply, new)
                         if old and not deaf and new != self.mode:
                             # One of the old mode's that was on its way.
@@ -981,6 +1051,9 @@ class EmulatedSensor(threading.Thread):
                         break
                     if checksum(buf[:size + 1]) == buf[size + 1]:
                         self.on_write(buf[1:size + 1])
+                        if self.on_combo(buf[1:size + 1]):
+                            self.send(bytes(buf[:size + 2]))    # its answer
+                            next_spont = 0.0
                     buf = buf[size + 2:]
                 else:
                     buf = buf[1:]           # garbage, or an ACK repeated
@@ -1017,6 +1090,26 @@ class EmulatedSensor(threading.Thread):
         fmt = {S8: 'b', S16: 'h', S32: 'i', FLOAT: 'f'}[m.t]
         self.set_values(mode, struct.unpack_from('<%d%s' % (m.n, fmt), payload))
         self.log('values for mode %d' % mode)
+
+    def on_combo(self, payload):
+        """A WRITE that sets up a combined mode the device offers: True if
+        it was one."""
+        combos = getattr(self.sdef, 'combos', ())
+        if not getattr(self.sdef, 'lump', False) or payload[0] & 0xf0 != 0x20:
+            return False
+        n = payload[0] & 0x0f
+        if not n or len(payload) < n + 2 or payload[1] >= len(combos):
+            return False
+        entries = tuple((e >> 4, e & 0xf) for e in payload[2:2 + n])
+        for mode, index in entries:
+            if mode >= len(self.sdef.modes) or not combos[payload[1]] >> mode & 1 or \
+                    index >= self.sdef.modes[mode].n:
+                return False
+        with self.lock:
+            self.combo = entries
+        self.combo_setups.append((payload[1], entries))
+        self.log('combined mode %d: %s' % (payload[1], entries))
+        return True
 
     def on_write(self, payload):
         self.writes.append(bytes(payload))

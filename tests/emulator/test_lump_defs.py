@@ -64,6 +64,33 @@ def test_boost_cds_recorded():
     assert ev3.handshake(ev3.BOOST_CDS) == BOOST_CDS_RECORDED
 
 
+def described_modes(data):
+    """{mode: (name, values, type)} of a Powered Up handshake."""
+    names, formats = {}, {}
+    for msg in messages(data):
+        if len(msg) < 3 or msg[0] & 0xc0 != 0x80:
+            continue
+        mode = (msg[0] & 7) + (8 if msg[1] & 0x20 else 0)
+        itype = msg[1] & ~0x20
+        if itype == 0:
+            names[mode] = msg[2:-1].split(b'\0')[0].decode()
+        elif itype == 0x80:
+            formats[mode] = (msg[2], msg[3])
+    return {m: (names[m],) + formats[m] for m in names}
+
+
+def test_technic_l_recorded():
+    """The Technic Large motor's definition says what its recorded
+    handshake says: mode names, value counts and types, MODE_COMBOS."""
+    s = ev3.TECHNIC_L
+    assert ev3.handshake(s) == ev3.TECHNIC_L_RECORDED
+    got = described_modes(ev3.TECHNIC_L_RECORDED)
+    assert got == {i: (m.name, m.n, m.t) for i, m in enumerate(s.modes)}
+    combos = [msg for msg in messages(ev3.TECHNIC_L_RECORDED) if msg[:2] == bytes([0x88, 0x06])]
+    assert [int.from_bytes(m[2:4], 'little') for m in combos] == list(s.combos)
+    assert ev3.TECHNIC_L_RECORDED[1] == 0x2e and s.type == 0x2e
+
+
 def test_lump_defs():
     lump = [s for s in ev3.SENSORS.values() if s.lump]
     assert len(lump) >= 3
@@ -79,5 +106,6 @@ def test_lump_defs():
 
 if __name__ == '__main__':
     test_boost_cds_recorded()
+    test_technic_l_recorded()
     test_lump_defs()
     print('ok')

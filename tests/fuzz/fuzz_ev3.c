@@ -136,6 +136,65 @@ static void check_parser(const struct ev3_uart_parser *p)
 }
 
 /*
+ * What the LED view and an IIO buffer of several modes make of a
+ * description: the lights' mode takes their values; a combination found
+ * for a run of channels has all their modes, and its values fit one
+ * message, one after the other; the WRITE that sets it up is well formed.
+ */
+static void check_lights_and_combos(struct host *h)
+{
+	const struct ev3_uart_sensor *s = &h->p->sensor;
+	struct ev3_uart_combo_entry e[EV3_UART_MAX_COMBO_ENTRIES + 1];
+	u8 msg[EV3_UART_COMBO_MSG_LEN], mode = EV3_UART_NO_MODE;
+	unsigned int i, j, n, len, modes;
+	int ret, combo, off, prev;
+
+	for (i = 0; i < EV3_UART_MAX_MODES + 1; i++) {
+		ret = ev3_uart_lump_data_len(s, i);
+		CHECK(ret == -EINVAL || (ret >= 1 && ret <= EV3_UART_MAX_PAYLOAD &&
+					 i < s->num_modes && s->lump &&
+					 s->modes[i].mapping_out));
+	}
+	n = ev3_uart_lump_lights(s, &mode);
+	CHECK(n <= EV3_UART_MAX_LIGHTS);
+	if (n) {
+		CHECK(mode < s->num_modes);
+		CHECK(ev3_uart_lump_data_len(s, mode) == (int)n);
+	}
+	for (i = 0; i < h->num_chans; i++) {
+		n = 1 + (i + h->num_chans) % (EV3_UART_MAX_COMBO_ENTRIES + 1);
+		if (i + n > h->num_chans)
+			break;
+		modes = 0;
+		for (j = 0; j < n; j++) {
+			e[j].mode = h->chans[i + j].mode;
+			e[j].index = h->chans[i + j].index;
+			modes |= 1U << e[j].mode;
+		}
+		combo = ev3_uart_combo_find(s, e, n, &len);
+		if (combo < 0) {
+			CHECK(combo == -EINVAL);
+			continue;
+		}
+		CHECK(s->lump && n <= EV3_UART_MAX_COMBO_ENTRIES);
+		CHECK(combo < s->num_combos && (s->combos[combo] & modes) == modes);
+		CHECK(len >= n && len <= EV3_UART_MAX_PAYLOAD);
+		for (j = 0, prev = -1; j < n; j++) {
+			off = ev3_uart_combo_offset(s, e, n, j);
+			CHECK(off > prev && off < (int)len);
+			prev = off;
+		}
+		CHECK(prev + (int)ev3_uart_data_size(s->modes[e[n - 1].mode].data_type) ==
+		      (int)len);
+		ret = ev3_uart_build_combo(msg, combo, e, n);
+		CHECK(ret >= (int)n + 4 && ret <= EV3_UART_COMBO_MSG_LEN);
+		CHECK(ret == (int)ev3_uart_msg_len(msg[0]));
+		CHECK(msg[1] == (EV3_UART_COMBO_CMD | n) && msg[2] == combo);
+		CHECK(msg[ret - 1] == ev3_uart_checksum(msg, ret - 1));
+	}
+}
+
+/*
  * What ev3_uart_iio.c and the sysfs "modes" and "mode" attributes do with
  * a new sensor's description: every channel within bounds and showable,
  * every mode's token unique and selecting its own mode.
@@ -185,6 +244,7 @@ static void build_chans(struct host *h)
 		for (j = 0; j < i; j++)
 			CHECK(strcmp(tok[i], tok[j]));
 	}
+	check_lights_and_combos(h);
 	/* fw_version in sysfs: always the same width, whatever was sent. */
 	CHECK(ev3_uart_version_string(s->fw_version, ver, sizeof(ver)) ==
 	      EV3_UART_VERSION_LEN && strlen(ver) == EV3_UART_VERSION_LEN);

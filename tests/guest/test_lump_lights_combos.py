@@ -1,21 +1,26 @@
-"""Powered Up lights and values for modes, through the real line
-discipline over the null-modem line:
+"""Powered Up lights and combined modes, through the real line discipline
+over the null-modem line:
 
 - the SPIKE colour sensor's three lights are LED class devices
   (sensorN:white:light-0..2, max_brightness 100): a brightness written
   reaches the device as the LIGHT mode's values (EXT_MODE + DATA, sent
   while the device is in LIGHT, as Pybricks does), the user's mode and
   values stay, and the timer trigger blinks a light;
-- the BOOST sensor's COL O and IR Tx take values through mode_data.
+- a buffered IIO capture whose channels span several modes of a device
+  that offers them together (MODE_COMBOS) gets them in one scan: a Technic
+  Large motor's speed, position and absolute position (its recorded
+  handshake), the BOOST sensor's proximity and RGB; a scan mask no
+  combination covers is refused (EINVAL).
 """
 import errno
 import glob
 import os
+import struct
 import time
 
 import pytest
 
-from ev3 import plug, read_attr, wait_value, write_attr
+from ev3 import drain, iio_device, plug, read_attr, wait_value, write_attr
 
 LEDS = '/sys/class/leds'
 
@@ -99,6 +104,109 @@ def test_spike_color_light_timer_trigger(line):
 def test_no_leds_without_lights(line):
     emu, path = plug(line, 'boost-cds')
     assert _leds(path) == []
+
+
+def _channels(dev):
+    """{label: scan element name stem} of an IIO device's channels."""
+    out = {}
+    for f in glob.glob(dev + '/in_*_label'):
+        stem = os.path.basename(f)[:-len('_label')]
+        out[read_attr(dev, os.path.basename(f))] = stem
+    return out
+
+
+def _capture(dev, stems, body, seconds):
+    """Enable a buffer of `stems` and the timestamp, run body(), read the
+    scans for `seconds` more, disable: the raw bytes."""
+    num = dev.rsplit('iio:device', 1)[1]
+    for s in stems:
+        write_attr(dev, 'scan_elements/%s_en' % s, '1')
+    write_attr(dev, 'scan_elements/in_timestamp_en', '1')
+    fd = os.open('/dev/iio:device' + num, os.O_RDONLY | os.O_NONBLOCK)
+    data = b''
+    try:
+        write_attr(dev, 'buffer/enable', '1')
+        data += body(fd)
+        data += drain(fd, seconds)
+        write_attr(dev, 'buffer/enable', '0')
+        data += drain(fd, 0.5)
+    finally:
+        os.close(fd)
+        for s in stems:
+            write_attr(dev, 'scan_elements/%s_en' % s, '0')
+    return data
+
+
+def test_technic_motor_combined_capture(line):
+    """Speed, position and absolute position in one scan: every scan holds
+    values the emulator sent together (they change together, so a scan
+    mixing two messages would break pos == 1000 * speed + 7)."""
+    emu, path = plug(line, 'technic-l')
+    dev = iio_device('lego-technic-l-motor')
+    assert dev
+    ch = _channels(dev)
+    stems = [ch['SPEED value0'], ch['POS value0'], ch['APOS value0']]
+    emu.set_many({1: [0], 2: [7], 3: [-90]})
+
+    def vary(fd):
+        got = b''
+        for k in range(1, 60):
+            emu.set_many({1: [k], 2: [1000 * k + 7], 3: [k - 90]})
+            time.sleep(0.03)
+            got += drain(fd, 0.01)
+        return got
+
+    data = _capture(dev, stems, vary, 0.3)
+    assert emu.combo_setups == [(0, ((1, 0), (2, 0), (3, 0)))], emu.events[-10:]
+    # Three s32 values, 4 bytes of padding, the s64 timestamp.
+    scans = [struct.unpack_from('<iii4xq', data, i) for i in range(0, len(data) - 23, 24)]
+    assert len(data) % 24 == 0
+    assert len(scans) > 50, len(scans)
+    bad = [s for s in scans if s[1] != 1000 * s[0] + 7 or s[2] != s[0] - 90]
+    assert not bad, bad[:5]
+    speeds = {s[0] for s in scans}
+    assert len(speeds) > 30, sorted(speeds)
+    stamps = [s[3] for s in scans]
+    assert all(b > a for a, b in zip(stamps, stamps[1:]))
+    # Disabled: the combined mode ended (a SELECT), the user's mode is back.
+    assert _wait(lambda: emu.combo is None)
+    assert read_attr(path, 'mode') == 'POWER'
+    write_attr(path, 'mode', 'POS')
+    emu.set_values(2, [4242])
+    assert wait_value(path, 0, 4242) == 4242
+
+
+def test_boost_combined_and_refused(line):
+    """The BOOST sensor's proximity and RGB in one scan; AMBI is in no
+    combination (MODE_COMBOS 0x004f): a mask with it and PROX is refused."""
+    emu, path = plug(line, 'boost-cds')
+    dev = iio_device('lego-boost-color-dist')
+    assert dev
+    ch = _channels(dev)
+    write_attr(dev, 'scan_elements/%s_en' % ch['PROX value0'], '1')
+    with pytest.raises(OSError) as e:
+        write_attr(dev, 'scan_elements/%s_en' % ch['AMBI value0'], '1')
+    assert e.value.errno == errno.EINVAL
+    write_attr(dev, 'scan_elements/%s_en' % ch['PROX value0'], '0')
+
+    stems = [ch['PROX value0'], ch['RGB_I value0'], ch['RGB_I value1'], ch['RGB_I value2']]
+    emu.set_many({1: [0], 6: [0, 0, 0]})
+
+    def vary(fd):
+        got = b''
+        for k in range(1, 11):
+            emu.set_many({1: [k], 6: [100 + k, 200 + k, 300 + k]})
+            time.sleep(0.05)
+            got += drain(fd, 0.01)
+        return got
+
+    data = _capture(dev, stems, vary, 0.3)
+    assert emu.combo_setups[-1] == (0, ((1, 0), (6, 0), (6, 1), (6, 2)))
+    scans = [struct.unpack_from('<iiiiq', data, i) for i in range(0, len(data) - 23, 24)]
+    assert len(scans) > 10
+    assert all((s[1], s[2], s[3]) == ((100 + s[0], 200 + s[0], 300 + s[0]) if s[0] else
+                                     (0, 0, 0)) for s in scans), scans[:5]
+    assert len({s[0] for s in scans}) >= 8
 
 
 def test_mode_data_attribute(line):

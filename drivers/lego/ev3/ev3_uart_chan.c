@@ -142,6 +142,7 @@ struct ev3_uart_unit {
 
 static const struct ev3_uart_unit ev3_uart_units[] = {
 	{ "deg",	IIO_ANGL,		17453293 },	/* rad */
+	{ "DEG",	IIO_ANGL,		17453293 },	/* Powered Up motors */
 	{ "d/s",	IIO_ANGL_VEL,		17453293 },	/* rad/s */
 	{ "cm",		IIO_DISTANCE,		10000000 },	/* m */
 	{ "inch",	IIO_DISTANCE,		25400000 },	/* m */
@@ -183,6 +184,18 @@ static const struct {
 	{ EV3_UART_TYPE_SPIKE_COLOR, true, "AMBI", { IIO_INTENSITY }, 1000000000 },
 	{ EV3_UART_TYPE_SPIKE_COLOR, true, "RREFL", { IIO_INTENSITY }, 1000000000 },
 	{ EV3_UART_TYPE_SPIKE_COLOR, true, "RGB I", { IIO_INTENSITY }, 1000000000 },
+	/*
+	 * The Powered Up motors' speed, in percent of their top speed: IIO
+	 * has no type for it, so a count (its label says SPEED).
+	 */
+	{ 38, true, "SPEED", { IIO_COUNT }, 1000000000 },
+	{ 46, true, "SPEED", { IIO_COUNT }, 1000000000 },
+	{ 47, true, "SPEED", { IIO_COUNT }, 1000000000 },
+	{ 48, true, "SPEED", { IIO_COUNT }, 1000000000 },
+	{ 49, true, "SPEED", { IIO_COUNT }, 1000000000 },
+	{ 65, true, "SPEED", { IIO_COUNT }, 1000000000 },
+	{ 75, true, "SPEED", { IIO_COUNT }, 1000000000 },
+	{ 76, true, "SPEED", { IIO_COUNT }, 1000000000 },
 };
 
 static bool ev3_uart_chan_type(const struct ev3_uart_sensor *desc, u8 mode,

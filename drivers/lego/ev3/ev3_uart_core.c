@@ -1404,7 +1404,7 @@ int ev3_uart_write(struct ev3_uart_sensor_dev *sd, const u8 *data, size_t len)
 	return sd->port->ops->send(sd->port, msg, n);
 }
 
-/* ---- Powered Up: values for a mode ---- */
+/* ---- Powered Up: values for a mode, combined modes ---- */
 
 /*
  * SELECT @mode whatever mode the parser thinks the sensor is in, and wait
@@ -1507,6 +1507,92 @@ int ev3_uart_set_mode_data(struct ev3_uart_sensor_dev *sd, u8 mode,
 				    sd->address, ev3_uart_sensor_name(sd),
 				    sd->desc.modes[mode].name, ret);
 	return ret;
+}
+
+/**
+ * ev3_uart_hold_combo() - set up a combined mode and hold the sensor in it
+ * @sd: the sensor, a Powered Up device
+ * @e: the values to receive together, in the order wanted
+ * @n: their number
+ *
+ * Finds the combination the device offers for @e (ev3_uart_combo_find()),
+ * switches the sensor to mode 0, in which the only recorded combined mode
+ * was set up, and sends the WRITE that sets it up (ev3_uart_build_combo()).
+ * From then on each DATA message of mode 0 that is longer than mode 0's
+ * own carries the values of @e; the sensor is held in mode 0 (no other
+ * mode can be set, -%EBUSY) until ev3_uart_release_combo().
+ *
+ * Return: 0, -%EINVAL if no combination has the values, -%EBUSY while an
+ * IIO buffer holds a mode, or the errors of ev3_uart_set_mode().
+ */
+int ev3_uart_hold_combo(struct ev3_uart_sensor_dev *sd,
+			const struct ev3_uart_combo_entry *e, unsigned int n)
+{
+	struct ev3_uart_port *port = sd->port;
+	u8 msg[EV3_UART_COMBO_MSG_LEN];
+	unsigned int len;
+	int combo, mlen, ret;
+
+	combo = ev3_uart_combo_find(&sd->desc, e, n, &len);
+	if (combo < 0)
+		return combo;
+	mlen = ev3_uart_build_combo(msg, combo, e, n);
+	if (mlen < 0)
+		return mlen;
+	if (mutex_lock_interruptible(&port->select_mutex))
+		return -EINTR;
+	spin_lock(&port->lock);
+	if (sd->gone)
+		ret = -ENODEV;
+	else if (sd->held_mode != EV3_UART_NO_MODE)
+		ret = -EBUSY;
+	else
+		ret = 0;
+	spin_unlock(&port->lock);
+	if (!ret)
+		ret = ev3_uart_select_force(sd, 0);
+	if (!ret)
+		ret = port->ops->send(port, msg, mlen);
+	if (!ret) {
+		spin_lock(&port->lock);
+		sd->held_mode = 0;
+		sd->combo_len = len;
+		spin_unlock(&port->lock);
+	}
+	mutex_unlock(&port->select_mutex);
+	return ret == -ERESTARTSYS ? -EINTR : ret;
+}
+
+/**
+ * ev3_uart_release_combo() - end a combined mode
+ * @sd: the sensor, held by ev3_uart_hold_combo()
+ *
+ * Lets other modes be set again and selects the user's mode (or mode 0):
+ * a SELECT ends a combined mode.
+ */
+void ev3_uart_release_combo(struct ev3_uart_sensor_dev *sd)
+{
+	struct ev3_uart_port *port = sd->port;
+	bool gone;
+	u8 mode = 0;
+
+	/* Not under select_mutex: a lost sensor's views go without it. */
+	spin_lock(&port->lock);
+	sd->held_mode = EV3_UART_NO_MODE;
+	sd->combo_len = 0;
+	gone = sd->gone;
+	spin_unlock(&port->lock);
+	if (gone)
+		return;
+	mutex_lock(&port->select_mutex);
+	spin_lock(&port->lock);
+	if (port->requested_mode < sd->desc.num_modes &&
+	    port->requested_type == sd->desc.type &&
+	    port->requested_lump == sd->desc.lump)
+		mode = port->requested_mode;
+	spin_unlock(&port->lock);
+	ev3_uart_select_force(sd, mode);
+	mutex_unlock(&port->select_mutex);
 }
 
 /**

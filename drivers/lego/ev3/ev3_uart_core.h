@@ -180,6 +180,8 @@ struct ev3_uart_transport_ops {
  * @lent_mode: the mode ev3_uart_set_mode_data() switched the sensor to for
  *	a moment, or %EV3_UART_NO_MODE: its DATA change neither @mode nor
  *	@data (under @port->lock and &ev3_uart_port.select_mutex)
+ * @combo_len: while ev3_uart_hold_combo() holds a combined mode, the size
+ *	of its values in a DATA message of mode 0, else 0 (as @held_mode)
  * @iio: the IIO view's, or NULL: the core never looks at it
  * @cls: the class view's, or NULL: the core never looks at it
  * @leds: the LED view's, or NULL: the core never looks at it
@@ -198,6 +200,7 @@ struct ev3_uart_sensor_dev {
 	unsigned long settle_until;
 	u8 held_mode;
 	u8 lent_mode;
+	u8 combo_len;
 	struct ev3_uart_iio *iio;
 	struct ev3_uart_class_dev *cls;
 	struct ev3_uart_leds *leds;
@@ -361,5 +364,8 @@ int ev3_uart_show_mode(struct ev3_uart_sensor_dev *sd, char *buf);
 int ev3_uart_write(struct ev3_uart_sensor_dev *sd, const u8 *data, size_t len);
 int ev3_uart_set_mode_data(struct ev3_uart_sensor_dev *sd, u8 mode,
 			   const u8 *data, size_t len);
+int ev3_uart_hold_combo(struct ev3_uart_sensor_dev *sd,
+			const struct ev3_uart_combo_entry *e, unsigned int n);
+void ev3_uart_release_combo(struct ev3_uart_sensor_dev *sd);
 
 #endif /* _EV3_UART_CORE_H */

@@ -13,9 +13,11 @@
  *
  * A channel belongs to one mode. Reading a channel of a mode that is not the
  * current one fails with EBUSY: write the mode first ("mode" attribute).
- * A buffer may only hold channels of one mode; enabling it switches the
- * sensor to that mode. Every DATA message of that mode is then pushed with
- * a timestamp, from the receive path.
+ * A buffer holds channels of one mode, or of several modes that one of
+ * the combinations a Powered Up device offers (MODE_COMBOS) has: enabling
+ * it switches the sensor to that mode, or sets the combined mode up
+ * (ev3_uart_hold_combo()). Every DATA message of that mode, or every
+ * combined one, is then pushed with a timestamp, from the receive path.
  */
 #include <linux/iio/buffer.h>
 #include <linux/iio/iio.h>
@@ -45,6 +47,10 @@
  * @scan: one scan: a value per channel, then the timestamp (under the port
  *	lock)
  * @scan_size: the size of @scan in bytes
+ * @combo: while a buffer of several modes is enabled, its channels' values
+ *	in scan order (set before the combined mode, read under the port lock)
+ * @combo_off: where each of them is in a combined DATA message
+ * @combo_n: their number; 0 while no combined mode is set up
  * @name: the IIO device's name, the sensor's driver name (a copy: the IIO
  *	device can outlive the sensor)
  * @label: its label, the sensor's address (a copy)
@@ -58,6 +64,9 @@ struct ev3_uart_iio {
 	s64 last_ts;
 	s32 *scan;
 	size_t scan_size;
+	struct ev3_uart_combo_entry combo[EV3_UART_MAX_COMBO_ENTRIES];
+	u8 combo_off[EV3_UART_MAX_COMBO_ENTRIES];
+	unsigned int combo_n;
 	char name[sizeof_field(struct ev3_uart_sensor_dev, driver_name)];
 	char label[EV3_UART_ADDRESS_LEN];
 };
@@ -107,20 +116,46 @@ static int ev3_iio_read_label(struct iio_dev *indio,
 	return sysfs_emit(label, "%s value%u\n", tok, c->index);
 }
 
-/* A buffer holds the values of one mode only. */
+/*
+ * The values of the channels of @mask, in scan order, in @e (room for
+ * %EV3_UART_MAX_COMBO_ENTRIES). Return: their number, or 0 if they are of
+ * one mode (or too many to combine: -%E2BIG).
+ */
+static int ev3_iio_combo_entries(struct ev3_uart_iio *iio,
+				 const unsigned long *mask,
+				 struct ev3_uart_combo_entry *e)
+{
+	unsigned int ch, n = 0;
+	bool one_mode = true;
+
+	for_each_set_bit(ch, mask, iio->num_chans) {
+		if (n == EV3_UART_MAX_COMBO_ENTRIES)
+			return -E2BIG;
+		e[n].mode = iio->chans[ch].mode;
+		e[n].index = iio->chans[ch].index;
+		if (n && e[n].mode != e[0].mode)
+			one_mode = false;
+		n++;
+	}
+	return one_mode ? 0 : n;
+}
+
+/*
+ * A buffer holds the values of one mode, or of several that a combination
+ * of the device has (ev3_uart_combo_find()).
+ */
 static bool ev3_iio_validate_scan_mask(struct iio_dev *indio,
 				       const unsigned long *mask)
 {
+	struct ev3_uart_combo_entry e[EV3_UART_MAX_COMBO_ENTRIES];
 	struct ev3_uart_iio *iio = iio_priv(indio);
-	unsigned int ch;
-	int mode = -1;
+	unsigned int len;
+	int n;
 
-	for_each_set_bit(ch, mask, iio->num_chans) {
-		if (mode >= 0 && iio->chans[ch].mode != mode)
-			return false;
-		mode = iio->chans[ch].mode;
-	}
-	return true;
+	n = ev3_iio_combo_entries(iio, mask, e);
+	if (!n)
+		return true;
+	return n > 0 && ev3_uart_combo_find(&iio->sd->desc, e, n, &len) >= 0;
 }
 
 static ssize_t mode_show(struct device *dev, struct device_attribute *attr,
@@ -166,11 +201,39 @@ static const struct iio_info ev3_iio_info = {
 	.attrs = &ev3_iio_attr_group,
 };
 
+/* Set up the combined mode of a buffer of several modes' channels. */
+static int ev3_iio_combo_enable(struct ev3_uart_iio *iio, unsigned int n)
+{
+	unsigned int j;
+	int off, ret;
+
+	for (j = 0; j < n; j++) {
+		off = ev3_uart_combo_offset(&iio->sd->desc, iio->combo, n, j);
+		if (off < 0)
+			return off;
+		iio->combo_off[j] = off;
+	}
+	iio->last_ts = 0;
+	/* Read by the receive path only once the core holds the combination. */
+	iio->combo_n = n;
+	ret = ev3_uart_hold_combo(iio->sd, iio->combo, n);
+	if (ret)
+		iio->combo_n = 0;
+	return ret;
+}
+
 static int ev3_iio_postenable(struct iio_dev *indio)
 {
 	struct ev3_uart_iio *iio = iio_priv(indio);
 	unsigned int ch;
+	int n;
 	u8 mode;
+
+	n = ev3_iio_combo_entries(iio, indio->active_scan_mask, iio->combo);
+	if (n < 0)
+		return n;
+	if (n)
+		return ev3_iio_combo_enable(iio, n);
 
 	/* The scan mask holds the channels of one mode (validate_scan_mask). */
 	iio_for_each_active_channel(indio, ch)
@@ -191,7 +254,12 @@ static int ev3_iio_predisable(struct iio_dev *indio)
 {
 	struct ev3_uart_iio *iio = iio_priv(indio);
 
-	ev3_uart_release_mode(iio->sd);
+	if (iio->combo_n) {
+		ev3_uart_release_combo(iio->sd);
+		iio->combo_n = 0;
+	} else {
+		ev3_uart_release_mode(iio->sd);
+	}
 	return 0;
 }
 
@@ -216,6 +284,35 @@ static s64 ev3_iio_timestamp(struct ev3_uart_iio *iio, unsigned int len,
 }
 
 /*
+ * Push one combined DATA message: a value per channel of the scan, one after
+ * the other (its mode 0 header says nothing). A shorter message is mode 0's
+ * own, sent before the combination was set up: dropped.
+ */
+static void ev3_uart_iio_combo_data(struct ev3_uart_iio *iio, const u8 *data,
+				    unsigned int len, size_t rest)
+{
+	struct ev3_uart_sensor_dev *sd = iio->sd;
+	struct ev3_uart_chan c;
+	unsigned int ch, i = 0;
+
+	if (len < sd->combo_len || !iio->combo_n)
+		return;
+	iio_for_each_active_channel(iio->indio, ch) {
+		if (ch >= iio->num_chans || i >= iio->combo_n)
+			break;
+		c = iio->chans[ch];
+		c.index = 0;
+		if (iio->combo_off[i] >= len ||
+		    ev3_uart_chan_read(&sd->desc, &c, data + iio->combo_off[i],
+				       len - iio->combo_off[i], &iio->scan[i]))
+			iio->scan[i] = 0;
+		i++;
+	}
+	iio_push_to_buffers_with_ts(iio->indio, iio->scan, iio->scan_size,
+				    ev3_iio_timestamp(iio, len, rest));
+}
+
+/*
  * Push one DATA message of @mode, @len bytes, @rest bytes before the end
  * of its batch, to the buffer if it captures @mode (&ev3_uart_view_ops.data:
  * from the receive path, under the port lock; never sleeps).
@@ -229,6 +326,10 @@ static void ev3_uart_iio_data(struct ev3_uart_sensor_dev *sd, u8 mode,
 	lockdep_assert_held(&sd->port->lock);
 	if (!iio || sd->held_mode != mode)
 		return;
+	if (sd->combo_len) {
+		ev3_uart_iio_combo_data(iio, data, len, rest);
+		return;
+	}
 	iio_for_each_active_channel(iio->indio, ch) {
 		/* The timestamp, last of the scan, is no channel of ours. */
 		if (ch >= iio->num_chans)

@@ -665,6 +665,141 @@ int ev3_uart_pack_values(const struct ev3_uart_sensor *s, u8 mode,
 }
 EXPORT_SYMBOL_IF_KUNIT(ev3_uart_pack_values);
 
+/* The payload size a message of @len bytes of values takes: a power of two. */
+static unsigned int ev3_uart_padded_len(unsigned int len)
+{
+	unsigned int size = 1;
+
+	while (size < len)
+		size <<= 1;
+	return size;
+}
+
+/* The size of entry @e's value, or 0 if @s has no such value. */
+static unsigned int ev3_uart_combo_size(const struct ev3_uart_sensor *s,
+					const struct ev3_uart_combo_entry *e)
+{
+	const struct ev3_uart_mode *m;
+
+	if (e->mode >= s->num_modes || e->mode >= EV3_UART_MAX_MODES)
+		return 0;
+	m = &s->modes[e->mode];
+	if (e->index >= m->num_values || e->index > 0xf)
+		return 0;
+	return ev3_uart_data_size(m->data_type);
+}
+
+/**
+ * ev3_uart_combo_find() - the combination of a device that has some values
+ * @s: a Powered Up device's description
+ * @e: the values, in the order the combined DATA message is to carry them
+ * @n: their number, 1 to %EV3_UART_MAX_COMBO_ENTRIES
+ * @len: set to the size of the values in a combined DATA message
+ *
+ * The modes of @e must all be in one of the bitmaps the device sent in
+ * its MODE_COMBOS INFO; the first such is chosen. A combined DATA message
+ * carries the values of @e one after the other, each as its mode's FORMAT
+ * says, padded to a power of two (recorded from a Technic Large motor:
+ * Pybricks' lib/pbio/test/src/uartdev.c before commit ae927acbd, "DATA
+ * speed and position combo"). It comes with the header of mode 0, in which
+ * the device was when the combination was set up (see ev3_uart_combo_*()
+ * in ev3_uart_core.c), so it must be longer than mode 0's own DATA to be
+ * told from it.
+ *
+ * Return: the index of the combination, or -%EINVAL if none has all the
+ * values, they do not fit in a message, or they could not be told from
+ * mode 0's values.
+ */
+int ev3_uart_combo_find(const struct ev3_uart_sensor *s,
+			const struct ev3_uart_combo_entry *e, unsigned int n,
+			unsigned int *len)
+{
+	unsigned int i, size, total = 0, first;
+	u16 modes = 0;
+
+	if (!s->lump || !n || n > EV3_UART_MAX_COMBO_ENTRIES || !s->num_modes)
+		return -EINVAL;
+	for (i = 0; i < n; i++) {
+		size = ev3_uart_combo_size(s, &e[i]);
+		if (!size)
+			return -EINVAL;
+		total += size;
+		modes |= BIT(e[i].mode);
+	}
+	first = s->modes[0].num_values * ev3_uart_data_size(s->modes[0].data_type);
+	if (total > EV3_UART_MAX_PAYLOAD ||
+	    ev3_uart_padded_len(total) <= ev3_uart_padded_len(first))
+		return -EINVAL;
+	for (i = 0; i < s->num_combos && i < EV3_UART_MAX_COMBOS; i++) {
+		if ((s->combos[i] & modes) == modes) {
+			*len = total;
+			return i;
+		}
+	}
+	return -EINVAL;
+}
+EXPORT_SYMBOL_IF_KUNIT(ev3_uart_combo_find);
+
+/**
+ * ev3_uart_combo_offset() - where a value is in a combined DATA message
+ * @s: the device's description
+ * @e: the values of the combination, as given to ev3_uart_combo_find()
+ * @n: their number
+ * @j: which value, below @n
+ *
+ * Return: its offset in the payload, or -%EINVAL.
+ */
+int ev3_uart_combo_offset(const struct ev3_uart_sensor *s,
+			  const struct ev3_uart_combo_entry *e, unsigned int n,
+			  unsigned int j)
+{
+	unsigned int i, size, off = 0;
+
+	if (j >= n || n > EV3_UART_MAX_COMBO_ENTRIES)
+		return -EINVAL;
+	for (i = 0; i < j; i++) {
+		size = ev3_uart_combo_size(s, &e[i]);
+		if (!size)
+			return -EINVAL;
+		off += size;
+	}
+	return off;
+}
+EXPORT_SYMBOL_IF_KUNIT(ev3_uart_combo_offset);
+
+/**
+ * ev3_uart_build_combo() - the WRITE that sets up a combined mode
+ * @buf: at least %EV3_UART_COMBO_MSG_LEN bytes
+ * @combo: the index of the combination (ev3_uart_combo_find())
+ * @e: its values, in the order the DATA messages are to carry them
+ * @n: their number, 1 to %EV3_UART_MAX_COMBO_ENTRIES
+ *
+ * The payload is %EV3_UART_COMBO_CMD plus @n, @combo, then a byte per value:
+ * its mode in the high nibble, its index in the low one. For a Technic
+ * Large motor's speed, position and absolute position (combination 0):
+ * ``5c 23 00 10 20 30 00 00 00 80``.
+ *
+ * Return: the message length, or -%EINVAL for a bad argument.
+ */
+int ev3_uart_build_combo(u8 *buf, u8 combo,
+			 const struct ev3_uart_combo_entry *e, unsigned int n)
+{
+	u8 payload[2 + EV3_UART_MAX_COMBO_ENTRIES];
+	unsigned int i;
+
+	if (!n || n > EV3_UART_MAX_COMBO_ENTRIES || combo >= EV3_UART_MAX_COMBOS)
+		return -EINVAL;
+	payload[0] = EV3_UART_COMBO_CMD | n;
+	payload[1] = combo;
+	for (i = 0; i < n; i++) {
+		if (e[i].mode >= EV3_UART_MAX_MODES || e[i].index > 0xf)
+			return -EINVAL;
+		payload[2 + i] = e[i].mode << 4 | e[i].index;
+	}
+	return ev3_uart_build_write(buf, payload, n + 2);
+}
+EXPORT_SYMBOL_IF_KUNIT(ev3_uart_build_combo);
+
 /* ---- the parser ---- */
 
 static void ev3_uart_set_mode_defaults(struct ev3_uart_parser *p)

@@ -463,6 +463,38 @@ unsigned int ev3_uart_lump_lights(const struct ev3_uart_sensor *s, u8 *mode);
 int ev3_uart_pack_values(const struct ev3_uart_sensor *s, u8 mode,
 			 const s32 *v, unsigned int n, u8 *buf);
 
+/*
+ * Powered Up combined modes ("combi modes"): values of several modes in
+ * one DATA message. The host sets one up with a WRITE whose payload is
+ * EV3_UART_COMBO_CMD plus the number of entries, the index of the
+ * combination in the device's MODE_COMBOS, then one byte per entry: the
+ * mode in the high nibble, the value's index in that mode ("dataset") in
+ * the low one. See Documentation/lego/ev3-uart.rst for the sources.
+ */
+#define EV3_UART_COMBO_CMD		0x20
+#define EV3_UART_MAX_COMBO_ENTRIES	8
+/* The WRITE of a combination: header, 2 + 8 bytes padded to 16, checksum. */
+#define EV3_UART_COMBO_MSG_LEN		18
+
+/**
+ * struct ev3_uart_combo_entry - one value of a combined mode
+ * @mode: the mode it belongs to
+ * @index: which value of that mode (the "dataset")
+ */
+struct ev3_uart_combo_entry {
+	u8 mode;
+	u8 index;
+};
+
+int ev3_uart_combo_find(const struct ev3_uart_sensor *s,
+			const struct ev3_uart_combo_entry *e, unsigned int n,
+			unsigned int *len);
+int ev3_uart_combo_offset(const struct ev3_uart_sensor *s,
+			  const struct ev3_uart_combo_entry *e, unsigned int n,
+			  unsigned int j);
+int ev3_uart_build_combo(u8 *buf, u8 combo,
+			 const struct ev3_uart_combo_entry *e, unsigned int n);
+
 int ev3_uart_f32_to_fixed(u32 bits, unsigned int decimals, s32 *out);
 int ev3_uart_read_value(const struct ev3_uart_mode *mode, const u8 *data,
 			size_t len, unsigned int index, s32 *out);
