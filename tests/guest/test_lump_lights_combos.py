@@ -20,13 +20,18 @@ import time
 
 import pytest
 
-from ev3 import drain, iio_device, plug, read_attr, wait_value, write_attr
+from ev3 import drain, iio_device, plug, read_attr, wait_registered, wait_value, write_attr
 
 LEDS = '/sys/class/leds'
 
 
-def _leds(path):
-    return sorted(glob.glob('%s/%s:*' % (LEDS, os.path.basename(path))))
+def _leds(path, n=0):
+    """The LED devices of the sensor at `path`, waiting for `n` of them
+    (the LED view registers them after the class device appears)."""
+    def found():
+        return sorted(glob.glob('%s/%s:*' % (LEDS, os.path.basename(path))))
+    _wait(lambda: len(found()) >= n)
+    return found()
 
 
 def _wait(cond, timeout=3.0):
@@ -38,10 +43,16 @@ def _wait(cond, timeout=3.0):
     return True
 
 
+def _sent(emu, payload, mode=3):
+    """Wait until the device's last values for `mode` are `payload` (the
+    LED core may set a brightness from its work item)."""
+    return _wait(lambda: emu.lump_writes and emu.lump_writes[-1] == (mode, payload))
+
+
 def test_spike_color_lights_are_leds(line):
     emu, path = plug(line, 'spike-color')
     name = os.path.basename(path)
-    leds = _leds(path)
+    leds = _leds(path, 3)
     assert [os.path.basename(d) for d in leds] == \
         ['%s:white:light-%d' % (name, i) for i in range(3)]
     for d in leds:
@@ -55,7 +66,7 @@ def test_spike_color_lights_are_leds(line):
     write_attr(leds[1], 'brightness', '40')
     # EXT_MODE 0, DATA of mode 3: the three values padded to four bytes,
     # sent while the device was in LIGHT.
-    assert emu.lump_writes[-1] == (3, bytes([0, 40, 0, 0]))
+    assert _sent(emu, bytes([0, 40, 0, 0])), emu.lump_writes
     assert emu.lump_write_modes[-1] == 3
     assert emu.values[3] == [0, 40, 0]
     assert read_attr(path, 'mode') == 'REFLT'
@@ -64,23 +75,25 @@ def test_spike_color_lights_are_leds(line):
     assert wait_value(path, 0, 34) == 34
 
     write_attr(leds[0], 'brightness', '100')
-    assert emu.lump_writes[-1] == (3, bytes([100, 40, 0, 0]))
+    assert _sent(emu, bytes([100, 40, 0, 0])), emu.lump_writes
     # Above max_brightness: the LED core makes it 100.
     write_attr(leds[2], 'brightness', '255')
-    assert emu.lump_writes[-1] == (3, bytes([100, 40, 100, 0]))
+    assert _sent(emu, bytes([100, 40, 100, 0])), emu.lump_writes
     assert read_attr(leds[1], 'brightness') == '40'
     write_attr(leds[1], 'brightness', '0')
-    assert emu.lump_writes[-1] == (3, bytes([100, 0, 100, 0]))
+    assert _sent(emu, bytes([100, 0, 100, 0])), emu.lump_writes
+    assert len(emu.lump_writes) == 4
     assert all(m == 3 for m in emu.lump_write_modes)
     assert read_attr(path, 'mode') == 'REFLT'
 
 
 def test_spike_color_light_timer_trigger(line):
     emu, path = plug(line, 'spike-color')
-    led = _leds(path)[2]
+    led = _leds(path, 3)[2]
     if 'timer' not in read_attr(led, 'trigger'):
         pytest.skip('no timer trigger in this kernel')
     write_attr(led, 'brightness', '70')
+    assert _sent(emu, bytes([0, 0, 70, 0]))
     n0 = len(emu.lump_writes)
     write_attr(led, 'trigger', 'timer')
     write_attr(led, 'delay_on', '150')
@@ -103,6 +116,7 @@ def test_spike_color_light_timer_trigger(line):
 
 def test_no_leds_without_lights(line):
     emu, path = plug(line, 'boost-cds')
+    assert wait_registered(line.address) is not False
     assert _leds(path) == []
 
 
@@ -239,4 +253,5 @@ def test_mode_data_ev3_sensor(line):
     with pytest.raises(OSError) as e:
         write_attr(path, 'mode_data', 'COL-REFLECT 1')
     assert e.value.errno == errno.EINVAL
+    assert wait_registered(line.address) is not False
     assert _leds(path) == []

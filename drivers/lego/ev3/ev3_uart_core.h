@@ -2,7 +2,8 @@
 /*
  * LEGO MINDSTORMS EV3 UART sensors: the sensor core, between a transport
  * (the tty line discipline, ev3_uart_ldisc.c) and the views of a sensor
- * (the lego-sensor class, ev3_uart_class.c, and IIO, ev3_uart_iio.c).
+ * (the lego-sensor class, ev3_uart_class.c, IIO, ev3_uart_iio.c, and a
+ * Powered Up device's lights, ev3_uart_leds.c).
  *
  * Layering is one way. The transport feeds the core what it receives
  * (ev3_uart_port_receive()) and does what the core asks through the
@@ -26,7 +27,9 @@
  * are never called with it held.
  *
  * ev3_uart_port.select_mutex serialises mode changes (one SELECT in
- * flight): a user's (sysfs, IIO buffer) and the restore of the user's mode
+ * flight): a user's (sysfs, IIO buffer, and the SELECTs around values sent
+ * to a Powered Up mode or a combined mode set up, ev3_uart_set_mode_data()
+ * and ev3_uart_hold_combo()) and the restore of the user's mode
  * after a reconnect (the port's work, keepalive_work), which only try it and give
  * way. A mode held by an IIO buffer (ev3_uart_sensor_dev.held_mode) is set
  * under it too, with the port lock, so that no mode change slips in

@@ -78,7 +78,8 @@ static int ev3_uart_led_set(struct led_classdev *cdev,
 	ret = ev3_uart_set_mode_data(leds->sd, leds->mode,
 				     (const u8 *)leds->brightness, leds->num);
 	mutex_unlock(&leds->lock);
-	return ret;
+	/* A sensor that is gone took its lights with it: nothing to report. */
+	return ret == -ENODEV ? 0 : ret;
 }
 
 static void ev3_uart_leds_unregister(struct ev3_uart_leds *leds)
@@ -122,6 +123,8 @@ static int ev3_uart_leds_add(struct ev3_uart_sensor_dev *sd)
 		led->cdev.name = led->name;
 		led->cdev.max_brightness = EV3_UART_LIGHT_MAX;
 		led->cdev.brightness_set_blocking = ev3_uart_led_set;
+		/* Unregistered when the sensor is gone: no write to turn it off. */
+		led->cdev.flags = LED_RETAIN_AT_SHUTDOWN;
 		ret = led_classdev_register(sd->port->parent, &led->cdev);
 		if (ret) {
 			pr_warn("%s: %s: no LED devices: %d\n", sd->address,
@@ -139,8 +142,9 @@ static int ev3_uart_leds_add(struct ev3_uart_sensor_dev *sd)
 
 /*
  * The sensor is gone: remove its LED devices (&ev3_uart_view_ops.remove).
- * Unregistering one turns it off, a write that fails at once (-ENODEV),
- * and waits for the LED core's work item.
+ * They are not turned off (LED_RETAIN_AT_SHUTDOWN: there is no device to
+ * write to); unregistering one waits for the LED core's work item, whose
+ * write fails at once.
  */
 static void ev3_uart_leds_remove(struct ev3_uart_sensor_dev *sd)
 {
