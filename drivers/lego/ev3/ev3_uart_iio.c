@@ -118,8 +118,9 @@ static int ev3_iio_read_label(struct iio_dev *indio,
 
 /*
  * The values of the channels of @mask, in scan order, in @e (room for
- * %EV3_UART_MAX_COMBO_ENTRIES). Return: their number, or 0 if they are of
- * one mode (or too many to combine: -%E2BIG).
+ * %EV3_UART_MAX_COMBO_ENTRIES). Return: their number, 0 if they are of
+ * one mode (however many), or -%E2BIG if they are of several modes and
+ * too many to combine.
  */
 static int ev3_iio_combo_entries(struct ev3_uart_iio *iio,
 				 const unsigned long *mask,
@@ -127,17 +128,22 @@ static int ev3_iio_combo_entries(struct ev3_uart_iio *iio,
 {
 	unsigned int ch, n = 0;
 	bool one_mode = true;
+	int first = -1;
 
 	for_each_set_bit(ch, mask, iio->num_chans) {
-		if (n == EV3_UART_MAX_COMBO_ENTRIES)
-			return -E2BIG;
-		e[n].mode = iio->chans[ch].mode;
-		e[n].index = iio->chans[ch].index;
-		if (n && e[n].mode != e[0].mode)
+		if (first < 0)
+			first = iio->chans[ch].mode;
+		else if (iio->chans[ch].mode != first)
 			one_mode = false;
+		if (n < EV3_UART_MAX_COMBO_ENTRIES) {
+			e[n].mode = iio->chans[ch].mode;
+			e[n].index = iio->chans[ch].index;
+		}
 		n++;
 	}
-	return one_mode ? 0 : n;
+	if (one_mode)
+		return 0;
+	return n <= EV3_UART_MAX_COMBO_ENTRIES ? n : -E2BIG;
 }
 
 /*
