@@ -4,6 +4,7 @@ make check builds that module beside the test kernel's modules
 ($LEGO_BUILD-no-class); the test swaps it in for the usual one and back."""
 import os
 import subprocess
+import time
 
 import pytest
 
@@ -51,3 +52,27 @@ def test_a_sensor_is_an_iio_device_only(no_class_module):
         line.close()
     assert ev3.wait_gone(dev, 5), 'the IIO device outlived the line'
     log.close()
+
+
+def test_lights_named_after_the_driver(no_class_module):
+    """Without the class a SPIKE colour sensor's lights are named after its
+    driver name, and still reach the device."""
+    line = ev3.Line(0)
+    line.attach()
+    try:
+        emu = line.plug('spike-color')
+        assert iio_device('lego-spike-color', timeout=15), emu.events
+        leds = ['/sys/class/leds/lego-spike-color:white:light-%d' % i for i in range(3)]
+        deadline = time.monotonic() + 5
+        while not all(os.path.isdir(d) for d in leds) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert all(os.path.isdir(d) for d in leds), os.listdir('/sys/class/leds')
+        write_attr(leds[0], 'brightness', '25')
+        deadline = time.monotonic() + 3
+        while emu.lump_writes[-1:] != [(3, bytes([25, 0, 0, 0]))] and \
+                time.monotonic() < deadline:
+            time.sleep(0.02)
+        assert emu.lump_writes[-1:] == [(3, bytes([25, 0, 0, 0]))]
+    finally:
+        line.close()
+    assert ev3.wait_gone(leds[0], 5), 'the LED device outlived the line'
