@@ -35,7 +35,7 @@ DRIVERS = {
             # (owner, a use of a field, what): struct ev3_uart_parser's
             # fields are read through its accessors outside its own file.
             'private': [('ev3_uart_proto.c', r'\bparser\s*(?:\.|->)\s*(\w+)', 'the parser')]},
-    'nxt': {'views': ['nxt_cdev.c', 'nxt_sysfs.c'], 'transport': ['nxt_usb.h'],
+    'nxt': {'views': ['nxt_cdev.c', 'nxt_sysfs.c', 'nxt_i2c.c'], 'transport': ['nxt_usb.h'],
             'transport_objs': ['nxt_usb.o', 'nxt_serial.o']},
 }
 
