@@ -20,7 +20,7 @@ import intree  # noqa: E402
 import places  # noqa: E402
 
 PAGES = ['Documentation/lego/ev3-uart.rst', 'Documentation/lego/nxt-usb.rst',
-         'Documentation/lego/tracing.rst']
+         'Documentation/lego/nxt-i2c.rst', 'Documentation/lego/tracing.rst']
 
 
 def run_intree(tmp_path, name, text, *args):
@@ -99,6 +99,16 @@ def test_c_comment_paths(tmp_path):
     assert '/* Documentation/iio/lego_ev3_uart.rst */' in out
     r, _ = run_intree(tmp_path, 'y.c', '/* Documentation/lego/testing.rst */\n', *have)
     assert r.returncode != 0 and 'stays out of the tree' in r.stderr
+
+
+@pytest.mark.parametrize('have, member', [('I2C_ALGO_XFER', 'xfer'), ('', 'master_xfer')])
+def test_i2c_algorithm_member(tmp_path, have, member):
+    """LEGO_I2C_XFER is the tree's name of the transfer member."""
+    src = ('#include <linux/i2c.h>\n\nstatic const struct i2c_algorithm a = {\n'
+           '\t.LEGO_I2C_XFER = f,\n};\n')
+    r, out = run_intree(tmp_path, 'a.c', src, '--have', have + ' KUNIT_MEMEQ')
+    assert r.returncode == 0, r.stderr
+    assert '\t.%s = f,\n' % member in out and 'LEGO_' not in out
 
 
 @pytest.mark.parametrize('page', PAGES)

@@ -18,9 +18,9 @@ with --have (tools/upstream/lib.sh's up_have runs the same probes on it):
   that one, as IIO drivers have it);
 - LEGO_TTY_FLAG, LEGO_TTY_COUNT, LEGO_TTY_WRITE_RET, LEGO_UEVENT_CONST,
   LEGO_BIN_ATTR, LEGO_BIN_ATTR_CONST, LEGO_ATTR_CONST, LEGO_GROUP_ATTRS, LEGO_CLASS_CONST,
-  LEGO_IMPORT_KUNIT_NS() and lego_assign_str() become the kernel's types,
-  qualifiers, fields and macros, as lego_compat.h defines them for those
-  flags;
+  LEGO_I2C_XFER, LEGO_IMPORT_KUNIT_NS() and lego_assign_str() become the
+  kernel's types, qualifiers, fields and macros, as lego_compat.h defines
+  them for those flags;
 - the current kernel API the code is written against is turned back into
   the target's where the target predates it: hrtimer_setup() into
   hrtimer_init() and a ->function assignment (before 6.13),
@@ -67,7 +67,7 @@ from places import map_paths, place  # noqa: E402
 LEGO_DOCS = os.path.join(HERE, '..', '..', 'Documentation', 'lego')
 
 LEFTOVER = re.compile(r'lego_compat|\bLEGO_(HAVE|TTY|UEVENT|IMPORT)_?\w*|lego_assign_str|lego_hrtimer'
-                      r'|\bLEGO_(BIN_ATTR|BIN_ATTR_CONST|ATTR_CONST|GROUP_ATTRS|CLASS_CONST)\b')
+                      r'|\bLEGO_(BIN_ATTR|BIN_ATTR_CONST|ATTR_CONST|GROUP_ATTRS|CLASS_CONST|I2C_XFER)\b')
 
 
 def die(msg):
@@ -187,6 +187,7 @@ def transform(text, have):
         (r'\bLEGO_ATTR_CONST ', 'const ' if 'ATTRS_CONST' in have else ''),
         (r'\bLEGO_GROUP_ATTRS\b', 'attrs_const' if 'ATTRS_CONST' in have else 'attrs'),
         (r'\bLEGO_CLASS_CONST ', 'const ' if 'CONST_CLASS' in have else ''),
+        (r'\bLEGO_I2C_XFER\b', 'xfer' if 'I2C_ALGO_XFER' in have else 'master_xfer'),
         (r'\bLEGO_IMPORT_KUNIT_NS\(\)',
          'MODULE_IMPORT_NS(EXPORTED_FOR_KUNIT_TESTING)' if 'IDENT_NS' in have
          else 'MODULE_IMPORT_NS("EXPORTED_FOR_KUNIT_TESTING")'),

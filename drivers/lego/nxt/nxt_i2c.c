@@ -286,8 +286,8 @@ static u32 nxt_i2c_functionality(struct i2c_adapter *adap)
 }
 
 static const struct i2c_algorithm nxt_i2c_algo = {
-	.LEGO_I2C_XFER	= nxt_i2c_xfer,
-	.functionality	= nxt_i2c_functionality,
+	.LEGO_I2C_XFER = nxt_i2c_xfer,
+	.functionality = nxt_i2c_functionality,
 };
 
 static const struct i2c_adapter_quirks nxt_i2c_quirks = {
