@@ -16,7 +16,9 @@ ev3dev.md):
   its own at the sensor's cadence (on change, or continuously), resets when
   no NACK came for a second;
 - SELECT switches mode after the sensor's own delay; WRITE 0x11 resets the
-  gyro angle;
+  gyro angle; the gyro goes on in the old mode until it has switched (see
+  'old-mode' below: real gyros send an old-mode DATA message just after a
+  SELECT, and the new mode's first 10 to 15 ms later, uart-peers.md 3.4);
 - Powered Up devices take values for a mode that takes them (MAPPING out
   flags: a light's brightness) as EXT_MODE + DATA, in the mode they are in
   (Pybricks sends them only then), and then send those values in that
@@ -186,18 +188,22 @@ class SensorDef:
     quirks=False: none of the real sensors' quirks in the data phase."""
 
     def __init__(self, type_id, driver, views, modes, speed=57600, raw_handshake=None,
-                 quirks=True, lump=False, version=None, combos=(), fast_sync=False):
+                 quirks=True, lump=False, version=None, combos=(), fast_sync=False,
+                 old_mode=False):
         """lump: a Powered Up device (LUMP): the handshake in its form
         (see handshake()), and an EXT_MODE message before every DATA
         message; version: (firmware, hardware) for the VERSION message;
         combos: the MODE_COMBOS bitmaps sent after mode 0's FORMAT;
         fast_sync: answers the host's SPEED 115200 probe (see
-        EmulatedSensor.listen_for_probe())."""
+        EmulatedSensor.listen_for_probe()); old_mode: goes on in the old
+        mode while it carries out a SELECT, as the `rude` option's
+        'old-mode' (a quirk: not with quirks=False)."""
         self.type, self.driver, self.views = type_id, driver, views
         self.modes, self.speed = modes, speed
         self.raw_handshake, self.quirks = raw_handshake, quirks
         self.lump, self.version, self.combos = lump, version, combos
         self.fast_sync = fast_sync
+        self.old_mode = old_mode
 
 
 COLOR = SensorDef(29, 'lego-ev3-color', 3, [
@@ -243,7 +249,8 @@ def _gyro(new):
             Mode('TILT-ANG', (-180, 180), (-180, 180), 'deg', 1, S16, 3, 0,
                  'continuous', 0.0019, 0.015),
         ]
-    return SensorDef(32, 'lego-ev3-gyro', 2, modes)
+    # The one sensor seen sending its old mode after a SELECT (uart-peers.md 3.4).
+    return SensorDef(32, 'lego-ev3-gyro', 2, modes, old_mode=True)
 
 
 GYRO = _gyro(True)
@@ -490,7 +497,7 @@ class EmulatedSensor(threading.Thread):
 
     def __init__(self, path, kind, hostile=False, seed=1, boot_delay=0.5, period_scale=1.0,
                  host_tty=None, retry_delay=None, fast_sync=None, pace=False, gate=None,
-                 flaky=False, ignore_select=False, rude=None):
+                 flaky=False, ignore_select=False, rude=None, old_mode=None):
         """period_scale > 1 slows the spontaneous cadence of continuous modes
         (NACK replies stay immediate): several emulators in one Python
         process inside an emulated machine cannot all keep real cadences
@@ -522,7 +529,12 @@ class EmulatedSensor(threading.Thread):
         within the same millisecond.
 
         rude: True for all of RUDE_ALL, or some of their names (see the top
-        of the file); None or () for a polite sensor."""
+        of the file); None or () for a polite sensor.
+
+        old_mode: False makes a sensor whose definition says it goes on in
+        the old mode during a SELECT (the gyro) switch at once and be quiet
+        meanwhile, True makes any sensor go on (as rude='old-mode'); None:
+        as its definition says."""
         super().__init__(daemon=True)
         if rude is True:
             rude = RUDE_ALL
@@ -531,7 +543,7 @@ class EmulatedSensor(threading.Thread):
         self.rude = frozenset(rude or ())
         if not self.rude <= set(RUDE_ALL):
             raise ValueError('rude: %s' % ', '.join(sorted(self.rude - set(RUDE_ALL))))
-        self.old_mode_frames = 0    # (rude) old-mode frames sent while a SELECT was pending
+        self.old_mode_frames = 0    # old-mode frames sent while a SELECT was pending
         self.glitches = 0           # (rude) glitch bytes sent at the baud switch
         self.garbage_bytes = 0      # (rude) random bytes sent in the data phase
         self.sync_garbage_bytes = 0     # (rude) and before handshakes
@@ -545,6 +557,10 @@ class EmulatedSensor(threading.Thread):
         self.sdef = SENSORS[kind] if isinstance(kind, str) else kind
         self.fast_sync = getattr(self.sdef, 'fast_sync', False) if fast_sync is None \
             else fast_sync
+        if old_mode is None:
+            old_mode = RUDE_OLD_MODE in self.rude or \
+                (getattr(self.sdef, 'old_mode', False) and getattr(self.sdef, 'quirks', True))
+        self.old_mode = old_mode
         self.pace = pace
         self.flaky = flaky
         self.ignore_select = ignore_select
@@ -956,8 +972,8 @@ class EmulatedSensor(threading.Thread):
         quiet = False
         looked = False
         host_ext = 0                # the host's last EXT_MODE (Powered Up)
-        # (rude) the old mode goes on while a SELECT is pending.
-        old = RUDE_OLD_MODE in self.rude
+        # (the gyro, or rude) the old mode goes on while a SELECT is pending.
+        old = self.old_mode
         self.changed = True
         while not self.stopping.is_set():
             now = time.monotonic()

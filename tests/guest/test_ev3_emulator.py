@@ -131,10 +131,13 @@ def split_data(data):
     return msgs, junk
 
 
-def test_rude_sensor_sends_the_old_mode_until_it_switches():
-    """The gyro goes on in GYRO-ANG for the 15 ms it takes to switch to
-    GYRO-G&A: one message right after the SELECT, then its cadence."""
-    emu, fd, master = host_side('gyro', rude='old-mode')
+@pytest.mark.parametrize('kind,kw', [('gyro', {}), ('color', {'rude': 'old-mode'})])
+def test_sensor_sends_the_old_mode_until_it_switches(kind, kw):
+    """The gyro, as real ones do (and any sensor made rude so), goes on in
+    its old mode until it has switched (GYRO-ANG for the 15 ms it takes to
+    switch to GYRO-G&A): one message right after the SELECT, then its
+    cadence."""
+    emu, fd, master = host_side(kind, **kw)
     try:
         connect_by_hand(emu, fd)
         read_for(fd, 0.3, nack_every=0.1)
@@ -153,8 +156,9 @@ def test_rude_sensor_sends_the_old_mode_until_it_switches():
         os.close(master)
 
 
-def test_polite_sensor_is_quiet_while_it_switches():
-    emu, fd, master = host_side('gyro')
+@pytest.mark.parametrize('kind,kw', [('gyro', {'old_mode': False}), ('color', {})])
+def test_polite_sensor_is_quiet_while_it_switches(kind, kw):
+    emu, fd, master = host_side(kind, **kw)
     try:
         connect_by_hand(emu, fd)
         read_for(fd, 0.3, nack_every=0.1)
