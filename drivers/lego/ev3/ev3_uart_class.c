@@ -50,7 +50,9 @@ static const struct ev3_uart_mode *current_mode(struct ev3_uart_sensor_dev *sd,
 	u8 buf[EV3_UART_MAX_PAYLOAD], mode;
 	int n;
 
-	n = ev3_uart_get_data(sd, &mode, data ?: buf);
+	/* The values wait until they can be trusted; the mode's fields not. */
+	n = data ? ev3_uart_get_values(sd, &mode, data) :
+		   ev3_uart_get_data(sd, &mode, buf);
 	if (n < 0)
 		return ERR_PTR(n);
 	if (len)

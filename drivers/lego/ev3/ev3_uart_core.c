@@ -227,7 +227,8 @@ static void ev3_uart_data_event(struct ev3_uart_port *port,
 {
 	struct ev3_uart_sensor_dev *sd = port->sensor;
 	const struct ev3_uart_view_ops *v;
-	bool changed = false, settled;
+	bool changed = false;
+	unsigned int settle_ms;
 	int i;
 
 	port->stats.data_msgs++;
@@ -244,19 +245,29 @@ static void ev3_uart_data_event(struct ev3_uart_port *port,
 	 */
 	if (ev->mode != sd->mode) {
 		sd->mode = ev->mode;
-		sd->settle_until = jiffies +
-			msecs_to_jiffies(ev3_uart_settle_ms(&sd->desc));
+		/* A whole settle time at least: one jiffy more. */
+		settle_ms = ev3_uart_settle_ms(&sd->desc);
+		sd->settle_until = jiffies + (settle_ms ?
+			msecs_to_jiffies(settle_ms) + 1 : 0);
+		WRITE_ONCE(sd->fresh, !settle_ms);
 		changed = true;
 	}
 	memcpy(sd->data, ev3_uart_parser_data(&port->parser), ev->len);
 	memset(sd->data + ev->len, 0, sizeof(sd->data) - ev->len);
 	sd->data_len = ev->len;
-	settled = !time_before(jiffies, sd->settle_until);
+	/*
+	 * Readers wait for a new mode's values until they can be trusted.
+	 * Compared only until then: jiffies wrap around.
+	 */
+	if (!sd->fresh && !time_before(jiffies, sd->settle_until)) {
+		WRITE_ONCE(sd->fresh, true);
+		wake_up_all(&sd->fresh_wait);
+	}
 	for (i = 0; i < EV3_UART_MAX_VIEWS && ev3_uart_views[i]; i++) {
 		v = ev3_uart_views[i];
 		if (changed && v->mode_changed)
 			v->mode_changed(sd);
-		if (settled && v->data)
+		if (sd->fresh && v->data)
 			v->data(sd, ev->mode, sd->data, ev->len, rest);
 	}
 	if (port->select_mode == ev->mode &&
@@ -643,6 +654,8 @@ ev3_uart_sensor_create(struct ev3_uart_port *port,
 	sd->held_mode = EV3_UART_NO_MODE;
 	sd->lent_mode = EV3_UART_NO_MODE;
 	sd->settle_until = jiffies;
+	sd->fresh = true;
+	init_waitqueue_head(&sd->fresh_wait);
 	if (name)
 		strscpy(sd->driver_name, name, sizeof(sd->driver_name));
 	else
@@ -674,6 +687,8 @@ static void ev3_uart_sensor_destroy(struct ev3_uart_sensor_dev *sd)
 {
 	int n = 0;
 
+	/* Readers waiting for fresh values: it is gone (their views go). */
+	wake_up_all(&sd->fresh_wait);
 	while (n < EV3_UART_MAX_VIEWS && ev3_uart_views[n])
 		n++;
 	ev3_uart_views_remove(sd, n);
@@ -1094,6 +1109,57 @@ int ev3_uart_get_data(struct ev3_uart_sensor_dev *sd, u8 *mode, u8 *data)
 	return len;
 }
 
+/**
+ * ev3_uart_get_values() - read a sensor's current mode and values, once
+ *	they can be trusted
+ * @sd: the sensor
+ * @mode: its current mode
+ * @data: %EV3_UART_MAX_PAYLOAD bytes for the last DATA payload
+ *
+ * As ev3_uart_get_data(), but right after the sensor switched to a mode
+ * whose first values may be stale (the infrared sensor's for 1.1 s, the
+ * colour sensor's for 30 ms: ev3_uart_settle_ms()) it sleeps until the
+ * first DATA message after that time, as a read of a converter waits for
+ * its conversion: a value read is never one the sensor sent before its new
+ * mode's values were good. Until the sensor confirms a SELECT its old mode
+ * is the current one, with its values: no wait then.
+ *
+ * Return: the payload length, -%ENODEV if the sensor is gone, -%EAGAIN if
+ * no DATA message came in the settle time and 250 ms after it,
+ * -%ERESTARTSYS if interrupted.
+ */
+int ev3_uart_get_values(struct ev3_uart_sensor_dev *sd, u8 *mode, u8 *data)
+{
+	struct ev3_uart_port *port = sd->port;
+	long left = msecs_to_jiffies(ev3_uart_settle_ms(&sd->desc) +
+				     EV3_UART_SELECT_WAIT_MS) + 1;
+	int len;
+
+	for (;;) {
+		spin_lock(&port->lock);
+		if (sd->gone) {
+			spin_unlock(&port->lock);
+			return -ENODEV;
+		}
+		if (sd->fresh) {
+			*mode = sd->mode;
+			memcpy(data, sd->data, EV3_UART_MAX_PAYLOAD);
+			len = sd->data_len;
+			spin_unlock(&port->lock);
+			return len;
+		}
+		spin_unlock(&port->lock);
+		if (!left)
+			return -EAGAIN;
+		left = wait_event_interruptible_timeout(sd->fresh_wait,
+							READ_ONCE(sd->fresh) ||
+							READ_ONCE(sd->gone),
+							left);
+		if (left < 0)
+			return left;
+	}
+}
+
 /*
  * Wait until a new mode's values can be trusted: until @settle, then for one
  * DATA message received after it (the last one before may be stale too).
@@ -1227,7 +1293,8 @@ static int ev3_uart_select_send(struct ev3_uart_sensor_dev *sd, u8 mode,
 		ret = -ENODEV;
 	} else if (left > 0 && !ret) {
 		ev3_uart_requested(port, sd, mode);
-		*settle = sd->settle_until;
+		/* Nothing to wait out once fresh (and jiffies wrap around). */
+		*settle = sd->fresh ? 0 : sd->settle_until;
 	} else if (!ret) {
 		ret = left < 0 ? left : -ETIMEDOUT;
 	}

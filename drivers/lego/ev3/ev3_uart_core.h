@@ -79,6 +79,7 @@
 #include <linux/mutex.h>
 #include <linux/ratelimit.h>
 #include <linux/spinlock.h>
+#include <linux/wait.h>
 #include <linux/workqueue.h>
 #include <linux/lego_ev3_uart.h>
 
@@ -178,6 +179,10 @@ struct ev3_uart_transport_ops {
  * @data_len: its length (under @port->lock)
  * @settle_until: jiffies before which values of a new mode may be stale
  *	(under @port->lock)
+ * @fresh: @data can be trusted: false from a switch to a mode that may
+ *	send stale values first (ev3_uart_settle_ms()) until its first DATA
+ *	message after @settle_until (under @port->lock)
+ * @fresh_wait: readers of the values waiting for @fresh (or @gone)
  * @held_mode: the mode an IIO buffer holds the sensor to, or
  *	%EV3_UART_NO_MODE (under @port->lock and &ev3_uart_port.select_mutex)
  * @lent_mode: the mode ev3_uart_set_mode_data() switched the sensor to for
@@ -201,6 +206,8 @@ struct ev3_uart_sensor_dev {
 	u8 data[EV3_UART_MAX_PAYLOAD];
 	u8 data_len;
 	unsigned long settle_until;
+	bool fresh;
+	wait_queue_head_t fresh_wait;
 	u8 held_mode;
 	u8 lent_mode;
 	u8 combo_len;
@@ -218,8 +225,8 @@ struct ev3_uart_sensor_dev {
  * @remove: the sensor is gone and out of the receive path's reach:
  *	remove its devices and wait for their callbacks (may sleep)
  * @data: a DATA message of @mode, @len bytes, @rest bytes before the end
- *	of the batch received (for its timestamp), its values settled (see
- *	&ev3_uart_sensor_dev.settle_until); under the port lock, never sleeps
+ *	of the batch received (for its timestamp), its values fresh (see
+ *	&ev3_uart_sensor_dev.fresh); under the port lock, never sleeps
  * @mode_changed: the sensor switched to another mode; under the port
  *	lock, never sleeps
  *
@@ -358,6 +365,7 @@ void ev3_uart_sensor_put(struct ev3_uart_sensor_dev *sd);
 const char *ev3_uart_sensor_name(const struct ev3_uart_sensor_dev *sd);
 bool ev3_uart_sensor_log_ok(struct ev3_uart_sensor_dev *sd);
 int ev3_uart_get_data(struct ev3_uart_sensor_dev *sd, u8 *mode, u8 *data);
+int ev3_uart_get_values(struct ev3_uart_sensor_dev *sd, u8 *mode, u8 *data);
 int ev3_uart_set_mode(struct ev3_uart_sensor_dev *sd, u8 mode);
 int ev3_uart_set_mode_by_name(struct ev3_uart_sensor_dev *sd, const char *name);
 int ev3_uart_hold_mode(struct ev3_uart_sensor_dev *sd, u8 mode);

@@ -81,7 +81,7 @@ static int ev3_iio_read_raw(struct iio_dev *indio, struct iio_chan_spec const *c
 
 	switch (mask) {
 	case IIO_CHAN_INFO_RAW:
-		ret = ev3_uart_get_data(iio->sd, &mode, data);
+		ret = ev3_uart_get_values(iio->sd, &mode, data);
 		if (ret < 0)
 			return ret;
 		if (mode != c->mode)
