@@ -6,7 +6,7 @@ out=$1
 shift
 cd "$(dirname "$0")/../.."
 rc=0
-for b in ev3_bench nxt_bench nxt_bt_bench; do
+for b in ev3_bench ev3_profile nxt_bench nxt_bt_bench; do
 	echo "==> $b"
 	t0=$SECONDS
 	python3 "tests/bench/guest/$b.py" --out "$out" "$@" || { echo "bench: $b failed"; rc=1; }

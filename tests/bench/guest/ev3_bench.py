@@ -575,6 +575,9 @@ def spread(values, fmt='%.1f'):
         statistics.median(values), min(values), max(values))
 
 
+CPU_GOAL = 0.7             # issue 32: the discipline's CPU per sample / N_TTY's
+
+
 def sample_figures(n, runs):
     iio = [r[1] for r in runs]
     tty = [r[2] for r in runs]
@@ -640,6 +643,17 @@ def sample_figures(n, runs):
                   spread([b['rate'] * 100 for b in base], '%.2f'),
                   statistics.median(b['gen_cpu'] / max(b['sent'], 1) * 1e6 for b in base))),
     ]
+    # Issue 32's goal, 16 sensors: at most CPU_GOAL x the reference's CPU per
+    # sample, in every run (each run's ratio, the paths measured in turn).
+    ratios = [d / r for d, r in zip(drv, ref)]
+    figs.append(figure(
+        '%s: CPU per sample, lego_ev3_uart path / N_TTY reference' % label,
+        round(statistics.median(ratios), 2), 'x', 'the reference\'s CPU per sample', 1.0,
+        'at most %.1f x in every run (issue 32)' % CPU_GOAL, max(ratios) <= CPU_GOAL,
+        '%d runs: median %.2f, min %.2f, max %.2f (each run\'s driver path over the reference '
+        'path measured in the same round); where the CPU goes: the section "EV3 sample delivery: '
+        'where the CPU goes" (ev3_profile.py)' % (len(ratios), statistics.median(ratios),
+                                                   min(ratios), max(ratios))))
     return figs, '%d sensors, %d runs: %s.' % (n, len(runs), verdict)
 
 
