@@ -165,7 +165,7 @@ static ssize_t mode_data_store(struct device *dev, struct device_attribute *attr
 	p = strim(copy);
 	t = strsep(&p, " ");
 	mode = ev3_uart_find_mode(&sd->desc, t);
-	ret = mode < 0 ? mode : 0;
+	ret = min(mode, 0);
 	while (!ret && p) {
 		t = strsep(&p, " ");
 		if (!*t)
