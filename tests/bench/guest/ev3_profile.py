@@ -9,7 +9,7 @@ reader, and the userspace reference, N_TTY with the same reader decoding)
 under `perf record -g -e cpu-clock -a`, the only event a TCG guest has.
 Each sample goes to a group by the first of these functions in its call
 chain: ev3_uart_port_receive (the discipline's parsing and IIO push, in
-the tty layer's receive work), n_tty_receive_buf (N_TTY), flush_to_ldisc
+the tty layer's receive work), n_tty_receive_* (N_TTY), flush_to_ldisc
 (the rest of the tty layer's flip buffer work), the discipline's
 keep-alive, port and send work; else by its task: the reader's system
 calls and user space, the interrupts and soft interrupts that ran while
@@ -51,7 +51,9 @@ GROUPS = ('the discipline: parsing and IIO push', 'N_TTY receive',
 # The last group is not in the CPU per sample that ev3_bench.py measures
 # (task time only): shown at the same scale, apart.
 IRQ_IDLE = GROUPS[-1]
-FRAMES = (('ev3_uart_port_receive', GROUPS[0]), ('n_tty_receive_buf', GROUPS[1]),
+# (A name ending in _ stands for every function it begins: n_tty_receive_buf2(),
+# n_tty_receive_buf_common() and the rest.)
+FRAMES = (('ev3_uart_port_receive', GROUPS[0]), ('n_tty_receive_', GROUPS[1]),
           ('flush_to_ldisc', GROUPS[2]), ('ev3_uart_keepalive_work', GROUPS[3]),
           ('ev3_uart_work', GROUPS[3]), ('ev3_uart_tx_work', GROUPS[3]))
 IDLE = ('default_idle', 'cpuidle', 'do_idle', 'pv_native_safe_halt', 'acpi_idle')
@@ -62,7 +64,7 @@ def group(comm, frames):
     (innermost first), or None for the idle loop."""
     for fn in frames:
         for name, g in FRAMES:
-            if fn == name:
+            if fn == name or (name.endswith('_') and fn.startswith(name)):
                 return g
     if comm.startswith('ev3_read'):
         return GROUPS[4] if any(fn.startswith(('__x64_sys', 'entry_SYSCALL', 'do_syscall'))
