@@ -200,6 +200,19 @@ static u8 ev3_uart_data_hdr(const struct ev3_uart_event *ev)
 }
 
 /*
+ * DATA of @mode came: if it is the mode a SELECT waits for and the parser
+ * has no switch pending any more, the SELECT is confirmed. @lock held.
+ */
+static void ev3_uart_select_confirm(struct ev3_uart_port *port, u8 mode)
+{
+	if (port->select_mode == mode &&
+	    ev3_uart_parser_pending(&port->parser) == EV3_UART_NO_MODE) {
+		port->select_mode = EV3_UART_NO_MODE;
+		complete(&port->select_done);
+	}
+}
+
+/*
  * A DATA message of the mode a write of values borrows the sensor in
  * (ev3_uart_set_mode_data()): it confirms the SELECT of that mode, but
  * the user's mode and values stay. Return: true if @ev was one. @lock held.
@@ -210,11 +223,7 @@ static bool ev3_uart_lent_data(struct ev3_uart_port *port,
 {
 	if (sd->lent_mode == EV3_UART_NO_MODE || ev->mode != sd->lent_mode)
 		return false;
-	if (port->select_mode == ev->mode &&
-	    ev3_uart_parser_pending(&port->parser) == EV3_UART_NO_MODE) {
-		port->select_mode = EV3_UART_NO_MODE;
-		complete(&port->select_done);
-	}
+	ev3_uart_select_confirm(port, ev->mode);
 	return true;
 }
 
@@ -270,11 +279,7 @@ static void ev3_uart_data_event(struct ev3_uart_port *port,
 		if (sd->fresh && v->data)
 			v->data(sd, ev->mode, sd->data, ev->len, rest);
 	}
-	if (port->select_mode == ev->mode &&
-	    ev3_uart_parser_pending(&port->parser) == EV3_UART_NO_MODE) {
-		port->select_mode = EV3_UART_NO_MODE;
-		complete(&port->select_done);
-	}
+	ev3_uart_select_confirm(port, ev->mode);
 }
 
 /* The sensor's ACK ended its handshake: ours goes 10 ms later. @lock held. */
